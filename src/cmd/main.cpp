@@ -1,0 +1,230 @@
+// microbsdf: the command-line entry point (DESIGN.md "Command line").
+//   microbsdf run JOB.toml [-o OUT.h5] [--threads N] [--log-dir DIR] [-v]
+//   microbsdf info OUT.h5 [--json]
+//   microbsdf slice OUT.h5 --theta-i DEG [--phi-i DEG] [--model GM] [--transmission] -o x.exr|x.csv
+//   microbsdf geometry JOB.toml -o patch.ply
+//   microbsdf check JOB.toml
+// Exit codes: 0 success, 2 bad input (job file, mesh, heightfield, arguments), 1 other failure.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+
+#include "core/error.h"
+#include "core/log.h"
+#include "dist/mpi_session.h"
+#include "dist/runner.h"
+#include "geometry/microgeometry.h"
+#include "io/bsdf_file.h"
+#include "io/slice_export.h"
+#include "job/job.h"
+
+using namespace mbsdf;
+
+namespace {
+
+constexpr int kExitInput = 2, kExitFailure = 1;
+
+nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
+  nlohmann::json j;
+  j["file"] = path;
+  j["schema_version"] = f.intAttribute("schema_version");
+  j["program_version"] = f.attribute("program_version");
+  j["geometry_kind"] = f.attribute("geometry_kind");
+  j["geometry_hash"] = f.attribute("geometry_hash");
+  j["material"] = f.attribute("material");
+  j["grid"] = f.grid().kind();
+  j["bins"] = f.grid().binCount();
+  j["wavelengths_nm"] = f.wavelengths_nm();
+  j["components"] = f.components();
+  int done = 0;
+  nlohmann::json slices = nlohmann::json::array();
+  for (int i = 0; i < f.incidenceCount(); ++i) {
+    nlohmann::json s;
+    s["index"] = i;
+    s["bin"] = f.incidenceBin(i);
+    s["theta_deg"] = f.incidenceTheta(i);
+    s["phi_deg"] = f.incidencePhi(i);
+    s["done"] = f.done(i);
+    if (f.done(i)) {
+      ++done;
+      SliceStats st = f.stats(i);
+      s["samples"] = st.samples;
+      s["seconds"] = st.seconds;
+      s["truncated"] = st.truncated;
+      s["leaked"] = st.leaked;
+      s["missed"] = st.missed;
+      for (auto& [c, v] : st.energyReflected) s["energy"]["reflected"][c] = v;
+      for (auto& [c, v] : st.energyTransmitted) s["energy"]["transmitted"][c] = v;
+      // Albedo of the components together, per wavelength (reflected + transmitted).
+      std::vector<double> total(f.wavelengths_nm().size(), 0.0);
+      for (auto& [c, v] : st.energyReflected)
+        for (size_t l = 0; l < v.size(); ++l) total[l] += v[l] + st.energyTransmitted[c][l];
+      s["energy"]["total"] = total;
+    }
+    slices.push_back(s);
+  }
+  j["incidence_count"] = f.incidenceCount();
+  j["done_count"] = done;
+  j["complete"] = done == f.incidenceCount();
+  j["slices"] = slices;
+  return j;
+}
+
+void printInfo(const nlohmann::json& j) {
+  std::cout << "file:        " << j["file"].get<std::string>() << "\n"
+            << "geometry:    " << j["geometry_kind"].get<std::string>() << " (hash " << j["geometry_hash"].get<std::string>()
+            << ")\n"
+            << "material:    " << j["material"].get<std::string>() << "\n"
+            << "grid:        " << j["grid"].get<std::string>() << ", " << j["bins"] << " bins over the sphere\n"
+            << "wavelengths: " << j["wavelengths_nm"].dump() << " nm\n"
+            << "components:  " << j["components"].dump() << "\n"
+            << "complete:    " << j["done_count"] << "/" << j["incidence_count"] << " slices\n";
+  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  reflected  transmitted  truncated\n";
+  for (const auto& s : j["slices"]) {
+    if (!s["done"].get<bool>()) continue;
+    auto mean = [](const nlohmann::json& a) {
+      double m = 0;
+      for (auto& v : a) m += v.get<double>();
+      return a.empty() ? 0.0 : m / a.size();
+    };
+    double refl = 0, trans = 0;
+    for (auto& [c, v] : s["energy"]["reflected"].items()) refl += mean(v);
+    for (auto& [c, v] : s["energy"]["transmitted"].items()) trans += mean(v);
+    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.6f %12.6f %10.2e\n", s["index"].get<int>(),
+                s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
+                (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(), refl + trans, refl, trans,
+                mean(s["truncated"]));
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"microbsdf: tabulated BSDFs (BRDF + BTDF) of explicit surface microgeometry"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", MICROBSDF_VERSION);
+
+  std::string jobPath, outPath, logDir, h5Path, model = "GM";
+  int threads = 0, sliceSize = 256;
+  bool verbose = false, json = false, transmission = false;
+  double thetaI = 0, phiI = 0;
+
+  auto* run = app.add_subcommand("run", "compute the BSDF of a job (run it under mpirun/srun for several ranks)");
+  run->add_option("job", jobPath, "job file (TOML)")->required();
+  run->add_option("-o,--output", outPath, "output HDF5 file (default: [output] path of the job)");
+  run->add_option("--threads", threads, "threads per rank (default: all cores)");
+  run->add_option("--log-dir", logDir, "folder for the per-rank log files (default: <output>.logs)");
+  run->add_flag("-v,--verbose", verbose, "debug-level logging");
+
+  auto* info = app.add_subcommand("info", "provenance, completeness and energy per slice of an output file");
+  info->add_option("file", h5Path, "output HDF5 file")->required();
+  info->add_flag("--json", json, "machine-readable summary");
+
+  auto* slice = app.add_subcommand("slice", "export one BSDF slice as EXR (disk projection) or CSV");
+  slice->add_option("file", h5Path, "output HDF5 file")->required();
+  slice->add_option("--theta-i", thetaI, "incidence polar angle (degrees); the nearest computed slice is used");
+  slice->add_option("--phi-i", phiI, "incidence azimuth (degrees)");
+  slice->add_option("--model", model, "GS, GM, WS, WM or a component name")->capture_default_str();
+  slice->add_flag("--transmission", transmission, "exit directions in the lower hemisphere (BTDF)");
+  slice->add_option("--size", sliceSize, "EXR image size in pixels")->capture_default_str();
+  slice->add_option("-o,--output", outPath, "x.exr or x.csv")->required();
+
+  auto* geometry = app.add_subcommand("geometry", "write the job's microgeometry patch as PLY");
+  geometry->add_option("job", jobPath, "job file (TOML)")->required();
+  geometry->add_option("-o,--output", outPath, "patch.ply")->required();
+
+  auto* check = app.add_subcommand("check", "validate a job file and print what it describes");
+  check->add_option("job", jobPath, "job file (TOML)")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    int code = app.exit(e);
+    return code == 0 ? 0 : kExitInput;
+  }
+
+  if (run->parsed()) {
+    MpiSession mpi(&argc, &argv);
+    setupLogging(mpi.rank(), "", "", verbose);
+    std::optional<Job> job;
+    std::string error;
+    try {
+      job = loadJob(jobPath);
+    } catch (const InputError& e) {
+      error = e.what();
+    } catch (const std::exception& e) {
+      error = std::string(jobPath) + ": " + e.what();
+    }
+    // Fail together: every rank exits non-zero, one message from rank 0, no hang.
+    if (mpi.anyRank(!error.empty())) {
+      if (mpi.rank() == 0) spdlog::error("{}", error.empty() ? "another rank could not read the job" : error);
+      return kExitInput;
+    }
+    std::string out = outPath.empty() ? job->outputPath : outPath;
+    if (logDir.empty()) logDir = out + ".logs";
+    setupLogging(mpi.rank(), logDir, std::filesystem::path(out).stem().string(), verbose);
+    try {
+      RunOptions opt;
+      opt.outputPath = out;
+      opt.threads = threads;
+      RunSummary s = runJob(*job, mpi, opt);
+      if (mpi.rank() == 0)
+        spdlog::info("done: {} tiles, {} paths per wavelength group in total, {:.2f} s, wrote {}", s.tiles, s.paths,
+                     s.seconds, out);
+    } catch (const std::exception& e) {
+      spdlog::error("run failed: {}", e.what());
+      MPI_Abort(MPI_COMM_WORLD, kExitFailure);
+      return kExitFailure;
+    }
+    return 0;
+  }
+
+  try {
+    if (info->parsed()) {
+      BsdfFileReader f(h5Path);
+      nlohmann::json j = infoJson(f, h5Path);
+      if (json) std::cout << j.dump(2) << "\n";
+      else printInfo(j);
+      return 0;
+    }
+    if (slice->parsed()) {
+      BsdfFileReader f(h5Path);
+      SliceRequest req{thetaI, phiI, model, transmission, sliceSize};
+      int inc = exportSlice(f, req, outPath);
+      std::cerr << "wrote " << outPath << " (incidence theta " << f.incidenceTheta(inc) << ", phi "
+                << f.incidencePhi(inc) << ")\n";
+      return 0;
+    }
+    if (geometry->parsed()) {
+      Job job = loadJob(jobPath);
+      writePly(job.geometry, outPath);
+      std::cerr << "wrote " << outPath << ": " << job.geometry.vertices.size() << " vertices, "
+                << job.geometry.triangles.size() << " triangles, " << job.geometry.sizeX << " x " << job.geometry.sizeY
+                << " µm, z in [" << job.geometry.zMin() << ", " << job.geometry.zMax() << "] µm\n";
+      return 0;
+    }
+    if (check->parsed()) {
+      Job job = loadJob(jobPath);
+      DirectionGrid grid(job.gridLayout);
+      std::cout << jobPath << ": ok\n  geometry " << job.geometryKind << ", " << job.geometry.triangles.size()
+                << " triangles, " << job.geometry.sizeX << " x " << job.geometry.sizeY << " µm\n  material "
+                << job.material.describe() << "\n  " << job.lambda_nm.size() << " wavelengths, grid " << grid.kind()
+                << " with " << grid.binCount() << " bins, " << job.incidence.size() << " incidence directions\n";
+      return 0;
+    }
+  } catch (const InputError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInput;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInput;
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitFailure;
+  }
+  return 0;
+}

@@ -1,0 +1,181 @@
+#include "core/direction_grid.h"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace mbsdf {
+namespace {
+
+template <class... Ts>
+struct Overloaded : Ts... { using Ts::operator()...; };
+template <class... Ts>
+Overloaded(Ts...) -> Overloaded<Ts...>;
+
+// Disk pixel (i, j) covers x in [-1 + 2i/W, -1 + 2(i+1)/W], y likewise. Its projected solid
+// angle is the area of (pixel ∩ unit disk); its solid angle is the integral of 1/cos theta over
+// that area. Both are computed by midpoint quadrature on a sub-grid; the solid-angle integrand
+// is integrable but singular at the rim, so the rim pixels use a finer sub-grid.
+void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* omegaProj) {
+  double x0 = -1 + 2.0 * i / g.width, y0 = -1 + 2.0 * j / g.height;
+  double dx = 2.0 / g.width, dy = 2.0 / g.height;
+  // Corner test: fully inside, fully outside, or on the rim.
+  double rmin2 = 1e9, rmax2 = 0;
+  for (int c = 0; c < 4; ++c) {
+    double x = x0 + dx * (c & 1), y = y0 + dy * (c >> 1);
+    rmax2 = std::max(rmax2, x * x + y * y);
+  }
+  double cx = std::clamp(0.0, x0, x0 + dx), cy = std::clamp(0.0, y0, y0 + dy);
+  rmin2 = cx * cx + cy * cy;
+  if (rmin2 >= 1.0) { *omega = 0; *omegaProj = 0; return; }
+  int sub = rmax2 <= 1.0 ? 16 : 256;
+  double a = 0, s = 0, da = dx * dy / (double(sub) * sub);
+  for (int u = 0; u < sub; ++u)
+    for (int v = 0; v < sub; ++v) {
+      double x = x0 + dx * (u + 0.5) / sub, y = y0 + dy * (v + 0.5) / sub;
+      double r2 = x * x + y * y;
+      if (r2 >= 1.0) continue;
+      a += da;
+      s += da / std::sqrt(1.0 - r2);
+    }
+  *omega = s;
+  *omegaProj = a;
+}
+
+}  // namespace
+
+DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
+  std::visit(Overloaded{
+                 [&](const ThetaPhiGrid& g) {
+                   if (g.nTheta < 1 || g.nPhi < 1) throw std::invalid_argument("grid size must be >= 1");
+                   perHemisphere_ = g.nTheta * g.nPhi;
+                   omega_.resize(perHemisphere_);
+                   omegaProj_.resize(perHemisphere_);
+                   double dPhi = 2 * kPi / g.nPhi, dTheta = 0.5 * kPi / g.nTheta;
+                   for (int t = 0; t < g.nTheta; ++t) {
+                     double t0 = t * dTheta, t1 = (t + 1) * dTheta;
+                     double om = dPhi * (std::cos(t0) - std::cos(t1));
+                     double s0 = std::sin(t0), s1 = std::sin(t1);
+                     double op = dPhi * (s1 * s1 - s0 * s0) / 2;  // PHYSICS.md §2
+                     for (int p = 0; p < g.nPhi; ++p) {
+                       omega_[t * g.nPhi + p] = om;
+                       omegaProj_[t * g.nPhi + p] = op;
+                     }
+                   }
+                 },
+                 [&](const DiskGrid& g) {
+                   if (g.width < 1 || g.height < 1) throw std::invalid_argument("grid size must be >= 1");
+                   perHemisphere_ = g.width * g.height;
+                   omega_.resize(perHemisphere_);
+                   omegaProj_.resize(perHemisphere_);
+                   for (int j = 0; j < g.height; ++j)
+                     for (int i = 0; i < g.width; ++i)
+                       diskPixelMeasures(g, i, j, &omega_[j * g.width + i], &omegaProj_[j * g.width + i]);
+                 }},
+             layout_);
+}
+
+std::string DirectionGrid::kind() const {
+  return std::holds_alternative<ThetaPhiGrid>(layout_) ? "theta-phi" : "disk";
+}
+
+int DirectionGrid::binOf(const Vec3& wIn) const {
+  Vec3 w = normalize(wIn);
+  int hemi = w.z >= 0 ? 0 : 1;
+  int local = std::visit(
+      Overloaded{[&](const ThetaPhiGrid& g) {
+                   double theta = std::acos(std::min(1.0, std::abs(w.z)));
+                   int t = std::min(g.nTheta - 1, int(theta / (0.5 * kPi) * g.nTheta));
+                   int p = std::min(g.nPhi - 1, int(sphericalPhi(w) / (2 * kPi) * g.nPhi));
+                   return t * g.nPhi + p;
+                 },
+                 [&](const DiskGrid& g) {
+                   int i = std::clamp(int((w.x + 1) * 0.5 * g.width), 0, g.width - 1);
+                   int j = std::clamp(int((w.y + 1) * 0.5 * g.height), 0, g.height - 1);
+                   return j * g.width + i;
+                 }},
+      layout_);
+  return hemi * perHemisphere_ + local;
+}
+
+Vec3 DirectionGrid::centre(int bin) const {
+  int hemi = bin / perHemisphere_, local = bin % perHemisphere_;
+  Vec3 w = std::visit(
+      Overloaded{[&](const ThetaPhiGrid& g) {
+                   int t = local / g.nPhi, p = local % g.nPhi;
+                   return sphericalDirection((t + 0.5) * 0.5 * kPi / g.nTheta, (p + 0.5) * 2 * kPi / g.nPhi);
+                 },
+                 [&](const DiskGrid& g) {
+                   int i = local % g.width, j = local / g.width;
+                   double x = -1 + 2.0 * (i + 0.5) / g.width, y = -1 + 2.0 * (j + 0.5) / g.height;
+                   double r2 = x * x + y * y;
+                   if (r2 > 1) { double r = std::sqrt(r2); x /= r; y /= r; r2 = 1; }
+                   return Vec3{x, y, std::sqrt(std::max(0.0, 1 - r2))};
+                 }},
+      layout_);
+  if (hemi == 1) w.z = -w.z;
+  return w;
+}
+
+DirectionSample DirectionGrid::sampleUniform(int bin, double u1, double u2) const {
+  int hemi = bin / perHemisphere_, local = bin % perHemisphere_;
+  double meanCos = omegaProj_[local] / omega_[local];
+  DirectionSample s = std::visit(
+      Overloaded{[&](const ThetaPhiGrid& g) {
+                   int t = local / g.nPhi, p = local % g.nPhi;
+                   double c0 = std::cos(t * 0.5 * kPi / g.nTheta), c1 = std::cos((t + 1) * 0.5 * kPi / g.nTheta);
+                   double cosT = c0 + (c1 - c0) * u1;  // uniform in cos theta = uniform in solid angle
+                   double phi = (p + u2) * 2 * kPi / g.nPhi;
+                   double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
+                   return DirectionSample{{sinT * std::cos(phi), sinT * std::sin(phi), cosT}, cosT / meanCos};
+                 },
+                 [&](const DiskGrid& g) {
+                   // Uniform in solid angle = density ∝ 1/cos on the disk: rejection from the
+                   // cosine-distributed sample would be unbounded at the rim, so use the cosine
+                   // sample with weight 1 and report it as such (the weight makes it unbiased
+                   // for the cosine-weighted bin averages that every caller needs).
+                   return sampleCosine(local, u1, u2);
+                 }},
+      layout_);
+  if (hemi == 1) s.w.z = -s.w.z;
+  return s;
+}
+
+DirectionSample DirectionGrid::sampleCosine(int bin, double u1, double u2) const {
+  int hemi = bin / perHemisphere_, local = bin % perHemisphere_;
+  DirectionSample s = std::visit(
+      Overloaded{[&](const ThetaPhiGrid& g) {
+                   int t = local / g.nPhi, p = local % g.nPhi;
+                   double s0 = std::sin(t * 0.5 * kPi / g.nTheta), s1 = std::sin((t + 1) * 0.5 * kPi / g.nTheta);
+                   // density ∝ cos theta sin theta: uniform in sin^2 theta
+                   double sin2 = s0 * s0 + (s1 * s1 - s0 * s0) * u1;
+                   double sinT = std::sqrt(sin2), cosT = std::sqrt(std::max(0.0, 1 - sin2));
+                   double phi = (p + u2) * 2 * kPi / g.nPhi;
+                   return DirectionSample{{sinT * std::cos(phi), sinT * std::sin(phi), cosT}, 1.0};
+                 },
+                 [&](const DiskGrid& g) {
+                   // Uniform on (pixel ∩ disk) = cosine-distributed directions; rejection of the
+                   // part of the pixel outside the disk with a deterministic fallback.
+                   int i = local % g.width, j = local / g.width;
+                   double x0 = -1 + 2.0 * i / g.width, y0 = -1 + 2.0 * j / g.height;
+                   double dx = 2.0 / g.width, dy = 2.0 / g.height;
+                   double a = u1, b = u2;
+                   for (int k = 0; k < 64; ++k) {
+                     double x = x0 + dx * a, y = y0 + dy * b;
+                     if (x * x + y * y < 1) return DirectionSample{{x, y, std::sqrt(1 - x * x - y * y)}, 1.0};
+                     // Low-discrepancy re-draw derived from the inputs (keeps determinism).
+                     a = std::fmod(a + 0.7548776662466927, 1.0);
+                     b = std::fmod(b + 0.5698402909980532, 1.0);
+                   }
+                   Vec3 c = centre(local);
+                   return DirectionSample{c, 1.0};
+                 }},
+      layout_);
+  if (hemi == 1) s.w.z = -s.w.z;
+  return s;
+}
+
+int DirectionGrid::binOfAngles(double theta_deg, double phi_deg) const {
+  return binOf(sphericalDirection(radians(theta_deg), radians(phi_deg)));
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,62 @@
+// Binning of directions on the full sphere (PHYSICS.md §2). Bin index = hemisphere * binsPerHemisphere
+// + local index, upper hemisphere (z >= 0) first. Two layouts, a closed set of value types:
+//  - ThetaPhiGrid: n_theta x n_phi bins per hemisphere, uniform in theta on [0, pi/2] and phi on
+//    [0, 2 pi) (the paper's tabulation, 75 x 300).
+//  - DiskGrid: orthographic projection of the hemisphere onto the unit disk, W x H pixels over
+//    [-1, 1]^2 (the paper's path-tracing image, Eq. 11); pixels outside the disk are empty bins.
+#pragma once
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "core/vecmath.h"
+
+namespace mbsdf {
+
+struct ThetaPhiGrid {
+  int nTheta = 75, nPhi = 300;
+};
+struct DiskGrid {
+  int width = 64, height = 64;
+};
+
+// A direction sampled inside a bin, with the Monte Carlo weight that makes the estimator of a
+// cosine-weighted average over the bin unbiased.
+struct DirectionSample {
+  Vec3 w;
+  double weight = 1.0;
+};
+
+class DirectionGrid {
+ public:
+  using Layout = std::variant<ThetaPhiGrid, DiskGrid>;
+  explicit DirectionGrid(Layout layout);
+
+  const Layout& layout() const { return layout_; }
+  std::string kind() const;
+  int binsPerHemisphere() const { return perHemisphere_; }
+  int binCount() const { return 2 * perHemisphere_; }
+
+  // Bin containing w (w need not be normalised). z == 0 goes to the upper hemisphere.
+  int binOf(const Vec3& w) const;
+  // Solid angle and projected solid angle (integral of |cos theta|) of a bin.
+  double solidAngle(int bin) const { return omega_[bin % perHemisphere_]; }
+  double projectedSolidAngle(int bin) const { return omegaProj_[bin % perHemisphere_]; }
+  bool isUpper(int bin) const { return bin < perHemisphere_; }
+  // Representative direction (bin centre in the grid's own parametrisation).
+  Vec3 centre(int bin) const;
+  // Uniform in solid angle inside the bin; weight = |cos theta| / mean |cos theta| over the bin.
+  DirectionSample sampleUniform(int bin, double u1, double u2) const;
+  // Density proportional to |cos theta| inside the bin (weight 1 for cosine-weighted averages).
+  DirectionSample sampleCosine(int bin, double u1, double u2) const;
+  // Bin for an incidence direction given in degrees (theta in [0, 180], phi any).
+  int binOfAngles(double theta_deg, double phi_deg) const;
+
+ private:
+  Layout layout_;
+  int perHemisphere_ = 0;
+  std::vector<double> omega_, omegaProj_;
+};
+
+}  // namespace mbsdf

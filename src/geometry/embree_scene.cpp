@@ -1,0 +1,131 @@
+#include "geometry/embree_scene.h"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace mbsdf {
+namespace {
+void embreeError(void*, RTCError code, const char* str) {
+  throw std::runtime_error(std::string("Embree error ") + std::to_string(int(code)) + ": " + (str ? str : ""));
+}
+}  // namespace
+
+EmbreeDevicePtr makeEmbreeDevice(const char* config) {
+  RTCDevice d = rtcNewDevice(config);
+  if (!d) throw std::runtime_error("Embree: cannot create device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+  rtcSetDeviceErrorFunction(d, embreeError, nullptr);
+  return EmbreeDevicePtr(d);
+}
+
+PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
+    : device_(makeEmbreeDevice()), sizeX_(g.sizeX), sizeY_(g.sizeY), periodic_(g.periodic), maxWraps_(maxWraps) {
+  double zmin = g.zMin(), zmax = g.zMax();
+  double extent = std::max({g.sizeX, g.sizeY, zmax - zmin});
+  // Float rounding of coordinates of size ~extent is ~6e-8 extent; offsets 100x above that.
+  eps_ = 1e-5 * extent;
+  double pad = 1e-3 * extent + 0.01 * (zmax - zmin);
+  zLo_ = zmin - pad;
+  zHi_ = zmax + pad;
+  scene_.reset(rtcNewScene(device_.get()));
+  rtcSetSceneFlags(scene_.get(), RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(scene_.get(), RTC_BUILD_QUALITY_HIGH);
+  RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* vb = static_cast<float*>(
+      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), g.vertices.size()));
+  for (size_t i = 0; i < g.vertices.size(); ++i) {
+    vb[3 * i] = float(g.vertices[i].x);
+    vb[3 * i + 1] = float(g.vertices[i].y);
+    vb[3 * i + 2] = float(g.vertices[i].z);
+  }
+  auto* ib = static_cast<unsigned*>(
+      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), g.triangles.size()));
+  for (size_t t = 0; t < g.triangles.size(); ++t)
+    for (int k = 0; k < 3; ++k) ib[3 * t + k] = g.triangles[t][k];
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(scene_.get(), geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(scene_.get());
+  normals_.resize(g.triangles.size());
+  for (size_t t = 0; t < g.triangles.size(); ++t) {
+    Vec3 n = g.triangleNormal(t);
+    double l = length(n);
+    normals_[t] = l > 0 ? n / l : Vec3(0, 0, 1);
+  }
+}
+
+bool PeriodicScene::intersectRaw(const Vec3& o, const Vec3& d, double tfar, double* t) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
+  rh.ray.dir_x = float(d.x); rh.ray.dir_y = float(d.y); rh.ray.dir_z = float(d.z);
+  rh.ray.tnear = 0.f;
+  rh.ray.tfar = float(tfar);
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.flags = 0;
+  rh.ray.time = 0.f;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(scene_.get(), &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  *t = rh.ray.tfar;
+  return true;
+}
+
+TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d) const {
+  const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zHi_};
+  const double size[2] = {sizeX_, sizeY_};
+  TraceResult r;
+  for (int wrap = 0; wrap <= maxWraps_; ++wrap) {
+    double tExit = std::numeric_limits<double>::infinity();
+    int face = 2;
+    for (int a = 0; a < 3; ++a) {
+      double t = std::numeric_limits<double>::infinity();
+      if (d[a] > 0) t = (hi[a] - o[a]) / d[a];
+      else if (d[a] < 0) t = (lo[a] - o[a]) / d[a];
+      if (t < tExit) { tExit = t; face = a; }
+    }
+    tExit = std::max(tExit, 0.0);
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh;
+    rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
+    rh.ray.dir_x = float(d.x); rh.ray.dir_y = float(d.y); rh.ray.dir_z = float(d.z);
+    rh.ray.tnear = 0.f;
+    rh.ray.tfar = float(tExit + eps_);
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.ray.flags = 0;
+    rh.ray.time = 0.f;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene_.get(), &ctx, &rh);
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+      r.kind = TraceResult::Kind::Hit;
+      r.t = rh.ray.tfar;
+      r.p = o + d * r.t;
+      r.n = normals_[rh.hit.primID];
+      r.prim = rh.hit.primID;
+      return r;
+    }
+    if (face == 2) {
+      r.kind = d.z > 0 ? TraceResult::Kind::EscapedUp : TraceResult::Kind::EscapedDown;
+      return r;
+    }
+    if (!periodic_) {
+      r.kind = TraceResult::Kind::EscapedSide;
+      return r;
+    }
+    // Re-enter from the opposite side at the same height with the same direction.
+    o = o + d * tExit;
+    o[face] = d[face] > 0 ? lo[face] : hi[face];
+    int other = 1 - face;
+    if (o[other] < lo[other]) o[other] += size[other];
+    if (o[other] > hi[other]) o[other] -= size[other];
+  }
+  r.kind = TraceResult::Kind::TooManyWraps;
+  return r;
+}
+
+}  // namespace mbsdf

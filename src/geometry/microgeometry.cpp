@@ -1,0 +1,144 @@
+#include "geometry/microgeometry.h"
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <tuple>
+
+#include "core/error.h"
+
+namespace mbsdf {
+
+double Microgeometry::zMin() const {
+  double z = std::numeric_limits<double>::infinity();
+  for (auto& v : vertices) z = std::min(z, v.z);
+  return z;
+}
+double Microgeometry::zMax() const {
+  double z = -std::numeric_limits<double>::infinity();
+  for (auto& v : vertices) z = std::max(z, v.z);
+  return z;
+}
+
+Vec3 Microgeometry::triangleNormal(size_t t) const {
+  const auto& tri = triangles[t];
+  return cross(vertices[tri[1]] - vertices[tri[0]], vertices[tri[2]] - vertices[tri[0]]);
+}
+
+double Microgeometry::surfaceArea() const {
+  double a = 0;
+  for (size_t t = 0; t < triangles.size(); ++t) a += triangleArea(t);
+  return a;
+}
+
+std::string Microgeometry::hash() const {
+  uint64_t h = 1469598103934665603ull;
+  auto mix = [&](const void* p, size_t n) {
+    auto* b = static_cast<const unsigned char*>(p);
+    for (size_t i = 0; i < n; ++i) { h ^= b[i]; h *= 1099511628211ull; }
+  };
+  mix(vertices.data(), vertices.size() * sizeof(Vec3));
+  mix(triangles.data(), triangles.size() * sizeof(triangles[0]));
+  mix(&sizeX, sizeof sizeX);
+  mix(&sizeY, sizeof sizeY);
+  char buf[20];
+  std::snprintf(buf, sizeof buf, "%016llx", (unsigned long long)h);
+  return buf;
+}
+
+void Microgeometry::weld(double tol) {
+  std::map<std::tuple<long long, long long, long long>, uint32_t> index;
+  std::vector<uint32_t> remap(vertices.size());
+  std::vector<Vec3> out;
+  for (size_t i = 0; i < vertices.size(); ++i) {
+    const Vec3& v = vertices[i];
+    auto key = std::make_tuple(std::llround(v.x / tol), std::llround(v.y / tol), std::llround(v.z / tol));
+    auto it = index.find(key);
+    if (it == index.end()) {
+      index.emplace(key, uint32_t(out.size()));
+      remap[i] = uint32_t(out.size());
+      out.push_back(v);
+    } else {
+      remap[i] = it->second;
+    }
+  }
+  vertices = std::move(out);
+  for (auto& t : triangles)
+    for (auto& i : t) i = remap[i];
+  removeDegenerate();
+}
+
+size_t Microgeometry::removeDegenerate() {
+  size_t before = triangles.size();
+  std::vector<std::array<uint32_t, 3>> keep;
+  keep.reserve(triangles.size());
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    const auto& tri = triangles[t];
+    if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) continue;
+    if (!(triangleArea(t) > 0)) continue;
+    keep.push_back(tri);
+  }
+  triangles = std::move(keep);
+  return before - triangles.size();
+}
+
+void Microgeometry::validate(const std::string& where) const {
+  if (vertices.empty() || triangles.empty())
+    throw InputError(where + ": the mesh is empty (no vertices or no triangles)");
+  for (size_t i = 0; i < vertices.size(); ++i)
+    if (!isFinite(vertices[i]))
+      throw InputError(where + ": vertex " + std::to_string(i) + " is not finite (NaN or Inf)");
+  for (size_t t = 0; t < triangles.size(); ++t)
+    for (uint32_t i : triangles[t])
+      if (i >= vertices.size())
+        throw InputError(where + ": triangle " + std::to_string(t) + " refers to vertex " + std::to_string(i) +
+                         " but there are only " + std::to_string(vertices.size()));
+  if (!(sizeX > 0) || !(sizeY > 0)) throw InputError(where + ": the patch footprint must be positive");
+}
+
+void Microgeometry::addOriented(uint32_t a, uint32_t b, uint32_t c, const Vec3& outward) {
+  Vec3 n = cross(vertices[b] - vertices[a], vertices[c] - vertices[a]);
+  if (dot(n, outward) < 0) std::swap(b, c);
+  triangles.push_back({a, b, c});
+}
+
+Microgeometry heightfieldMesh(const std::vector<double>& h, int nx, int ny, double sizeX, double sizeY) {
+  if (nx < 1 || ny < 1 || h.size() != size_t(nx) * ny) throw std::invalid_argument("heightfield size");
+  Microgeometry g;
+  g.sizeX = sizeX;
+  g.sizeY = sizeY;
+  // (nx+1) x (ny+1) vertices; the last row/column repeats the first heights (periodic seam).
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i)
+      g.vertices.push_back({-sizeX / 2 + sizeX * i / nx, -sizeY / 2 + sizeY * j / ny, h[(j % ny) * nx + (i % nx)]});
+  auto id = [&](int i, int j) { return uint32_t(j * (nx + 1) + i); };
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      // Counter-clockwise seen from above: normals point up.
+      g.triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      g.triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+  return g;
+}
+
+void writePly(const Microgeometry& g, const std::string& path) {
+  std::ofstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error("cannot write " + path);
+  f << "ply\nformat binary_little_endian 1.0\ncomment microbsdf patch, units um, size " << g.sizeX << " x "
+    << g.sizeY << (g.periodic ? " periodic" : "") << "\nelement vertex " << g.vertices.size()
+    << "\nproperty double x\nproperty double y\nproperty double z\nelement face " << g.triangles.size()
+    << "\nproperty list uchar uint vertex_indices\nend_header\n";
+  for (auto& v : g.vertices) f.write(reinterpret_cast<const char*>(&v), sizeof v);
+  for (auto& t : g.triangles) {
+    unsigned char n = 3;
+    f.write(reinterpret_cast<const char*>(&n), 1);
+    f.write(reinterpret_cast<const char*>(t.data()), sizeof t);
+  }
+  if (!f) throw std::runtime_error("error writing " + path);
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,54 @@
+// The explicit microgeometry: a triangle mesh in micrometres over a rectangular footprint
+// [-sizeX/2, sizeX/2] x [-sizeY/2, sizeY/2] centred on the origin (Embree is float: keeping the
+// patch centred keeps the absolute coordinates, and so the float rounding, small).
+// Triangle normals (counter-clockwise winding) point into the upper medium (PHYSICS.md §1).
+// periodic = true: the patch repeats in x and y (PHYSICS.md §4 step 2).
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/vecmath.h"
+
+namespace mbsdf {
+
+struct Microgeometry {
+  std::vector<Vec3> vertices;
+  std::vector<std::array<uint32_t, 3>> triangles;
+  double sizeX = 0, sizeY = 0;
+  bool periodic = true;
+  std::string description;
+
+  // Bounds of the vertices in z.
+  double zMin() const;
+  double zMax() const;
+  // Geometric (unnormalised) normal of a triangle.
+  Vec3 triangleNormal(size_t t) const;
+  double triangleArea(size_t t) const { return 0.5 * length(triangleNormal(t)); }
+  double surfaceArea() const;
+  // FNV-1a hash of the vertex and index data (hex), for provenance in the output file.
+  std::string hash() const;
+  // Weld vertices closer than tol (µm); removes triangles that became degenerate.
+  void weld(double tol);
+  // Remove zero-area triangles; returns how many were removed.
+  size_t removeDegenerate();
+  // Throws InputError (with `where` in the message) on non-finite vertices, out-of-range indices or
+  // an empty mesh.
+  void validate(const std::string& where) const;
+  // Add a triangle whose normal should point along `outward`; flips the winding if needed.
+  void addOriented(uint32_t a, uint32_t b, uint32_t c, const Vec3& outward);
+  uint32_t addVertex(const Vec3& v) {
+    vertices.push_back(v);
+    return uint32_t(vertices.size() - 1);
+  }
+};
+
+// Periodic heightfield on an nx x ny grid of heights (row-major, h[j*nx + i] at
+// x = -sizeX/2 + i*sizeX/nx, y likewise); the grid wraps around, so the mesh is seamless.
+Microgeometry heightfieldMesh(const std::vector<double>& h, int nx, int ny, double sizeX, double sizeY);
+
+// Write the patch as binary little-endian PLY (for looking at it in MeshLab/Blender).
+void writePly(const Microgeometry& g, const std::string& path);
+
+}  // namespace mbsdf

@@ -1,0 +1,339 @@
+#include "io/bsdf_file.h"
+
+#include <hdf5_hl.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+
+#include "core/vecmath.h"
+
+namespace mbsdf {
+namespace {
+
+void setStringAttr(hid_t obj, const std::string& name, const std::string& value) {
+  H5Datatype t(H5Tcopy(H5T_C_S1), "H5Tcopy");
+  h5check(H5Tset_size(t, std::max<size_t>(1, value.size())), "H5Tset_size");
+  h5check(H5Tset_cset(t, H5T_CSET_UTF8), "H5Tset_cset");
+  H5Dataspace s(H5Screate(H5S_SCALAR), "H5Screate");
+  H5Attribute a(H5Acreate2(obj, name.c_str(), t, s, H5P_DEFAULT, H5P_DEFAULT), "create attribute " + name);
+  const char* data = value.empty() ? "" : value.data();
+  h5check(H5Awrite(a, t, data), "write attribute " + name);
+}
+
+template <class T>
+void setScalarAttr(hid_t obj, const std::string& name, hid_t type, T value) {
+  H5Dataspace s(H5Screate(H5S_SCALAR), "H5Screate");
+  H5Attribute a(H5Acreate2(obj, name.c_str(), type, s, H5P_DEFAULT, H5P_DEFAULT), "create attribute " + name);
+  h5check(H5Awrite(a, type, &value), "write attribute " + name);
+}
+
+void describe(hid_t obj, const std::string& units, const std::string& longName) {
+  setStringAttr(obj, "units", units);
+  setStringAttr(obj, "long_name", longName);
+}
+
+template <class T>
+H5Dataset write1D(hid_t loc, const std::string& name, hid_t type, const std::vector<T>& v, const std::string& units,
+                  const std::string& longName) {
+  hsize_t n = v.size();
+  H5Dataspace s(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
+  H5Dataset d(H5Dcreate2(loc, name.c_str(), type, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create " + name);
+  if (n) h5check(H5Dwrite(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), "write " + name);
+  describe(d, units, longName);
+  return d;
+}
+
+// A (nInc, a, b) dataset with chunks of one incidence slice, split along a and then b to stay
+// <= 4 MiB per chunk.
+H5Dataset create3D(hid_t loc, const std::string& name, hid_t type, hsize_t n0, hsize_t n1, hsize_t n2, double fill,
+                   bool compress) {
+  hsize_t dims[3] = {n0, n1, n2};
+  H5Dataspace s(H5Screate_simple(3, dims, nullptr), "H5Screate_simple");
+  H5Plist p(H5Pcreate(H5P_DATASET_CREATE), "H5Pcreate");
+  const hsize_t maxElems = (4u << 20) / H5Tget_size(type);
+  hsize_t c1 = n1, c2 = n2;
+  while (c1 > 1 && c1 * c2 > maxElems) c1 = (c1 + 1) / 2;
+  while (c2 > 1 && c1 * c2 > maxElems) c2 = (c2 + 1) / 2;
+  hsize_t chunk[3] = {1, std::max<hsize_t>(1, c1), std::max<hsize_t>(1, c2)};
+  h5check(H5Pset_chunk(p, 3, chunk), "H5Pset_chunk");
+  if (compress) {
+    h5check(H5Pset_shuffle(p), "H5Pset_shuffle");
+    h5check(H5Pset_deflate(p, 4), "H5Pset_deflate");
+  }
+  if (H5Tequal(type, H5T_NATIVE_FLOAT) > 0) {
+    float f = float(fill);
+    h5check(H5Pset_fill_value(p, H5T_NATIVE_FLOAT, &f), "H5Pset_fill_value");
+  } else {
+    h5check(H5Pset_fill_value(p, H5T_NATIVE_DOUBLE, &fill), "H5Pset_fill_value");
+  }
+  h5check(H5Pset_fill_time(p, H5D_FILL_TIME_ALLOC), "H5Pset_fill_time");
+  return H5Dataset(H5Dcreate2(loc, name.c_str(), type, s, H5P_DEFAULT, p, H5P_DEFAULT), "create " + name);
+}
+
+// Writes row `i` (all of dims 1..2) of a 2D or 3D dataset from doubles, converting on the fly.
+void writeRow(hid_t file, const std::string& path, int i, const std::vector<double>& v, hid_t memType) {
+  H5Dataset d(H5Dopen2(file, path.c_str(), H5P_DEFAULT), "open " + path);
+  H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
+  int rank = H5Sget_simple_extent_ndims(fs);
+  hsize_t dims[3] = {0, 0, 0};
+  H5Sget_simple_extent_dims(fs, dims, nullptr);
+  hsize_t start[3] = {hsize_t(i), 0, 0}, count[3] = {1, rank > 1 ? dims[1] : 1, rank > 2 ? dims[2] : 1};
+  h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
+  hsize_t n = count[1] * count[2];
+  if (v.size() != n) throw std::runtime_error("HDF5: row size mismatch for " + path);
+  H5Dataspace ms(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
+  h5check(H5Dwrite(d, memType, ms, fs, H5P_DEFAULT, v.data()), "write " + path);
+}
+
+std::vector<double> readRowImpl(hid_t file, const std::string& path, int i) {
+  H5Dataset d(H5Dopen2(file, path.c_str(), H5P_DEFAULT), "open " + path);
+  H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
+  int rank = H5Sget_simple_extent_ndims(fs);
+  hsize_t dims[3] = {0, 0, 0};
+  H5Sget_simple_extent_dims(fs, dims, nullptr);
+  hsize_t start[3] = {hsize_t(i), 0, 0}, count[3] = {1, rank > 1 ? dims[1] : 1, rank > 2 ? dims[2] : 1};
+  h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
+  hsize_t n = count[1] * count[2];
+  std::vector<double> v(n);
+  H5Dataspace ms(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
+  h5check(H5Dread(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, v.data()), "read " + path);
+  return v;
+}
+
+template <class T>
+std::vector<T> read1D(hid_t file, const std::string& path, hid_t type) {
+  H5Dataset d(H5Dopen2(file, path.c_str(), H5P_DEFAULT), "open " + path);
+  H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
+  hssize_t n = H5Sget_simple_extent_npoints(fs);
+  std::vector<T> v(size_t(std::max<hssize_t>(0, n)));
+  if (n > 0) h5check(H5Dread(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), "read " + path);
+  return v;
+}
+
+}  // namespace
+
+BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid)
+    : path_(path), partial_(path + ".partial"), job_(job), grid_(grid) {
+  if (auto dir = std::filesystem::path(path).parent_path(); !dir.empty()) std::filesystem::create_directories(dir);
+  file_ = H5File(H5Fcreate(partial_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), "create " + partial_);
+  hid_t f = file_.get();
+  setStringAttr(f, "Conventions", "microbsdf-" + std::to_string(kSchemaVersion));
+  setScalarAttr<int64_t>(f, "schema_version", H5T_NATIVE_INT64, kSchemaVersion);
+  setStringAttr(f, "program_version", MICROBSDF_VERSION);
+  setStringAttr(f, "job_text", job.text);
+  setStringAttr(f, "job_file", job.file);
+  setScalarAttr<uint64_t>(f, "seed", H5T_NATIVE_UINT64, job.seed);
+  setStringAttr(f, "geometry_hash", job.geometry.hash());
+  setStringAttr(f, "geometry_kind", job.geometryKind);
+  setStringAttr(f, "material", job.material.describe());
+  setScalarAttr<uint64_t>(f, "paths_per_slice", H5T_NATIVE_UINT64, job.pathsPerSlice);
+  setScalarAttr<int64_t>(f, "max_depth", H5T_NATIVE_INT64, job.maxDepth);
+  setStringAttr(f, "title", "Tabulated BSDF of a surface microgeometry (microbsdf)");
+
+  const int nB = grid.binCount(), nL = int(job.lambda_nm.size()), nI = int(job.incidence.size());
+  {
+    H5Group g(H5Gcreate2(f, "spectrum", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /spectrum");
+    write1D(g, "wavelength_nm", H5T_NATIVE_DOUBLE, job.lambda_nm, "nm", "vacuum wavelength");
+  }
+  {
+    H5Group g(H5Gcreate2(f, "grid", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /grid");
+    setStringAttr(g, "kind", grid.kind());
+    if (auto* tp = std::get_if<ThetaPhiGrid>(&grid.layout())) {
+      setScalarAttr<int64_t>(g, "n_theta", H5T_NATIVE_INT64, tp->nTheta);
+      setScalarAttr<int64_t>(g, "n_phi", H5T_NATIVE_INT64, tp->nPhi);
+    } else if (auto* dk = std::get_if<DiskGrid>(&grid.layout())) {
+      setScalarAttr<int64_t>(g, "width", H5T_NATIVE_INT64, dk->width);
+      setScalarAttr<int64_t>(g, "height", H5T_NATIVE_INT64, dk->height);
+    }
+    setStringAttr(g, "bin_order", "hemisphere-major (upper z>=0 first), then local index");
+    std::vector<double> th(nB), ph(nB), om(nB), op(nB);
+    for (int b = 0; b < nB; ++b) {
+      Vec3 c = grid.centre(b);
+      th[b] = degrees(sphericalTheta(c));
+      ph[b] = degrees(sphericalPhi(c));
+      om[b] = grid.solidAngle(b);
+      op[b] = grid.projectedSolidAngle(b);
+    }
+    H5Dataset bt = write1D(g, "theta_deg", H5T_NATIVE_DOUBLE, th, "degree", "polar angle of the bin centre from +z");
+    write1D(g, "phi_deg", H5T_NATIVE_DOUBLE, ph, "degree", "azimuth of the bin centre from +x");
+    write1D(g, "solid_angle", H5T_NATIVE_DOUBLE, om, "sr", "solid angle of the bin");
+    write1D(g, "projected_solid_angle", H5T_NATIVE_DOUBLE, op, "sr", "projected solid angle of the bin");
+  }
+  {
+    H5Group g(H5Gcreate2(f, "incidence", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /incidence");
+    std::vector<int32_t> bin;
+    std::vector<double> th, ph;
+    for (auto& i : job.incidence) {
+      bin.push_back(i.bin);
+      th.push_back(i.theta_deg);
+      ph.push_back(i.phi_deg);
+    }
+    write1D(g, "bin", H5T_NATIVE_INT32, bin, "1", "sphere bin of the incidence direction");
+    write1D(g, "theta_deg", H5T_NATIVE_DOUBLE, th, "degree", "requested incidence polar angle");
+    write1D(g, "phi_deg", H5T_NATIVE_DOUBLE, ph, "degree", "requested incidence azimuth");
+  }
+  {
+    H5Group b(H5Gcreate2(f, "bsdf", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf");
+    H5Group e(H5Gcreate2(f, "bsdf_stderr", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf_stderr");
+    H5Group s(H5Gcreate2(f, "stats", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /stats");
+    H5Group er(H5Gcreate2(s, "energy_reflected", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
+    H5Group et(H5Gcreate2(s, "energy_transmitted", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
+    H5Dataset wl(H5Dopen2(f, "/spectrum/wavelength_nm", H5P_DEFAULT), "open wavelength");
+    H5Dataset ib(H5Dopen2(f, "/incidence/bin", H5P_DEFAULT), "open incidence bin");
+    H5Dataset gt(H5Dopen2(f, "/grid/theta_deg", H5P_DEFAULT), "open grid theta");
+    h5check(H5DSset_scale(wl, "wavelength_nm"), "H5DSset_scale");
+    h5check(H5DSset_scale(ib, "incidence_bin"), "H5DSset_scale");
+    h5check(H5DSset_scale(gt, "exit_bin_theta_deg"), "H5DSset_scale");
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (Component c : job.components.list()) {
+      std::string name = componentName(c);
+      for (auto [grp, what] : {std::pair<hid_t, const char*>{b, "bin-averaged BSDF component "},
+                               std::pair<hid_t, const char*>{e, "standard error of BSDF component "}}) {
+        H5Dataset d = create3D(grp, name, H5T_NATIVE_FLOAT, nI, nL, nB, nan, true);
+        describe(d, "1/sr", what + name);
+        h5check(H5DSattach_scale(d, ib, 0), "attach scale");
+        h5check(H5DSattach_scale(d, wl, 1), "attach scale");
+        h5check(H5DSattach_scale(d, gt, 2), "attach scale");
+      }
+      for (hid_t grp : {er.get(), et.get()}) {
+        H5Dataset d = create3D(grp, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+        describe(d, "1", "hemispherical integral sum(f * projected_solid_angle) of " + name);
+      }
+    }
+    {
+      std::vector<uint8_t> zeros(nI, 0);
+      write1D(b, "done", H5T_NATIVE_UINT8, zeros, "1", "1 when the incidence slice is complete");
+    }
+    write1D(s, "samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1", "paths per wavelength");
+    write1D(s, "seconds", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "s", "wall time of the tile");
+    for (const char* n : {"truncated", "leaked", "missed"}) {
+      H5Dataset d = create3D(s, n, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+      describe(d, "1", std::string("fraction of incident power ") + n);
+    }
+  }
+  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+}
+
+BsdfFileWriter::~BsdfFileWriter() {
+  if (!finished_) {
+    file_.reset();  // leave the .partial file for inspection; the final path stays untouched
+  }
+}
+
+void BsdfFileWriter::writeTile(const TileResult& r) {
+  hid_t f = file_.get();
+  const int i = r.incidenceIndex;
+  for (Component c : job_.components.list()) {
+    std::string name = componentName(c);
+    if (!r.has(c)) throw std::runtime_error(std::string("tile lacks component ") + name);
+    writeRow(f, "/bsdf/" + name, i, r.value[int(c)], H5T_NATIVE_DOUBLE);
+    writeRow(f, "/bsdf_stderr/" + name, i, r.stdError[int(c)], H5T_NATIVE_DOUBLE);
+    std::vector<double> refl(r.nLambda, 0.0), trans(r.nLambda, 0.0);
+    for (int l = 0; l < r.nLambda; ++l)
+      for (int b = 0; b < r.nBins; ++b) {
+        double e = r.at(c, l, b) * grid_.projectedSolidAngle(b);
+        (grid_.isUpper(b) ? refl : trans)[l] += e;
+      }
+    writeRow(f, "/stats/energy_reflected/" + name, i, refl, H5T_NATIVE_DOUBLE);
+    writeRow(f, "/stats/energy_transmitted/" + name, i, trans, H5T_NATIVE_DOUBLE);
+  }
+  writeRow(f, "/stats/truncated", i, r.truncated, H5T_NATIVE_DOUBLE);
+  writeRow(f, "/stats/leaked", i, r.leaked, H5T_NATIVE_DOUBLE);
+  writeRow(f, "/stats/missed", i, r.missed, H5T_NATIVE_DOUBLE);
+  writeRow(f, "/stats/samples", i, {double(r.samples)}, H5T_NATIVE_DOUBLE);
+  writeRow(f, "/stats/seconds", i, {r.seconds}, H5T_NATIVE_DOUBLE);
+  // Mark done last, then flush: a slice marked done is complete on disk.
+  writeRow(f, "/bsdf/done", i, {1.0}, H5T_NATIVE_DOUBLE);
+  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+}
+
+void BsdfFileWriter::finish() {
+  file_.reset();
+  std::filesystem::rename(partial_, path_);
+  finished_ = true;
+}
+
+BsdfFileReader::BsdfFileReader(const std::string& path) {
+  if (!std::filesystem::exists(path)) throw std::runtime_error(path + ": no such file");
+  file_ = H5File(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), "open " + path);
+  lambda_nm_ = read1D<double>(file_, "/spectrum/wavelength_nm", H5T_NATIVE_DOUBLE);
+  incBin_ = read1D<int>(file_, "/incidence/bin", H5T_NATIVE_INT);
+  incTheta_ = read1D<double>(file_, "/incidence/theta_deg", H5T_NATIVE_DOUBLE);
+  incPhi_ = read1D<double>(file_, "/incidence/phi_deg", H5T_NATIVE_DOUBLE);
+  done_ = read1D<uint8_t>(file_, "/bsdf/done", H5T_NATIVE_UINT8);
+  H5Group g(H5Gopen2(file_, "/grid", H5P_DEFAULT), "open /grid");
+  auto intAttr = [&](const char* name) {
+    int64_t v = 0;
+    H5Attribute a(H5Aopen(g, name, H5P_DEFAULT), std::string("open attribute ") + name);
+    h5check(H5Aread(a, H5T_NATIVE_INT64, &v), "read attribute");
+    return int(v);
+  };
+  if (H5Aexists(g, "n_theta") > 0) grid_ = std::make_unique<DirectionGrid>(ThetaPhiGrid{intAttr("n_theta"), intAttr("n_phi")});
+  else grid_ = std::make_unique<DirectionGrid>(DiskGrid{intAttr("width"), intAttr("height")});
+}
+
+std::vector<std::string> BsdfFileReader::components() const {
+  std::vector<std::string> out;
+  for (int c = 0; c < kComponentCount; ++c) {
+    std::string p = std::string("/bsdf/") + kComponentNames[c];
+    if (H5Lexists(file_, p.c_str(), H5P_DEFAULT) > 0) out.push_back(kComponentNames[c]);
+  }
+  return out;
+}
+
+std::vector<double> BsdfFileReader::readRow(const std::string& dataset, int incidence) const {
+  return readRowImpl(file_, dataset, incidence);
+}
+
+std::vector<double> BsdfFileReader::slice(const std::string& component, int incidence) const {
+  return readRow("/bsdf/" + component, incidence);
+}
+std::vector<double> BsdfFileReader::sliceStdError(const std::string& component, int incidence) const {
+  return readRow("/bsdf_stderr/" + component, incidence);
+}
+
+SliceStats BsdfFileReader::stats(int incidence) const {
+  SliceStats s;
+  s.samples = uint64_t(readRow("/stats/samples", incidence)[0]);
+  s.seconds = readRow("/stats/seconds", incidence)[0];
+  s.truncated = readRow("/stats/truncated", incidence);
+  s.leaked = readRow("/stats/leaked", incidence);
+  s.missed = readRow("/stats/missed", incidence);
+  for (const auto& c : components()) {
+    s.energyReflected[c] = readRow("/stats/energy_reflected/" + c, incidence);
+    s.energyTransmitted[c] = readRow("/stats/energy_transmitted/" + c, incidence);
+  }
+  return s;
+}
+
+std::string BsdfFileReader::attribute(const std::string& name) const {
+  H5Attribute a(H5Aopen(file_, name.c_str(), H5P_DEFAULT), "open attribute " + name);
+  H5Datatype t(H5Aget_type(a), "H5Aget_type");
+  size_t n = H5Tget_size(t);
+  std::string s(n, '\0');
+  h5check(H5Aread(a, t, s.data()), "read attribute " + name);
+  while (!s.empty() && s.back() == '\0') s.pop_back();
+  return s;
+}
+
+int64_t BsdfFileReader::intAttribute(const std::string& name) const {
+  int64_t v = 0;
+  H5Attribute a(H5Aopen(file_, name.c_str(), H5P_DEFAULT), "open attribute " + name);
+  h5check(H5Aread(a, H5T_NATIVE_INT64, &v), "read attribute " + name);
+  return v;
+}
+
+int BsdfFileReader::nearestIncidence(double theta_deg, double phi_deg) const {
+  Vec3 w = sphericalDirection(radians(theta_deg), radians(phi_deg));
+  int best = 0;
+  double bestDot = -2;
+  for (int i = 0; i < incidenceCount(); ++i) {
+    double d = dot(w, sphericalDirection(radians(incTheta_[i]), radians(incPhi_[i])));
+    if (d > bestDot) { bestDot = d; best = i; }
+  }
+  return best;
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,52 @@
+// RAII for HDF5 identifiers: each handle closes itself with the right H5?close. Errors from the
+// HDF5 C API become exceptions naming the operation.
+#pragma once
+#include <hdf5.h>
+
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace mbsdf {
+
+template <herr_t (*Close)(hid_t)>
+class H5Handle {
+ public:
+  H5Handle() = default;
+  explicit H5Handle(hid_t id) : id_(id) {}
+  H5Handle(hid_t id, const std::string& what) : id_(id) {
+    if (id_ < 0) throw std::runtime_error("HDF5: " + what + " failed");
+  }
+  H5Handle(const H5Handle&) = delete;
+  H5Handle& operator=(const H5Handle&) = delete;
+  H5Handle(H5Handle&& o) noexcept : id_(std::exchange(o.id_, -1)) {}
+  H5Handle& operator=(H5Handle&& o) noexcept {
+    if (this != &o) { reset(); id_ = std::exchange(o.id_, -1); }
+    return *this;
+  }
+  ~H5Handle() { reset(); }
+  void reset() {
+    if (id_ >= 0) Close(id_);
+    id_ = -1;
+  }
+  hid_t get() const { return id_; }
+  operator hid_t() const { return id_; }
+  bool valid() const { return id_ >= 0; }
+
+ private:
+  hid_t id_ = -1;
+};
+
+using H5File = H5Handle<H5Fclose>;
+using H5Group = H5Handle<H5Gclose>;
+using H5Dataset = H5Handle<H5Dclose>;
+using H5Dataspace = H5Handle<H5Sclose>;
+using H5Datatype = H5Handle<H5Tclose>;
+using H5Plist = H5Handle<H5Pclose>;
+using H5Attribute = H5Handle<H5Aclose>;
+
+inline void h5check(herr_t e, const std::string& what) {
+  if (e < 0) throw std::runtime_error("HDF5: " + what + " failed");
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,150 @@
+#include "job/geometry_factory.h"
+
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <stdexcept>
+
+#include "core/error.h"
+#include "geometry/generators.h"
+#include "geometry/mesh_loader.h"
+
+namespace mbsdf {
+
+namespace {
+std::string resolvePath(const std::string& base, const std::string& file) {
+  std::filesystem::path p(file);
+  if (p.is_absolute() || base.empty()) return file;
+  return (std::filesystem::path(base) / p).string();
+}
+}  // namespace
+
+Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut) {
+  const std::string kind = geo.getString("kind", "flat");
+  *kindOut = kind;
+  const uint64_t seed = uint64_t(geo.getInt("seed", 1));
+  const bool periodic = geo.getBool("periodic", true);
+  const double groundRms_um = geo.nonNegative("ground_noise_rms_nm", 0.0) * 1e-3;
+  const double groundCorr = groundRms_um > 0 ? geo.positive("ground_noise_correlation_um", 0.2) : 0.2;
+
+  auto size2 = [&](const std::vector<double>& def) {
+    std::vector<double> s = geo.getDoubles("size_um", def);
+    if (s.size() == 1) s.push_back(s[0]);
+    if (s.size() != 2) geo.fail("size_um", "expected [x, y] in micrometres");
+    if (!(s[0] > 0 && s[1] > 0)) geo.fail("size_um", "the patch size must be positive");
+    return s;
+  };
+  auto pair2 = [&](const std::string& key, double def) {
+    std::vector<double> s = geo.getDoubles(key, {def, def});
+    if (s.size() == 1) s.push_back(s[0]);
+    if (s.size() != 2 || !(s[0] > 0 && s[1] > 0)) geo.fail(key, "expected one or two positive numbers");
+    return s;
+  };
+  // Generators throw std::invalid_argument for inconsistent shapes; report them against the key
+  // most likely responsible.
+  auto guard = [&](const std::string& key, auto&& fn) -> Microgeometry {
+    try {
+      return fn();
+    } catch (const std::invalid_argument& e) {
+      geo.fail(key, e.what());
+    }
+  };
+
+  Microgeometry g;
+  if (kind == "flat") {
+    auto s = size2({20.0, 20.0});
+    double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
+    g = makeFlat(s[0], s[1], res);
+  } else if (kind == "sine-grating") {
+    auto s = size2({20.0, 20.0});
+    double period = geo.positive("period_um", 5.0), amp = geo.nonNegative("amplitude_um", 0.05);
+    int spp = int(geo.positiveInt("samples_per_period", 64));
+    double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
+    g = guard("period_um", [&] { return makeSineGrating(s[0], s[1], period, amp, spp, res); });
+  } else if (kind == "binary-grating") {
+    auto s = size2({20.0, 20.0});
+    double period = geo.positive("period_um", 2.0), depth = geo.positive("depth_um", 0.1);
+    double duty = geo.getDouble("duty", 0.5);
+    if (!(duty > 0 && duty < 1)) geo.fail("duty", "must be in (0, 1)");
+    double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
+    g = guard("period_um", [&] { return makeBinaryGrating(s[0], s[1], period, depth, duty, res); });
+  } else if (kind == "ridged") {
+    auto s = size2({20.0, 20.0});
+    double period = geo.positive("period_um", 2.0);
+    double apex = geo.getDouble("apex_angle_deg", 90.0);
+    if (!(apex > 0 && apex < 180)) geo.fail("apex_angle_deg", "must be in (0, 180)");
+    double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
+    g = guard("period_um", [&] { return makeRidged(s[0], s[1], period, apex, res); });
+  } else if (kind == "gaussian") {
+    auto s = size2({20.0, 20.0});
+    double rms = geo.positive("rms_um", 0.1), corr = geo.positive("correlation_um", 1.0);
+    double texel = geo.positive("texel_um", corr / 8);
+    g = makeGaussian(s[0], s[1], rms, corr, gridSizeFor(s[0], texel), gridSizeFor(s[1], texel), seed);
+  } else if (kind == "noise") {
+    auto s = size2({20.0, 20.0});
+    double rms = geo.positive("rms_um", 0.132), feature = geo.positive("feature_um", 5.0);
+    double density = geo.positive("density", 3.0), texel = geo.positive("texel_um", feature / 16);
+    g = makeNoise(s[0], s[1], rms, feature, density, gridSizeFor(s[0], texel), gridSizeFor(s[1], texel), seed);
+  } else if (kind == "hemispheres") {
+    auto s = size2({20.0, 20.0});
+    double r = geo.positive("radius_um", 2.0);
+    auto sp = pair2("spacing_um", 5.0);
+    double res = geo.positive("resolution_um", r / 16);
+    g = guard("spacing_um", [&] { return makeDomeLattice(s[0], s[1], sp[0], sp[1], r, r, r, res); });
+  } else if (kind == "axicon") {
+    auto s = size2({10.0, 10.0});
+    std::vector<double> radii = geo.getDoubles("radii_um", {0.4, 0.45, 0.3});
+    if (radii.size() != 3 || !(radii[0] > 0 && radii[1] > 0 && radii[2] > 0))
+      geo.fail("radii_um", "expected three positive radii [rx, ry, height]");
+    auto sp = pair2("spacing_um", 1.0);
+    double res = geo.positive("resolution_um", std::min(radii[0], radii[1]) / 16);
+    g = guard("spacing_um", [&] { return makeDomeLattice(s[0], s[1], sp[0], sp[1], radii[0], radii[1], radii[2], res); });
+  } else if (kind == "overhang") {
+    auto s = size2({20.0, 20.0});
+    double sp = geo.positive("spacing_um", 5.0);
+    double stemR = geo.positive("stem_radius_um", 0.8), stemH = geo.positive("stem_height_um", 1.5);
+    double capR = geo.positive("cap_radius_um", 2.0), capH = geo.positive("cap_height_um", 1.0);
+    double res = geo.positive("resolution_um", capR / 16);
+    g = guard("cap_radius_um", [&] { return makeOverhang(s[0], s[1], sp, stemR, stemH, capR, capH, res); });
+  } else if (kind == "mesh") {
+    std::string file = geo.getString("file", "");
+    if (file.empty()) geo.fail("file", "a mesh geometry needs file = \"patch.obj\" or \"patch.ply\"");
+    double scale = unitToMicrometres(geo.getString("units", "um"), geo.where("units"));
+    g = loadMesh(resolvePath(baseDir, file), scale);
+    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+    for (auto& v : g.vertices) {
+      x0 = std::min(x0, v.x); x1 = std::max(x1, v.x);
+      y0 = std::min(y0, v.y); y1 = std::max(y1, v.y);
+    }
+    auto s = size2({x1 - x0 > 0 ? x1 - x0 : 1.0, y1 - y0 > 0 ? y1 - y0 : 1.0});
+    // Centre the footprint on the origin (float precision in Embree).
+    Vec3 c{(x0 + x1) / 2, (y0 + y1) / 2, 0};
+    for (auto& v : g.vertices) v = v - c;
+    g.sizeX = s[0];
+    g.sizeY = s[1];
+    g.description = "mesh " + file;
+  } else if (kind == "heightfield") {
+    std::string file = geo.getString("file", "");
+    if (file.empty()) geo.fail("file", "a heightfield geometry needs file = \"height.exr\"");
+    if (!geo.has("texel_um")) geo.fail("texel_um", "a heightfield needs its texel size in micrometres");
+    double texel = geo.positive("texel_um", 1.0);
+    double scale = geo.getDouble("height_scale", 1.0);
+    int w = 0, h = 0;
+    auto heights = loadHeightfieldExr(resolvePath(baseDir, file), &w, &h);
+    for (double& z : heights) z *= scale;
+    g = heightfieldMesh(heights, w, h, texel * w, texel * h);
+    g.description = "heightfield " + file;
+  } else {
+    geo.fail("kind", "unknown geometry kind '" + kind +
+                         "' (flat, sine-grating, binary-grating, ridged, gaussian, noise, hemispheres, axicon, "
+                         "overhang, mesh, heightfield)");
+  }
+  g.periodic = periodic;
+  if (groundRms_um > 0) addGroundNoise(g, groundRms_um, groundCorr, seed);
+  if (size_t removed = g.removeDegenerate())
+    spdlog::warn("{}: removed {} degenerate (zero-area) triangles", geo.where("kind"), removed);
+  g.validate(geo.file() + ": [geometry]");
+  return g;
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,175 @@
+#include "job/job.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "core/error.h"
+#include "job/geometry_factory.h"
+#include "job/params.h"
+
+namespace mbsdf {
+namespace {
+
+Material parseMaterial(const ParamDict& m, std::string* nameOut) {
+  Material mat;
+  std::string kind = m.getString("kind", "conductor");
+  if (kind != "conductor" && kind != "dielectric") m.fail("kind", "must be \"conductor\" or \"dielectric\"");
+  std::string name = m.getString("name", "");
+  if (!name.empty()) {
+    if (!builtinMaterial(name, &mat)) {
+      std::string list;
+      for (auto& n : builtinMaterialNames()) list += (list.empty() ? "" : ", ") + n;
+      m.fail("name", "unknown material '" + name + "' (built in: " + list + ")");
+    }
+    if ((kind == "conductor") != mat.isConductor())
+      m.fail("kind", "material '" + name + "' is a " + (mat.isConductor() ? "conductor" : "dielectric"));
+    if (m.has("ior") || m.has("eta") || m.has("k")) m.fail("name", "give either name or ior/eta/k, not both");
+    *nameOut = name;
+  } else if (kind == "dielectric") {
+    if (!m.has("ior")) m.fail("ior", "a dielectric needs name = \"BK7\" or ior = <index>");
+    double n = m.positive("ior", 1.5);
+    mat.model = Dielectric{ConstantIndex{n, 0.0}};
+    *nameOut = "ior " + std::to_string(n);
+  } else {
+    if (!m.has("eta") || !m.has("k")) m.fail(m.has("eta") ? "k" : "eta", "a conductor needs name = \"Al\" (or Ag, Au, Cu, mirror) or both eta and k");
+    double eta = m.positive("eta", 1.0), k = m.nonNegative("k", 0.0);
+    mat.model = Conductor{ConstantIndex{eta, k}};
+    *nameOut = "eta " + std::to_string(eta) + " k " + std::to_string(k);
+  }
+  mat.outsideIor = m.positive("outside_ior", 1.0);
+  return mat;
+}
+
+std::vector<double> parseWavelengths(const ParamDict& s) {
+  std::vector<double> l;
+  const toml::node* n = s.node("wavelengths_nm");
+  if (!n) {
+    for (int i = 0; i < 8; ++i) l.push_back(400.0 + (i + 0.5) * 300.0 / 8);  // 8 bands over 400–700 nm
+    return l;
+  }
+  if (n->is_table()) {
+    ParamDict t = s.table("wavelengths_nm");
+    double lo = t.positive("min", 400), hi = t.positive("max", 700);
+    int64_t count = t.positiveInt("count", 8);
+    if (hi < lo) t.fail("max", "must be >= min");
+    for (int64_t i = 0; i < count; ++i) l.push_back(lo + (i + 0.5) * (hi - lo) / double(count));
+    return l;
+  }
+  l = s.getDoubles("wavelengths_nm", {});
+  if (l.empty()) s.fail("wavelengths_nm", "needs at least one wavelength");
+  for (double v : l)
+    if (!(v > 0)) s.fail("wavelengths_nm", "wavelengths must be positive (nm)");
+  return l;
+}
+
+}  // namespace
+
+Job loadJobFromString(const std::string& text, const std::string& sourceName, const std::string& baseDir) {
+  ParamDict root = ParamDict::parseString(text, sourceName);
+  Job job;
+  job.file = sourceName;
+  job.text = text;
+
+  ParamDict mat = root.table("material");
+  job.material = parseMaterial(mat, &job.materialName);
+
+  ParamDict spec = root.table("spectrum");
+  job.lambda_nm = parseWavelengths(spec);
+  auto [lo, hi] = job.material.validRange_nm();
+  for (double l : job.lambda_nm)
+    if (l < lo || l > hi)
+      spec.fail("wavelengths_nm", "wavelength " + std::to_string(l) + " nm is outside the table of material " +
+                                      job.material.describe() + " (" + std::to_string(lo) + "–" + std::to_string(hi) +
+                                      " nm)");
+
+  ParamDict dirs = root.table("directions");
+  std::string gridKind = dirs.getString("grid", "theta-phi");
+  if (gridKind == "theta-phi") {
+    job.gridLayout = ThetaPhiGrid{int(dirs.positiveInt("n_theta", 75)), int(dirs.positiveInt("n_phi", 300))};
+  } else if (gridKind == "disk") {
+    job.gridLayout = DiskGrid{int(dirs.positiveInt("width", 64)), int(dirs.positiveInt("height", 64))};
+  } else {
+    dirs.fail("grid", "must be \"theta-phi\" or \"disk\"");
+  }
+  DirectionGrid grid(job.gridLayout);
+  const toml::node* inc = dirs.node("incidence");
+  const bool dielectric = !job.material.isConductor();
+  if (!inc || (inc->is_string() && *inc->value<std::string>() == "all")) {
+    int nb = dielectric ? grid.binCount() : grid.binsPerHemisphere();
+    for (int b = 0; b < nb; ++b) {
+      if (grid.projectedSolidAngle(b) <= 0) continue;
+      Vec3 c = grid.centre(b);
+      job.incidence.push_back({degrees(sphericalTheta(c)), degrees(sphericalPhi(c)), b});
+    }
+  } else if (const toml::array* a = inc->as_array()) {
+    for (const auto& e : *a) {
+      const toml::array* pair = e.as_array();
+      if (!pair || pair->size() != 2 || !(*pair)[0].value<double>() || !(*pair)[1].value<double>())
+        dirs.fail("incidence", "expected \"all\" or a list of [theta_deg, phi_deg] pairs");
+      double th = *(*pair)[0].value<double>(), ph = *(*pair)[1].value<double>();
+      double maxTheta = dielectric ? 180.0 : 90.0;
+      if (!(th >= 0 && th <= maxTheta) || !std::isfinite(ph))
+        dirs.fail("incidence", "theta_deg must be in [0, " + std::to_string(int(maxTheta)) + "] (" +
+                                   (dielectric ? "> 90 is light from inside the material" : "light from above a conductor") + ")");
+      job.incidence.push_back({th, ph, grid.binOfAngles(th, ph)});
+    }
+    if (job.incidence.empty()) dirs.fail("incidence", "needs at least one direction");
+  } else {
+    dirs.fail("incidence", "expected \"all\" or a list of [theta_deg, phi_deg] pairs");
+  }
+
+  ParamDict scene = root.table("scene");
+  job.scene.coherenceLength_um = scene.positive("coherence_length_um", 50.0);
+  job.scene.needs = scene.getStrings("needs", {"brdf", "btdf"});
+  for (auto& n : job.scene.needs)
+    if (n != "brdf" && n != "btdf") scene.fail("needs", "entries must be \"brdf\" or \"btdf\"");
+  job.scene.tolerance = scene.positive("tolerance", 0.01);
+
+  ParamDict eff = root.table("effects");
+  job.requestedComponents = eff.getStrings("components", {"auto"});
+  for (const auto& c : job.requestedComponents) {
+    if (c == "auto") {
+      // Geometric optics: what this version computes for every scene.
+      job.components.add(Component::Coherent);
+      job.components.add(Component::Multiple);
+      continue;
+    }
+    auto comp = componentFromName(c);
+    if (!comp || *comp == Component::GeoMasked)
+      eff.fail("components", "unknown component '" + c + "' (auto, coherent, incoherent, multiple, lost)");
+    if (*comp == Component::Incoherent || *comp == Component::Lost)
+      eff.fail("components", "component '" + c + "' needs the scalar-diffraction estimator, which this version "
+                             "does not have yet (see README, 'Status')");
+    job.components.add(*comp);
+  }
+
+  ParamDict samp = root.table("sampling");
+  job.pathsPerSlice = uint64_t(samp.positiveInt("paths_per_slice", 1000000));
+  job.maxDepth = int(samp.positiveInt("max_depth", 100));
+  job.seed = uint64_t(samp.getInt("seed", 1));
+  job.waveEstimator = samp.getString("wave_estimator", "area");
+  if (job.waveEstimator != "paper" && job.waveEstimator != "area")
+    samp.fail("wave_estimator", "must be \"paper\" or \"area\"");
+  job.waveSamplesPerBin = samp.positiveInt("wave_samples_per_bin", 256);
+
+  ParamDict out = root.table("output");
+  job.outputPath = out.getString("path", "out.h5");
+  if (job.outputPath.empty()) out.fail("path", "must not be empty");
+  job.previews = out.getBool("previews", false);
+
+  ParamDict geo = root.table("geometry");
+  job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind);
+
+  root.reportUnused();
+  return job;
+}
+
+Job loadJob(const std::string& path) {
+  ParamDict probe = ParamDict::parseFile(path);  // reads the file (errors name it)
+  std::string base = std::filesystem::path(path).parent_path().string();
+  return loadJobFromString(probe.sourceText(), path, base);
+}
+
+}  // namespace mbsdf

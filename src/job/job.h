@@ -1,0 +1,59 @@
+// A validated job (DESIGN.md "Job file"). Building it reads every key through ParamDict, checks
+// ranges and files, builds the microgeometry and finally reports unused keys; any problem is an
+// InputError naming file, line and key, raised before any output file is touched.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/direction_grid.h"
+#include "geometry/microgeometry.h"
+#include "optics/material.h"
+#include "scattering/components.h"
+
+namespace mbsdf {
+
+struct IncidenceDirection {
+  double theta_deg = 0, phi_deg = 0;  // requested (or bin centre for "all")
+  int bin = 0;                        // sphere bin of the grid
+};
+
+struct SceneNeeds {
+  double coherenceLength_um = 50.0;
+  std::vector<std::string> needs{"brdf", "btdf"};
+  double tolerance = 0.01;
+};
+
+struct Job {
+  std::string file;  // job file path ("" for a string)
+  std::string text;  // the full job text (stored in the output for provenance)
+  std::string geometryKind;
+  Microgeometry geometry;
+  Material material;
+  std::string materialName;
+  std::vector<double> lambda_nm;
+  DirectionGrid::Layout gridLayout;
+  std::vector<IncidenceDirection> incidence;
+  ComponentSet components;
+  std::vector<std::string> requestedComponents;
+  SceneNeeds scene;
+  uint64_t pathsPerSlice = 1000000;
+  int maxDepth = 100;
+  uint64_t seed = 1;
+  std::string waveEstimator = "area";
+  int64_t waveSamplesPerBin = 256;
+  std::string outputPath = "out.h5";
+  bool previews = false;
+
+  std::vector<double> lambda_um() const {
+    std::vector<double> v;
+    for (double l : lambda_nm) v.push_back(l * 1e-3);
+    return v;
+  }
+};
+
+// Parse and validate a job file. Relative file names in it are relative to the job file.
+Job loadJob(const std::string& path);
+Job loadJobFromString(const std::string& text, const std::string& sourceName, const std::string& baseDir);
+
+}  // namespace mbsdf

@@ -1,0 +1,166 @@
+#include "job/params.h"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "core/error.h"
+
+namespace mbsdf {
+
+ParamDict ParamDict::parseString(const std::string& text, const std::string& sourceName) {
+  auto s = std::make_shared<State>();
+  s->file = sourceName;
+  s->text = text;
+  try {
+    s->root = toml::parse(s->text, sourceName);
+  } catch (const toml::parse_error& e) {
+    const auto& b = e.source().begin;
+    throw InputError(sourceName + ":" + std::to_string(b.line) + ":" + std::to_string(b.column) +
+                     ": malformed TOML: " + std::string(e.description()));
+  }
+  const toml::table* root = &s->root;
+  return ParamDict(s, root, "");
+}
+
+ParamDict ParamDict::parseFile(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw InputError(path + ": cannot open job file");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return parseString(ss.str(), path);
+}
+
+std::string ParamDict::path(const std::string& key) const { return prefix_.empty() ? key : prefix_ + "." + key; }
+
+std::string ParamDict::where(const std::string& key) const {
+  int line = 0;
+  if (table_) {
+    if (const toml::node* n = table_->get(key)) line = int(n->source().begin.line);
+    else line = int(table_->source().begin.line);
+  }
+  return formatLocation(state_->file, line, path(key));
+}
+
+void ParamDict::fail(const std::string& key, const std::string& message) const {
+  throw InputError(where(key) + ": " + message);
+}
+
+const toml::node* ParamDict::lookup(const std::string& key) const {
+  if (!table_) return nullptr;
+  const toml::node* n = table_->get(key);
+  if (n) state_->used.insert(path(key));
+  return n;
+}
+
+bool ParamDict::has(const std::string& key) const { return table_ && table_->contains(key); }
+
+const toml::node* ParamDict::node(const std::string& key) const { return lookup(key); }
+
+ParamDict ParamDict::table(const std::string& key) const {
+  const toml::node* n = lookup(key);
+  if (!n) return ParamDict(state_, nullptr, path(key));
+  if (!n->is_table()) fail(key, "expected a table [" + path(key) + "]");
+  return ParamDict(state_, n->as_table(), path(key));
+}
+
+double ParamDict::getDouble(const std::string& key, double def) const {
+  const toml::node* n = lookup(key);
+  if (!n) return def;
+  if (auto v = n->value<double>()) {
+    if (!std::isfinite(*v)) fail(key, "must be a finite number");
+    return *v;
+  }
+  fail(key, "expected a number");
+}
+
+int64_t ParamDict::getInt(const std::string& key, int64_t def) const {
+  const toml::node* n = lookup(key);
+  if (!n) return def;
+  if (n->is_integer()) return *n->value<int64_t>();
+  fail(key, "expected an integer");
+}
+
+bool ParamDict::getBool(const std::string& key, bool def) const {
+  const toml::node* n = lookup(key);
+  if (!n) return def;
+  if (n->is_boolean()) return *n->value<bool>();
+  fail(key, "expected true or false");
+}
+
+std::string ParamDict::getString(const std::string& key, const std::string& def) const {
+  const toml::node* n = lookup(key);
+  if (!n) return def;
+  if (n->is_string()) return *n->value<std::string>();
+  fail(key, "expected a string");
+}
+
+std::vector<double> ParamDict::getDoubles(const std::string& key, const std::vector<double>& def) const {
+  const toml::node* n = lookup(key);
+  if (!n) return def;
+  if (auto v = n->value<double>(); v && !n->is_array()) {
+    if (!std::isfinite(*v)) fail(key, "must be a finite number");
+    return {*v};
+  }
+  const toml::array* a = n->as_array();
+  if (!a) fail(key, "expected a number or an array of numbers");
+  std::vector<double> out;
+  for (const auto& e : *a) {
+    auto v = e.value<double>();
+    if (!v || !std::isfinite(*v)) fail(key, "expected an array of finite numbers");
+    out.push_back(*v);
+  }
+  return out;
+}
+
+std::vector<std::string> ParamDict::getStrings(const std::string& key, const std::vector<std::string>& def) const {
+  const toml::node* n = lookup(key);
+  if (!n) return def;
+  if (n->is_string()) return {*n->value<std::string>()};
+  const toml::array* a = n->as_array();
+  if (!a) fail(key, "expected a string or an array of strings");
+  std::vector<std::string> out;
+  for (const auto& e : *a) {
+    auto v = e.value<std::string>();
+    if (!v) fail(key, "expected an array of strings");
+    out.push_back(*v);
+  }
+  return out;
+}
+
+double ParamDict::positive(const std::string& key, double def) const {
+  double v = getDouble(key, def);
+  if (!(v > 0)) fail(key, "must be > 0 (got " + std::to_string(v) + ")");
+  return v;
+}
+double ParamDict::nonNegative(const std::string& key, double def) const {
+  double v = getDouble(key, def);
+  if (!(v >= 0)) fail(key, "must be >= 0 (got " + std::to_string(v) + ")");
+  return v;
+}
+int64_t ParamDict::positiveInt(const std::string& key, int64_t def) const {
+  int64_t v = getInt(key, def);
+  if (v <= 0) fail(key, "must be a positive integer (got " + std::to_string(v) + ")");
+  return v;
+}
+
+void ParamDict::reportUnused() const {
+  std::vector<std::string> unused;
+  auto walk = [&](auto&& self, const toml::table& t, const std::string& prefix) -> void {
+    for (const auto& [k, v] : t) {
+      std::string p = prefix.empty() ? std::string(k.str()) : prefix + "." + std::string(k.str());
+      if (!state_->used.count(p)) {
+        unused.push_back(formatLocation(state_->file, int(v.source().begin.line), p) + ": unknown key");
+      } else if (v.is_table()) {
+        self(self, *v.as_table(), p);
+      }
+    }
+  };
+  walk(walk, state_->root, "");
+  if (unused.empty()) return;
+  std::string msg;
+  for (size_t i = 0; i < unused.size(); ++i) msg += (i ? "\n" : "") + unused[i];
+  throw InputError(msg);
+}
+
+}  // namespace mbsdf

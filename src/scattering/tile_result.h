@@ -1,0 +1,37 @@
+// The result of one tile (one incidence bin x a block of wavelengths): bin-averaged BSDF values and
+// their standard errors per component, plus the energy bookkeeping that PHYSICS.md §4 asks for
+// (truncated, leaked, missed paths). Serialised to doubles for MPI.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "scattering/components.h"
+
+namespace mbsdf {
+
+struct TileResult {
+  int tile = 0;
+  int incidenceIndex = 0;  // index into the job's incidence list
+  int incidenceBin = 0;    // sphere bin of the incidence direction
+  int nLambda = 0, nBins = 0;
+  // value[c] and stderr[c] hold nLambda * nBins entries (lambda-major) when component c was
+  // computed, else are empty. Units: 1/sr (bin-averaged BSDF, PHYSICS.md §3).
+  std::array<std::vector<double>, kComponentCount> value, stdError;
+  // Per wavelength, as fractions of the incident power.
+  std::vector<double> truncated;  // paths cut at max depth (or wrapping forever)
+  std::vector<double> leaked;     // paths that crossed the surface where it has holes or wrong winding
+  std::vector<double> missed;     // primary rays that met no geometry (finite patches, holes)
+  uint64_t samples = 0;           // paths per wavelength
+  uint64_t rays = 0;              // ray casts through the scene (for speed figures)
+  double seconds = 0;
+
+  double& at(Component c, int lambda, int bin) { return value[int(c)][size_t(lambda) * nBins + bin]; }
+  double at(Component c, int lambda, int bin) const { return value[int(c)][size_t(lambda) * nBins + bin]; }
+  bool has(Component c) const { return !value[int(c)].empty(); }
+
+  std::vector<double> serialize() const;
+  static TileResult deserialize(const std::vector<double>& buf);
+};
+
+}  // namespace mbsdf
