@@ -74,7 +74,9 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     ProgressReporter pathProgress("tile " + std::to_string(t) + " paths",
                                   job.pathsPerSlice * (job.material.directionsIndependentOfLambda() ? 1 : job.lambda_nm.size()),
                                   30.0, false);
-    TileResult r = tracer.run(t, t, inc.bin, [&](uint64_t done) {
+    std::optional<Vec3> exact;
+    if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+    TileResult r = tracer.run(t, t, inc.bin, exact, [&](uint64_t done) {
       pathProgress.update(done);
       if (mpi.rank() == 0)
         while (receiveOne(false)) {}

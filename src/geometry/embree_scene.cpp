@@ -23,8 +23,8 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
     : device_(makeEmbreeDevice()), sizeX_(g.sizeX), sizeY_(g.sizeY), periodic_(g.periodic), maxWraps_(maxWraps) {
   double zmin = g.zMin(), zmax = g.zMax();
   double extent = std::max({g.sizeX, g.sizeY, zmax - zmin});
-  // Float rounding of coordinates of size ~extent is ~6e-8 extent; offsets 100x above that.
-  eps_ = 1e-5 * extent;
+  // The float ulp of a coordinate of size extent/2 is ~6e-8 extent/2; the offset is ~8 ulps.
+  eps_ = 2.5e-7 * extent;
   double pad = 1e-3 * extent + 0.01 * (zmax - zmin);
   zLo_ = zmin - pad;
   zHi_ = zmax + pad;
@@ -47,6 +47,8 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
   rtcAttachGeometry(scene_.get(), geom);
   rtcReleaseGeometry(geom);
   rtcCommitScene(scene_.get());
+  vertices_ = g.vertices;
+  triangles_ = g.triangles;
   normals_.resize(g.triangles.size());
   for (size_t t = 0; t < g.triangles.size(); ++t) {
     Vec3 n = g.triangleNormal(t);
@@ -74,7 +76,7 @@ bool PeriodicScene::intersectRaw(const Vec3& o, const Vec3& d, double tfar, doub
   return true;
 }
 
-TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d) const {
+TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d, int ignorePrim) const {
   const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zHi_};
   const double size[2] = {sizeX_, sizeY_};
   TraceResult r;
@@ -91,20 +93,30 @@ TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d) const {
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh;
-    rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
-    rh.ray.dir_x = float(d.x); rh.ray.dir_y = float(d.y); rh.ray.dir_z = float(d.z);
-    rh.ray.tnear = 0.f;
-    rh.ray.tfar = float(tExit + eps_);
-    rh.ray.mask = 0xFFFFFFFFu;
-    rh.ray.flags = 0;
-    rh.ray.time = 0.f;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene_.get(), &ctx, &rh);
-    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+    float tnear = 0.f;
+    for (int retry = 0; retry < 4; ++retry) {
+      rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
+      rh.ray.dir_x = float(d.x); rh.ray.dir_y = float(d.y); rh.ray.dir_z = float(d.z);
+      rh.ray.tnear = tnear;
+      rh.ray.tfar = float(tExit + eps_);
+      rh.ray.mask = 0xFFFFFFFFu;
+      rh.ray.flags = 0;
+      rh.ray.time = 0.f;
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+      rtcIntersect1(scene_.get(), &ctx, &rh);
+      // Only the first segment after a hit can meet the triangle it leaves.
+      if (wrap > 0 || rh.hit.geomID == RTC_INVALID_GEOMETRY_ID || int(rh.hit.primID) != ignorePrim) break;
+      tnear = std::nextafter(rh.ray.tfar, std::numeric_limits<float>::infinity());
+    }
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && !(wrap == 0 && int(rh.hit.primID) == ignorePrim)) {
       r.kind = TraceResult::Kind::Hit;
       r.t = rh.ray.tfar;
-      r.p = o + d * r.t;
+      const auto& tri = triangles_[rh.hit.primID];
+      double u = rh.hit.u, v = rh.hit.v;
+      r.p = vertices_[tri[0]] * (1 - u - v) + vertices_[tri[1]] * u + vertices_[tri[2]] * v;
+      // The barycentric point is in the patch's own coordinates; after wrapping, the ray's origin
+      // was shifted by whole periods, which the vertex positions already account for.
       r.n = normals_[rh.hit.primID];
       r.prim = rh.hit.primID;
       return r;

@@ -4,11 +4,14 @@
 //
 // Precision (non-negotiable 5): Embree works in float. The patch is centred on the origin, rays
 // are re-based at every wrap so coordinates stay within the patch box, hit points are recomputed
-// in double from the double origin, and secondary rays start offset along the geometric normal by
-// a scale-aware epsilon (rayEpsilon()).
+// in double from Embree's barycentric coordinates on the double-precision triangle (so they lie on
+// the triangle's plane to double precision), secondary rays skip the triangle they leave and start
+// offset along the geometric normal by a scale-aware epsilon (rayEpsilon(): a few float ulps of the
+// patch's largest coordinate, enough to clear Embree's float rounding of the ray origin).
 #pragma once
 #include <embree3/rtcore.h>
 
+#include <array>
 #include <memory>
 #include <vector>
 
@@ -44,8 +47,9 @@ class PeriodicScene {
   PeriodicScene(const PeriodicScene&) = delete;
   PeriodicScene& operator=(const PeriodicScene&) = delete;
 
-  // Trace from o along unit direction d through the (periodic) patch.
-  TraceResult trace(Vec3 o, const Vec3& d) const;
+  // Trace from o along unit direction d through the (periodic) patch. Hits on `ignorePrim` (the
+  // triangle the ray leaves) are skipped: a flat triangle cannot be hit again by a ray leaving it.
+  TraceResult trace(Vec3 o, const Vec3& d, int ignorePrim = -1) const;
   // One raw Embree query without wrapping (used by the benchmark baseline).
   bool intersectRaw(const Vec3& o, const Vec3& d, double tfar, double* t) const;
 
@@ -65,6 +69,8 @@ class PeriodicScene {
   bool periodic_;
   int maxWraps_;
   std::vector<Vec3> normals_;  // unit normals in double, from the mesh (not Embree's float Ng)
+  std::vector<Vec3> vertices_;  // double copies: hit points are rebuilt from barycentrics
+  std::vector<std::array<uint32_t, 3>> triangles_;
 };
 
 }  // namespace mbsdf

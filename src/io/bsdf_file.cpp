@@ -131,6 +131,7 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
   setScalarAttr<uint64_t>(f, "paths_per_slice", H5T_NATIVE_UINT64, job.pathsPerSlice);
   setScalarAttr<int64_t>(f, "max_depth", H5T_NATIVE_INT64, job.maxDepth);
   setStringAttr(f, "title", "Tabulated BSDF of a surface microgeometry (microbsdf)");
+  setStringAttr(f, "incidence_sampling", job.exactIncidence ? "exact" : "bin");
 
   const int nB = grid.binCount(), nL = int(job.lambda_nm.size()), nI = int(job.incidence.size());
   {

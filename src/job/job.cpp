@@ -120,6 +120,10 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     dirs.fail("incidence", "expected \"all\" or a list of [theta_deg, phi_deg] pairs");
   }
 
+  std::string incSampling = dirs.getString("incidence_sampling", "bin");
+  if (incSampling != "bin" && incSampling != "exact") dirs.fail("incidence_sampling", "must be \"bin\" or \"exact\"");
+  job.exactIncidence = incSampling == "exact";
+
   ParamDict scene = root.table("scene");
   job.scene.coherenceLength_um = scene.positive("coherence_length_um", 50.0);
   job.scene.needs = scene.getStrings("needs", {"brdf", "btdf"});

@@ -34,6 +34,7 @@ struct Job {
   std::vector<double> lambda_nm;
   DirectionGrid::Layout gridLayout;
   std::vector<IncidenceDirection> incidence;
+  bool exactIncidence = false;  // [directions] incidence_sampling = "exact": collimated beams
   ComponentSet components;
   std::vector<std::string> requestedComponents;
   SceneNeeds scene;

@@ -36,11 +36,13 @@ PathTracer::PathTracer(const PeriodicScene& scene, const Material& material, std
   }
 }
 
-void PathTracer::tracePath(int tile, int incidenceBin, uint64_t path, int group, Chunk& out, PathRecord* rec) const {
+void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group,
+                           Chunk& out, PathRecord* rec) const {
   const std::vector<int>& lambdas = groups_[group];
   const size_t nl = lambdas.size();
   Sampler s(settings_.seed, uint32_t(tile), path, uint32_t(group));
   DirectionSample wi = grid_.sampleCosine(incidenceBin, s.get1D(), s.get1D());
+  if (exact) wi = DirectionSample{*exact, 1.0};
   double px = (s.get1D() - 0.5) * scene_.sizeX(), py = (s.get1D() - 0.5) * scene_.sizeY();
   bool fromAbove = wi.w.z >= 0;
   Vec3 o{px, py, fromAbove ? scene_.zTop() : scene_.zBottom()};
@@ -55,6 +57,7 @@ void PathTracer::tracePath(int tile, int incidenceBin, uint64_t path, int group,
   const bool conductor = material_.isConductor(), perfect = material_.isPerfectConductor();
   const double eps = scene_.rayEpsilon();
   int depth = 0;
+  int lastPrim = -1;
 
   auto tally = [&](int bin, Component c) {
     out.events.push_back({bin, int(c), group, int(out.weights.size())});
@@ -63,10 +66,13 @@ void PathTracer::tracePath(int tile, int incidenceBin, uint64_t path, int group,
   auto addTo = [&](std::vector<double>& v) {
     for (size_t k = 0; k < nl; ++k) v[lambdas[k]] += wp[k];
   };
-  if (rec) rec->vertices.push_back(o);
+  if (rec) {
+    rec->vertices.push_back(o);
+    rec->wi = wi.w;
+  }
 
   while (true) {
-    TraceResult tr = scene_.trace(o, d);
+    TraceResult tr = scene_.trace(o, d, lastPrim);
     ++out.rays;
     if (tr.kind == TraceResult::Kind::Hit) {
       if (rec) rec->vertices.push_back(tr.p);
@@ -110,6 +116,7 @@ void PathTracer::tracePath(int tile, int incidenceBin, uint64_t path, int group,
       }
       d = normalize(d);
       o = tr.p + (dot(d, tr.n) > 0 ? tr.n : -tr.n) * eps;
+      lastPrim = int(tr.prim);
       continue;
     }
     if (tr.kind == TraceResult::Kind::TooManyWraps) {
@@ -128,7 +135,10 @@ void PathTracer::tracePath(int tile, int incidenceBin, uint64_t path, int group,
     }
     int bin = grid_.binOf(d);
     tally(bin, depth == 1 ? Component::Coherent : Component::Multiple);
-    if (rec) rec->exitBin = bin;
+    if (rec) {
+      rec->exitBin = bin;
+      rec->wo = d;
+    }
     break;
   }
   if (rec) {
@@ -137,8 +147,9 @@ void PathTracer::tracePath(int tile, int incidenceBin, uint64_t path, int group,
   }
 }
 
-TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin,
+TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
                            const std::function<void(uint64_t)>& progress) const {
+  if (exactDirection) exactDirection = normalize(*exactDirection);
   auto t0 = std::chrono::steady_clock::now();
   const int nL = int(lambda_um_.size()), nB = grid_.binCount();
   const uint64_t N = settings_.paths;
@@ -174,7 +185,7 @@ TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin,
         c.missed.assign(nL, 0.0);
         uint64_t p0 = (b0 + ci) * kChunk, p1 = std::min(N, p0 + kChunk);
         c.events.reserve(p1 - p0);
-        for (uint64_t p = p0; p < p1; ++p) tracePath(tile, incidenceBin, p, g, c, nullptr);
+        for (uint64_t p = p0; p < p1; ++p) tracePath(tile, incidenceBin, exactDirection, p, g, c, nullptr);
       });
       // Merge in chunk order: identical sums for any number of threads.
       for (const Chunk& c : chunks) {
@@ -224,14 +235,16 @@ TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin,
   return r;
 }
 
-PathTracer::PathRecord PathTracer::replay(int tile, int incidenceBin, uint64_t path, int group) const {
+PathTracer::PathRecord PathTracer::replay(int tile, int incidenceBin, uint64_t path, int group,
+                                          std::optional<Vec3> exactDirection) const {
   Chunk c;
   int nL = int(lambda_um_.size());
   c.truncated.assign(nL, 0.0);
   c.leaked.assign(nL, 0.0);
   c.missed.assign(nL, 0.0);
   PathRecord rec;
-  tracePath(tile, incidenceBin, path, group, c, &rec);
+  if (exactDirection) exactDirection = normalize(*exactDirection);
+  tracePath(tile, incidenceBin, exactDirection, path, group, c, &rec);
   return rec;
 }
 

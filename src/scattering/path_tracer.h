@@ -18,6 +18,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "core/direction_grid.h"
@@ -42,22 +43,27 @@ class PathTracer {
 
   // Traces the paths of one tile; `progress(pathsDone)` is called from the calling thread between
   // batches (may be empty).
-  TileResult run(int tile, int incidenceIndex, int incidenceBin,
+  // `exactDirection`: trace a collimated beam from exactly this direction (pointing away from the
+  // surface) instead of averaging over the incidence bin.
+  TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection = std::nullopt,
                  const std::function<void(uint64_t)>& progress = {}) const;
 
   // Replays a single path (for debugging a failing sample): returns its exit bin (or -1) and depth.
   struct PathRecord {
+    Vec3 wi, wo;  // incidence direction and exit direction (both pointing away from the surface)
     int exitBin = -1;
     int depth = 0;
     std::vector<double> weight;
     std::vector<Vec3> vertices;
   };
-  PathRecord replay(int tile, int incidenceBin, uint64_t path, int group = 0) const;
+  PathRecord replay(int tile, int incidenceBin, uint64_t path, int group = 0,
+                    std::optional<Vec3> exactDirection = std::nullopt) const;
 
  private:
   struct Event;
   struct Chunk;
-  void tracePath(int tile, int incidenceBin, uint64_t path, int group, Chunk& out, PathRecord* rec) const;
+  void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, Chunk& out,
+                 PathRecord* rec) const;
 
   const PeriodicScene& scene_;
   const Material& material_;
