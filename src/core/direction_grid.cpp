@@ -15,7 +15,7 @@ Overloaded(Ts...) -> Overloaded<Ts...>;
 // angle is the area of (pixel ∩ unit disk); its solid angle is the integral of 1/cos theta over
 // that area. Both are computed by midpoint quadrature on a sub-grid; the solid-angle integrand
 // is integrable but singular at the rim, so the rim pixels use a finer sub-grid.
-void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* omegaProj) {
+void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* omegaProj, double* cx_, double* cy_) {
   double x0 = -1 + 2.0 * i / g.width, y0 = -1 + 2.0 * j / g.height;
   double dx = 2.0 / g.width, dy = 2.0 / g.height;
   // Corner test: fully inside, fully outside, or on the rim.
@@ -26,9 +26,11 @@ void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* o
   }
   double cx = std::clamp(0.0, x0, x0 + dx), cy = std::clamp(0.0, y0, y0 + dy);
   rmin2 = cx * cx + cy * cy;
+  *cx_ = x0 + dx / 2;
+  *cy_ = y0 + dy / 2;
   if (rmin2 >= 1.0) { *omega = 0; *omegaProj = 0; return; }
   int sub = rmax2 <= 1.0 ? 16 : 256;
-  double a = 0, s = 0, da = dx * dy / (double(sub) * sub);
+  double a = 0, s = 0, da = dx * dy / (double(sub) * sub), mx = 0, my = 0;
   for (int u = 0; u < sub; ++u)
     for (int v = 0; v < sub; ++v) {
       double x = x0 + dx * (u + 0.5) / sub, y = y0 + dy * (v + 0.5) / sub;
@@ -36,7 +38,11 @@ void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* o
       if (r2 >= 1.0) continue;
       a += da;
       s += da / std::sqrt(1.0 - r2);
+      mx += x * da;
+      my += y * da;
     }
+  // Representative point: centroid of (pixel ∩ disk), which lies inside the disk.
+  if (a > 0) { *cx_ = mx / a; *cy_ = my / a; }
   *omega = s;
   *omegaProj = a;
 }
@@ -67,9 +73,12 @@ DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
                    perHemisphere_ = g.width * g.height;
                    omega_.resize(perHemisphere_);
                    omegaProj_.resize(perHemisphere_);
+                   diskCentre_.resize(2 * size_t(perHemisphere_));
                    for (int j = 0; j < g.height; ++j)
-                     for (int i = 0; i < g.width; ++i)
-                       diskPixelMeasures(g, i, j, &omega_[j * g.width + i], &omegaProj_[j * g.width + i]);
+                     for (int i = 0; i < g.width; ++i) {
+                       int k = j * g.width + i;
+                       diskPixelMeasures(g, i, j, &omega_[k], &omegaProj_[k], &diskCentre_[2 * k], &diskCentre_[2 * k + 1]);
+                     }
                  }},
              layout_);
 }
@@ -104,12 +113,9 @@ Vec3 DirectionGrid::centre(int bin) const {
                    int t = local / g.nPhi, p = local % g.nPhi;
                    return sphericalDirection((t + 0.5) * 0.5 * kPi / g.nTheta, (p + 0.5) * 2 * kPi / g.nPhi);
                  },
-                 [&](const DiskGrid& g) {
-                   int i = local % g.width, j = local / g.width;
-                   double x = -1 + 2.0 * (i + 0.5) / g.width, y = -1 + 2.0 * (j + 0.5) / g.height;
-                   double r2 = x * x + y * y;
-                   if (r2 > 1) { double r = std::sqrt(r2); x /= r; y /= r; r2 = 1; }
-                   return Vec3{x, y, std::sqrt(std::max(0.0, 1 - r2))};
+                 [&](const DiskGrid&) {
+                   double x = diskCentre_[2 * size_t(local)], y = diskCentre_[2 * size_t(local) + 1];
+                   return Vec3{x, y, std::sqrt(std::max(0.0, 1 - x * x - y * y))};
                  }},
       layout_);
   if (hemi == 1) w.z = -w.z;
@@ -166,8 +172,7 @@ DirectionSample DirectionGrid::sampleCosine(int bin, double u1, double u2) const
                      a = std::fmod(a + 0.7548776662466927, 1.0);
                      b = std::fmod(b + 0.5698402909980532, 1.0);
                    }
-                   Vec3 c = centre(local);
-                   return DirectionSample{c, 1.0};
+                   return DirectionSample{centre(local), 1.0};
                  }},
       layout_);
   if (hemi == 1) s.w.z = -s.w.z;

@@ -57,6 +57,7 @@ class DirectionGrid {
   Layout layout_;
   int perHemisphere_ = 0;
   std::vector<double> omega_, omegaProj_;
+  std::vector<double> diskCentre_;  // disk layout: (x, y) centroid of pixel ∩ unit disk
 };
 
 }  // namespace mbsdf
