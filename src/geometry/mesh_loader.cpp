@@ -226,6 +226,14 @@ Microgeometry loadMesh(const std::string& path, double scale) {
   if (ext == ".obj") g = loadObj(path, scale);
   else if (ext == ".ply") g = loadPly(path, scale);
   else throw InputError(path + ": unknown mesh format '" + ext + "' (use .obj or .ply)");
+  // Default footprint: the bounding box in x and y (the job may override it).
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  for (auto& v : g.vertices) {
+    x0 = std::min(x0, v.x); x1 = std::max(x1, v.x);
+    y0 = std::min(y0, v.y); y1 = std::max(y1, v.y);
+  }
+  g.sizeX = x1 > x0 ? x1 - x0 : 1.0;
+  g.sizeY = y1 > y0 ? y1 - y0 : 1.0;
   g.validate(path);
   return g;
 }

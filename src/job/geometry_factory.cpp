@@ -116,7 +116,7 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
       x0 = std::min(x0, v.x); x1 = std::max(x1, v.x);
       y0 = std::min(y0, v.y); y1 = std::max(y1, v.y);
     }
-    auto s = size2({x1 - x0 > 0 ? x1 - x0 : 1.0, y1 - y0 > 0 ? y1 - y0 : 1.0});
+    auto s = size2({g.sizeX, g.sizeY});
     // Centre the footprint on the origin (float precision in Embree).
     Vec3 c{(x0 + x1) / 2, (y0 + y1) / 2, 0};
     for (auto& v : g.vertices) v = v - c;

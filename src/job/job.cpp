@@ -16,7 +16,8 @@ Material parseMaterial(const ParamDict& m, std::string* nameOut) {
   Material mat;
   std::string kind = m.getString("kind", "conductor");
   if (kind != "conductor" && kind != "dielectric") m.fail("kind", "must be \"conductor\" or \"dielectric\"");
-  std::string name = m.getString("name", "");
+  // Default material: aluminium for a conductor, BK7 for a dielectric (unless an index is given).
+  std::string name = m.getString("name", m.has("eta") || m.has("k") || m.has("ior") ? "" : (kind == "conductor" ? "Al" : "BK7"));
   if (!name.empty()) {
     if (!builtinMaterial(name, &mat)) {
       std::string list;

@@ -1,0 +1,107 @@
+// Mesh and heightfield loaders: round trips and broken files.
+#include "geometry/mesh_loader.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.h"
+#include "geometry/generators.h"
+#include "io/exr_image.h"
+
+using namespace mbsdf;
+
+namespace {
+std::string tmp(const std::string& name) {
+  auto dir = std::filesystem::temp_directory_path() / "microbsdf_tests";
+  std::filesystem::create_directories(dir);
+  return (dir / name).string();
+}
+void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+std::string errorOf(const std::string& path) {
+  try {
+    loadMesh(path, 1.0);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(MeshLoader, PlyRoundTripBinary) {
+  Microgeometry g = makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.3);
+  std::string p = tmp("dome.ply");
+  writePly(g, p);
+  Microgeometry h = loadMesh(p, 1.0);
+  ASSERT_EQ(h.vertices.size(), g.vertices.size());
+  ASSERT_EQ(h.triangles.size(), g.triangles.size());
+  EXPECT_EQ(h.vertices[17], g.vertices[17]);
+  EXPECT_EQ(h.triangles[5], g.triangles[5]);
+}
+
+TEST(MeshLoader, AsciiPlyAndObjWithUnits) {
+  std::string ply = tmp("quad.ply");
+  write(ply,
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n");
+  Microgeometry a = loadMesh(ply, 1000.0);  // mm -> µm
+  EXPECT_EQ(a.triangles.size(), 2u);
+  EXPECT_DOUBLE_EQ(a.vertices[2].x, 1000.0);
+  std::string obj = tmp("quad.obj");
+  write(obj, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+  Microgeometry b = loadMesh(obj, unitToMicrometres("nm", "x"));
+  EXPECT_EQ(b.triangles.size(), 2u);
+  EXPECT_DOUBLE_EQ(b.vertices[1].x, 1e-3);
+  EXPECT_THROW(unitToMicrometres("furlong", "x"), InputError);
+}
+
+TEST(MeshLoader, BrokenFilesAreNamed) {
+  std::string nanObj = tmp("nan.obj");
+  write(nanObj, "v 0 0 0\nv 1 nan 0\nv 1 1 0\nf 1 2 3\n");
+  std::string e = errorOf(nanObj);
+  EXPECT_NE(e.find("nan.obj:2"), std::string::npos) << e;
+  std::string empty = tmp("empty.obj");
+  write(empty, "# nothing\n");
+  EXPECT_NE(errorOf(empty).find("empty"), std::string::npos);
+  std::string bad = tmp("bad.ply");
+  write(bad, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+             "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n");
+  EXPECT_NE(errorOf(bad).find("bad.ply"), std::string::npos);
+  std::string nanPly = tmp("nan.ply");
+  write(nanPly, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 nan\n1 1 0\n3 0 1 2\n");
+  EXPECT_NE(errorOf(nanPly).find("vertex 1"), std::string::npos);
+  std::string oob = tmp("oob.ply");
+  write(oob, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+             "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n3 0 1 7\n");
+  EXPECT_NE(errorOf(oob).find("refers to vertex 7"), std::string::npos);
+  EXPECT_NE(errorOf(tmp("missing.ply")).find("not found"), std::string::npos);
+  std::string txt = tmp("mesh.stl");
+  write(txt, "solid\n");
+  EXPECT_NE(errorOf(txt).find("unknown mesh format"), std::string::npos);
+}
+
+TEST(HeightfieldLoader, ExrRoundTripAndNaN) {
+  const int w = 8, h = 4;
+  ExrChannel y{"Y", std::vector<float>(w * h)};
+  for (int i = 0; i < w * h; ++i) y.pixels[i] = 0.01f * float(i);
+  std::string p = tmp("height.exr");
+  writeExr(p, w, h, {y});
+  int rw = 0, rh = 0;
+  auto v = loadHeightfieldExr(p, &rw, &rh);
+  EXPECT_EQ(rw, w);
+  EXPECT_EQ(rh, h);
+  EXPECT_FLOAT_EQ(float(v[13]), 0.13f);
+  y.pixels[5] = std::numeric_limits<float>::quiet_NaN();
+  writeExr(p, w, h, {y});
+  try {
+    loadHeightfieldExr(p, &rw, &rh);
+    FAIL() << "NaN height accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("(5, 0)"), std::string::npos) << e.what();
+  }
+  std::string junk = tmp("junk.exr");
+  write(junk, "not an exr");
+  EXPECT_THROW(loadHeightfieldExr(junk, &rw, &rh), InputError);
+}
