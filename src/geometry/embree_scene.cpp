@@ -50,11 +50,18 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
   vertices_ = g.vertices;
   triangles_ = g.triangles;
   normals_.resize(g.triangles.size());
+  double zw = 0, w = 0;
   for (size_t t = 0; t < g.triangles.size(); ++t) {
     Vec3 n = g.triangleNormal(t);
+    if (n.z > 0) {
+      const auto& tri = g.triangles[t];
+      zw += n.z * (g.vertices[tri[0]].z + g.vertices[tri[1]].z + g.vertices[tri[2]].z) / 3;
+      w += n.z;
+    }
     double l = length(n);
     normals_[t] = l > 0 ? n / l : Vec3(0, 0, 1);
   }
+  zMean_ = w > 0 ? zw / w : 0.5 * (zmin + zmax);
 }
 
 bool PeriodicScene::intersectRaw(const Vec3& o, const Vec3& d, double tfar, double* t) const {
@@ -79,17 +86,21 @@ bool PeriodicScene::intersectRaw(const Vec3& o, const Vec3& d, double tfar, doub
 TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d, int ignorePrim) const {
   const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zHi_};
   const double size[2] = {sizeX_, sizeY_};
+  const double inf = std::numeric_limits<double>::infinity();
   TraceResult r;
   for (int wrap = 0; wrap <= maxWraps_; ++wrap) {
-    double tExit = std::numeric_limits<double>::infinity();
+    // Distance to the side of the slab the ray leaves by (a finite patch: unbounded query).
+    double tExit = inf;
     int face = 2;
-    for (int a = 0; a < 3; ++a) {
-      double t = std::numeric_limits<double>::infinity();
-      if (d[a] > 0) t = (hi[a] - o[a]) / d[a];
-      else if (d[a] < 0) t = (lo[a] - o[a]) / d[a];
-      if (t < tExit) { tExit = t; face = a; }
+    if (periodic_) {
+      for (int a = 0; a < 3; ++a) {
+        double t = inf;
+        if (d[a] > 0) t = (hi[a] - o[a]) / d[a];
+        else if (d[a] < 0) t = (lo[a] - o[a]) / d[a];
+        if (t < tExit) { tExit = t; face = a; }
+      }
+      tExit = std::max(tExit, 0.0);
     }
-    tExit = std::max(tExit, 0.0);
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh;
@@ -98,35 +109,38 @@ TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d, int ignorePrim) const {
       rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
       rh.ray.dir_x = float(d.x); rh.ray.dir_y = float(d.y); rh.ray.dir_z = float(d.z);
       rh.ray.tnear = tnear;
-      rh.ray.tfar = float(tExit + eps_);
+      rh.ray.tfar = tExit == inf ? std::numeric_limits<float>::infinity() : float(tExit + eps_);
       rh.ray.mask = 0xFFFFFFFFu;
       rh.ray.flags = 0;
       rh.ray.time = 0.f;
       rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
       rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
       rtcIntersect1(scene_.get(), &ctx, &rh);
-      // Only the first segment after a hit can meet the triangle it leaves.
+      // Only the first segment after a hit can meet the triangle it leaves (a flat triangle
+      // cannot be crossed twice by one straight segment; after a wrap it is another copy).
       if (wrap > 0 || rh.hit.geomID == RTC_INVALID_GEOMETRY_ID || int(rh.hit.primID) != ignorePrim) break;
       tnear = std::nextafter(rh.ray.tfar, std::numeric_limits<float>::infinity());
     }
     if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && !(wrap == 0 && int(rh.hit.primID) == ignorePrim)) {
       r.kind = TraceResult::Kind::Hit;
       r.t = rh.ray.tfar;
+      // Rebuild the point on the double-precision triangle (o was re-based by whole periods at
+      // each wrap, so it is in the patch's own coordinates).
       const auto& tri = triangles_[rh.hit.primID];
       double u = rh.hit.u, v = rh.hit.v;
       r.p = vertices_[tri[0]] * (1 - u - v) + vertices_[tri[1]] * u + vertices_[tri[2]] * v;
-      // The barycentric point is in the patch's own coordinates; after wrapping, the ray's origin
-      // was shifted by whole periods, which the vertex positions already account for.
       r.n = normals_[rh.hit.primID];
       r.prim = rh.hit.primID;
       return r;
     }
-    if (face == 2) {
-      r.kind = d.z > 0 ? TraceResult::Kind::EscapedUp : TraceResult::Kind::EscapedDown;
+    if (!periodic_) {
+      // Left the finite patch: up, down, or exactly sideways.
+      r.kind = d.z > 0 ? TraceResult::Kind::EscapedUp
+                       : (d.z < 0 ? TraceResult::Kind::EscapedDown : TraceResult::Kind::EscapedSide);
       return r;
     }
-    if (!periodic_) {
-      r.kind = TraceResult::Kind::EscapedSide;
+    if (face == 2) {
+      r.kind = d.z > 0 ? TraceResult::Kind::EscapedUp : TraceResult::Kind::EscapedDown;
       return r;
     }
     // Re-enter from the opposite side at the same height with the same direction.

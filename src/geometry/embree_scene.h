@@ -57,6 +57,9 @@ class PeriodicScene {
   double zTop() const { return zHi_; }
   double zBottom() const { return zLo_; }
   double rayEpsilon() const { return eps_; }
+  // Mean height of the surface (projected-area weighted over up-facing triangles): the macro
+  // surface plane at which a finite patch's footprint is illuminated.
+  double zMean() const { return zMean_; }
   double sizeX() const { return sizeX_; }
   double sizeY() const { return sizeY_; }
   bool periodic() const { return periodic_; }
@@ -65,7 +68,7 @@ class PeriodicScene {
  private:
   EmbreeDevicePtr device_;
   EmbreeScenePtr scene_;
-  double sizeX_, sizeY_, zLo_, zHi_, eps_;
+  double sizeX_, sizeY_, zLo_, zHi_, eps_, zMean_ = 0;
   bool periodic_;
   int maxWraps_;
   std::vector<Vec3> normals_;  // unit normals in double, from the mesh (not Embree's float Ng)

@@ -45,7 +45,15 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
   if (exact) wi = DirectionSample{*exact, 1.0};
   double px = (s.get1D() - 0.5) * scene_.sizeX(), py = (s.get1D() - 0.5) * scene_.sizeY();
   bool fromAbove = wi.w.z >= 0;
+  // Periodic patch: enter through the top (bottom) of the slab at a uniform footprint point; the
+  // wrapping makes this uniform over the illuminated projected area. Finite patch: aim at a uniform
+  // point of the footprint on the mean surface plane, starting outside the geometry.
   Vec3 o{px, py, fromAbove ? scene_.zTop() : scene_.zBottom()};
+  if (!scene_.periodic()) {
+    double zStart = fromAbove ? scene_.zTop() : scene_.zBottom();
+    Vec3 base{px, py, scene_.zMean()};
+    o = base + wi.w * ((zStart - scene_.zMean()) / wi.w.z);
+  }
   Vec3 d = -wi.w;
   bool inUpper = fromAbove;
   double w[64];
@@ -129,7 +137,10 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
       break;
     }
     bool down = tr.kind == TraceResult::Kind::EscapedDown, up = tr.kind == TraceResult::Kind::EscapedUp;
-    if ((up && !inUpper) || (down && inUpper)) {
+    // On a periodic (infinite) surface a ray can only leave upward in the upper medium or downward
+    // in the lower one; anything else crossed the surface through a hole. A finite patch can be
+    // left in any direction from either side.
+    if (scene_.periodic() && ((up && !inUpper) || (down && inUpper))) {
       addTo(out.leaked);
       break;
     }
