@@ -179,6 +179,38 @@ DirectionSample DirectionGrid::sampleCosine(int bin, double u1, double u2) const
   return s;
 }
 
+void DirectionGrid::xyBounds(int bin, double* xmin, double* xmax, double* ymin, double* ymax) const {
+  int local = bin % perHemisphere_;
+  std::visit(Overloaded{[&](const ThetaPhiGrid& g) {
+                          int t = local / g.nPhi, p = local % g.nPhi;
+                          double t0 = t * 0.5 * kPi / g.nTheta, t1 = (t + 1) * 0.5 * kPi / g.nTheta;
+                          double p0 = p * 2 * kPi / g.nPhi, p1 = (p + 1) * 2 * kPi / g.nPhi;
+                          double s0 = std::sin(t0), s1 = std::sin(t1);
+                          *xmin = *ymin = 1e300;
+                          *xmax = *ymax = -1e300;
+                          auto add = [&](double r, double phi) {
+                            double x = r * std::cos(phi), y = r * std::sin(phi);
+                            *xmin = std::min(*xmin, x); *xmax = std::max(*xmax, x);
+                            *ymin = std::min(*ymin, y); *ymax = std::max(*ymax, y);
+                          };
+                          for (double r : {s0, s1}) {
+                            add(r, p0);
+                            add(r, p1);
+                            // Extremes of the arc where it crosses an axis.
+                            for (int q = 0; q <= 4; ++q)
+                              if (q * 0.5 * kPi > p0 && q * 0.5 * kPi < p1) add(r, q * 0.5 * kPi);
+                          }
+                        },
+                        [&](const DiskGrid& g) {
+                          int i = local % g.width, j = local / g.width;
+                          *xmin = -1 + 2.0 * i / g.width;
+                          *xmax = -1 + 2.0 * (i + 1) / g.width;
+                          *ymin = -1 + 2.0 * j / g.height;
+                          *ymax = -1 + 2.0 * (j + 1) / g.height;
+                        }},
+             layout_);
+}
+
 int DirectionGrid::binOfAngles(double theta_deg, double phi_deg) const {
   return binOf(sphericalDirection(radians(theta_deg), radians(phi_deg)));
 }

@@ -50,6 +50,8 @@ class DirectionGrid {
   DirectionSample sampleUniform(int bin, double u1, double u2) const;
   // Density proportional to |cos theta| inside the bin (weight 1 for cosine-weighted averages).
   DirectionSample sampleCosine(int bin, double u1, double u2) const;
+  // Bounding box of the bin's directions projected on the xy plane (x = sin θ cos φ, y = sin θ sin φ).
+  void xyBounds(int bin, double* xmin, double* xmax, double* ymin, double* ymax) const;
   // Bin for an incidence direction given in degrees (theta in [0, 180], phi any).
   int binOfAngles(double theta_deg, double phi_deg) const;
 

@@ -1,0 +1,29 @@
+// Uniform sampling of points by surface area on a microgeometry (PHYSICS.md §5: "uniform area
+// sampling with a shadow ray"), with the triangle chosen from the cumulative area table.
+#pragma once
+#include <vector>
+
+#include "geometry/microgeometry.h"
+
+namespace mbsdf {
+
+struct SurfaceSample {
+  Vec3 x;
+  Vec3 n;  // unit geometric normal (into the upper medium)
+  unsigned prim = 0;
+};
+
+class SurfaceSampler {
+ public:
+  explicit SurfaceSampler(const Microgeometry& g);
+  double totalArea() const { return total_; }
+  SurfaceSample sample(double u1, double u2, double u3) const;
+
+ private:
+  const Microgeometry& g_;
+  std::vector<double> cdf_;
+  std::vector<Vec3> normals_;
+  double total_ = 0;
+};
+
+}  // namespace mbsdf

@@ -1,0 +1,259 @@
+#include "scattering/orders_estimator.h"
+
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "core/rng.h"
+#include "scattering/wave_common.h"
+
+namespace mbsdf {
+
+namespace {
+constexpr uint32_t kOrdersStream = 0x0D0E5;
+constexpr int kGroups = 8;  // jackknife groups of points
+
+struct Order {
+  int lambda;
+  Vec3 wo;      // order direction
+  bool transmission;
+  double scale;  // P_G / |Ĥ_G|² (mean of s and p)
+  double sd;     // lobe standard deviation in (x, y) of ωo
+};
+
+// Fractions of a Gaussian lobe (centre (cx, cy), standard deviation sd in the xy plane of the
+// hemisphere `zs`) that fall in each bin: a fixed 32 x 32 stratified pattern through the inverse
+// normal CDF, deterministic. Directions outside the unit disk are evanescent and dropped.
+void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double zs,
+              std::vector<std::pair<int, double>>* out) {
+  out->clear();
+  // Fast path: the whole lobe (±5 sd) inside one bin.
+  auto binAt = [&](double x, double y) {
+    double r2 = x * x + y * y;
+    return r2 < 1 ? grid.binOf({x, y, zs * std::sqrt(1 - r2)}) : -1;
+  };
+  int c = binAt(cx, cy);
+  bool inside = c >= 0;
+  for (int dx = -1; dx <= 1 && inside; ++dx)
+    for (int dy = -1; dy <= 1 && inside; ++dy)
+      if ((dx || dy) && binAt(cx + 5 * sd * dx, cy + 5 * sd * dy) != c) inside = false;
+  if (inside) {
+    out->push_back({c, 1.0});
+    return;
+  }
+  constexpr int K = 32;
+  auto invNormal = [](double p) {  // Acklam-free: Newton on erfc, enough for a stratified pattern
+    double x = 0;
+    for (int i = 0; i < 40; ++i) {
+      double f = 0.5 * std::erfc(-x / std::sqrt(2.0)) - p;
+      double d = std::exp(-0.5 * x * x) / std::sqrt(2 * kPi);
+      x -= f / d;
+    }
+    return x;
+  };
+  static const std::vector<double> nodes = [&] {
+    std::vector<double> v(K);
+    for (int i = 0; i < K; ++i) v[i] = invNormal((i + 0.5) / K);
+    return v;
+  }();
+  for (int i = 0; i < K; ++i)
+    for (int j = 0; j < K; ++j) {
+      int b = binAt(cx + sd * nodes[i], cy + sd * nodes[j]);
+      if (b < 0) continue;
+      if (!out->empty() && out->back().first == b) out->back().second += 1.0 / (K * K);
+      else {
+        bool found = false;
+        for (auto& e : *out)
+          if (e.first == b) { e.second += 1.0 / (K * K); found = true; break; }
+        if (!found) out->push_back({b, 1.0 / (K * K)});
+      }
+    }
+}
+
+}  // namespace
+
+OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx) : ctx_(ctx), sampler_(ctx.geometry) {
+  if (!ctx.scene.periodic() || !ctx.window.active())
+    throw std::invalid_argument("the orders estimator needs a periodic patch and a coherence window");
+}
+
+WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
+                                        const std::function<void(uint64_t)>& progress) const {
+  auto t0 = std::chrono::steady_clock::now();
+  const DirectionGrid& grid = ctx_.grid;
+  const PeriodicScene& scene = ctx_.scene;
+  const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();
+  const int N = std::max(2 * kGroups, ctx_.settings.samplesPerBin);
+  const int K = exactDirection ? 1 : std::max(2, ctx_.settings.incidenceDirections);
+  const bool masked = ctx_.settings.computeMasked;
+  const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
+  const wave::Media media(ctx_);
+  const double Lx = scene.sizeX(), Ly = scene.sizeY(), area = sampler_.totalArea();
+  const double sigma = ctx_.window.sigma();
+
+  WaveTileResult r;
+  r.nLambda = nL;
+  r.nBins = nB;
+  r.fws.assign(size_t(nL) * nB, 0.0);
+  r.fwsErr.assign(size_t(nL) * nB, 0.0);
+  if (masked) {
+    r.pmsk.assign(size_t(nL) * nB, 0.0);
+    r.pmskErr.assign(size_t(nL) * nB, 0.0);
+  }
+  // Per incidence sample k: power per (λ, bin) and its variance; averaged over k at the end.
+  std::vector<std::vector<double>> pv(K), pm(K), vv(K), vm(K);
+  std::atomic<uint64_t> rays{0};
+
+  for (int k = 0; k < K; ++k) {
+    Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(k), kOrdersStream);
+    const Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s.get1D(), s.get1D()).w;
+    const double cosI = std::abs(wi.z);
+    // Propagating orders of every wavelength on the reflection (and transmission) side.
+    std::vector<Order> orders;
+    for (int l = 0; l < nL; ++l) {
+      const double k0 = 2 * kPi / ctx_.lambda_um[l];
+      for (bool trans : {false, true}) {
+        if (trans && media.conductor()) continue;
+        const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
+        const double reach = nO * k0 + nI * k0;  // |G| can be at most this for a propagating order
+        const long amax = long(std::ceil(reach * Lx / (2 * kPi))), bmax = long(std::ceil(reach * Ly / (2 * kPi)));
+        for (long a = -amax; a <= amax; ++a)
+          for (long b = -bmax; b <= bmax; ++b) {
+            double x = -(2 * kPi * a / Lx + nI * k0 * wi.x) / (nO * k0);
+            double y = -(2 * kPi * b / Ly + nI * k0 * wi.y) / (nO * k0);
+            double r2 = x * x + y * y;
+            if (r2 >= 1) continue;  // evanescent
+            double cz = std::sqrt(1 - r2);
+            bool up = fromAbove != trans;
+            Order o;
+            o.lambda = l;
+            o.wo = {x, y, up ? cz : -cz};
+            o.transmission = trans;
+            o.scale = 1.0 / (4 * nI * nO * k0 * k0 * Lx * Lx * Ly * Ly * cosI * cz) *
+                      (kPi * sigma * sigma / ctx_.window.w2());  // W2 of the truncated copy sum
+            o.sd = 1.0 / (std::sqrt(2.0) * sigma * nO * k0);
+            orders.push_back(o);
+          }
+      }
+    }
+    const size_t nO = orders.size();
+    // Accumulators per order and polarisation, per jackknife group: Σ X and Σ |X|².
+    std::vector<Complex> S(nO * 2 * kGroups * 2, 0.0);
+    std::vector<double> Q(nO * 2 * kGroups * 2, 0.0);
+    auto idx = [&](size_t o, int pol, int g, int msk) { return ((o * 2 + pol) * kGroups + g) * 2 + msk; };
+    // Points in parallel blocks, each block accumulating into its own group: deterministic.
+    const int blocks = kGroups;
+    std::vector<uint64_t> blockRays(blocks, 0);
+    tbb::parallel_for(0, blocks, [&](int g) {
+      const int j0 = g * N / blocks, j1 = (g + 1) * N / blocks;
+      for (int j = j0; j < j1; ++j) {
+        Sampler ps(ctx_.settings.seed, uint32_t(tile), (uint64_t(k) << 32) | uint64_t(j), kOrdersStream + 1);
+        SurfaceSample sp = sampler_.sample(ps.get1D(), ps.get1D(), ps.get1D());
+        const Vec3 m = fromAbove ? sp.n : -sp.n;
+        const double cosLocal = dot(m, wi);
+        if (cosLocal <= 0) continue;
+        ++blockRays[g];
+        if (!wave::escapes(scene, sp.x, m, wi, sp.prim, fromAbove)) continue;
+        for (size_t o = 0; o < nO; ++o) {
+          const Order& ord = orders[o];
+          const double mo = dot(m, ord.wo);
+          if (ord.transmission ? mo >= 0 : mo <= 0) continue;
+          ++blockRays[g];
+          const bool visible = ord.transmission ? wave::escapes(scene, sp.x, -m, ord.wo, sp.prim, !fromAbove)
+                                                : wave::escapes(scene, sp.x, m, ord.wo, sp.prim, fromAbove);
+          if (!visible && !masked) continue;
+          const int l = ord.lambda;
+          const double k0 = 2 * kPi / ctx_.lambda_um[l];
+          const double nI = media.incident(l, fromAbove), nOut = ord.transmission ? media.other(l, fromAbove) : nI;
+          KirchhoffValue kv = kirchhoffIntegrand(sp.x, m, wi, ord.wo, k0, nI, nOut, media.fresnel(l, cosLocal, fromAbove),
+                                                 ord.transmission);
+          // kirchhoffIntegrand's phase is q·x with q_xy = G exactly at the order direction: it is
+          // the e^{i (G·x_xy + q_z z)} of Ĥ_G.
+          const int msk = visible ? 0 : 1;
+          const Complex xs = kv.s * area, xp = kv.p * area;
+          S[idx(o, 0, g, msk)] += xs;
+          S[idx(o, 1, g, msk)] += xp;
+          Q[idx(o, 0, g, msk)] += std::norm(xs);
+          Q[idx(o, 1, g, msk)] += std::norm(xp);
+        }
+      }
+    });
+    for (uint64_t b : blockRays) rays += b;
+    // |Ĥ_G|² per order (pairwise, unbiased) with a delete-a-group jackknife error, then the lobe
+    // is shared among the bins.
+    pv[k].assign(size_t(nL) * nB, 0.0);
+    vv[k].assign(size_t(nL) * nB, 0.0);
+    if (masked) {
+      pm[k].assign(size_t(nL) * nB, 0.0);
+      vm[k].assign(size_t(nL) * nB, 0.0);
+    }
+    std::vector<std::pair<int, double>> share;
+    for (size_t o = 0; o < nO; ++o) {
+      const Order& ord = orders[o];
+      for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
+        auto estimate = [&](int skip, double n) {
+          double total = 0;
+          for (int pol = 0; pol < 2; ++pol) {
+            Complex sum = 0;
+            double q = 0;
+            for (int g = 0; g < kGroups; ++g)
+              if (g != skip) {
+                sum += S[idx(o, pol, g, msk)];
+                q += Q[idx(o, pol, g, msk)];
+              }
+            total += 0.5 * (std::norm(sum) - q) / (n * (n - 1));
+          }
+          return total * ord.scale;
+        };
+        const double P = estimate(-1, double(N));
+        if (P == 0) continue;
+        double jkMean = 0;
+        std::vector<double> jk(kGroups);
+        for (int g = 0; g < kGroups; ++g) {
+          jk[g] = estimate(g, double(N) * (kGroups - 1) / kGroups);
+          jkMean += jk[g] / kGroups;
+        }
+        double var = 0;
+        for (double v : jk) var += (v - jkMean) * (v - jkMean);
+        var *= double(kGroups - 1) / kGroups;
+        lobeBins(grid, ord.wo.x, ord.wo.y, ord.sd, ord.wo.z >= 0 ? 1.0 : -1.0, &share);
+        auto& pt = msk ? pm[k] : pv[k];
+        auto& vt = msk ? vm[k] : vv[k];
+        for (auto [bin, frac] : share) {
+          pt[size_t(ord.lambda) * nB + bin] += P * frac;
+          vt[size_t(ord.lambda) * nB + bin] += var * frac * frac;
+        }
+      }
+    }
+    if (progress) progress(uint64_t(k + 1) * uint64_t(N));
+  }
+  // Average over the incidence samples; the error combines the point error and the spread over k.
+  auto combine = [&](const std::vector<std::vector<double>>& p, const std::vector<std::vector<double>>& v,
+                     std::vector<double>& f, std::vector<double>& e) {
+    for (size_t i = 0; i < f.size(); ++i) {
+      const int b = int(i % size_t(nB));
+      const double toF = 1.0 / grid.projectedSolidAngle(b);
+      double mean = 0, var = 0;
+      for (int k = 0; k < K; ++k) mean += p[k][i] / K;
+      for (int k = 0; k < K; ++k) var += v[k][i] / (double(K) * K);
+      if (K > 1) {
+        double spread = 0;
+        for (int k = 0; k < K; ++k) spread += (p[k][i] - mean) * (p[k][i] - mean);
+        var = std::max(var, spread / (K - 1) / K);
+      }
+      f[i] = mean * toF;
+      e[i] = std::sqrt(var) * toF;
+    }
+  };
+  combine(pv, vv, r.fws, r.fwsErr);
+  if (masked) combine(pm, vm, r.pmsk, r.pmskErr);
+  r.samples = uint64_t(K) * uint64_t(N);
+  r.rays = rays.load();
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+}  // namespace mbsdf

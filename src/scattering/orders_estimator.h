@@ -1,0 +1,36 @@
+// The `orders` wave estimator, for a periodic patch under a coherence window much wider than the
+// patch (σ ≫ L / 2π): the far field is then a set of narrow lobes around the grating orders, and
+// each lobe is integrated exactly instead of being hit by random exit directions.
+//
+// Derivation (PHYSICS.md §5 with the copy sum written by Poisson summation):
+//   Σ_s w(x + s) e^{i q·s} = (1/A_fp) Σ_G ŵ(q_xy − G) e^{i (G − q_xy)·x_xy},  ŵ(k) = 2πσ² e^{−σ²|k|²/2},
+// G = 2π (a/Lx, b/Ly). Near order G, I(q) ≈ ŵ(q_xy − G) Ĥ_G / A_fp with the order amplitude
+//   Ĥ_G = ∫_patch V(x,ωi) V(x,ω_G) g(x, ω_G) e^{i (G·x_xy + q_z(ω_G) z)} dA
+// evaluated at the order direction ω_G,xy = −(G + n_i k0 ωi,xy)/(n_o k0). Integrating |ŵ|² over the
+// lobe (∫|ŵ|² d²q = 4π³σ², dω = d²q / (n_o² k0² cos θ_G)) and normalising by 16π² W2 cos θi with
+// W2 = πσ² gives the power of order G as a fraction of the incident power:
+//   P_G = (|Ĥ_G,s|² + |Ĥ_G,p|²)/2 / (4 n_i n_o k0² A_fp² cos θi cos θ_G)
+// (a flat mirror at normal incidence: Ĥ_0 = −2 k0 A_fp, P_0 = 1). The lobe is a Gaussian of standard
+// deviation 1/(√2 σ n_o k0) in (x, y) of ωo; its power is shared among the bins it covers.
+// |Ĥ_G|² is estimated from N points sampled uniformly by area with the unbiased pairwise form, its
+// standard error by a delete-a-group jackknife over 8 groups of points. Points and shadow rays are
+// shared by all orders and wavelengths; each (point, order direction) needs one masking ray.
+#pragma once
+#include "geometry/surface_sampler.h"
+#include "scattering/wave_estimator.h"
+
+namespace mbsdf {
+
+class OrdersWaveEstimator : public WaveEstimator {
+ public:
+  explicit OrdersWaveEstimator(const WaveContext& ctx);
+  std::string name() const override { return "orders"; }
+  WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
+                     const std::function<void(uint64_t)>& progress) const override;
+
+ private:
+  WaveContext ctx_;
+  SurfaceSampler sampler_;
+};
+
+}  // namespace mbsdf

@@ -1,0 +1,35 @@
+#include "scattering/wave_common.h"
+
+namespace mbsdf::wave {
+
+Media::Media(const WaveContext& ctx)
+    : nUpper_(ctx.material.outsideIor),
+      conductor_(ctx.material.isConductor()),
+      perfect_(ctx.material.isPerfectConductor()) {
+  for (double l : ctx.lambda_um) lower_.push_back(perfect_ ? Complex(0, 0) : ctx.material.ior(l));
+}
+
+FresnelAmplitudes Media::fresnel(int l, double cosLocal, bool fromAbove) const {
+  if (perfect_) return perfectConductorAmplitudes();
+  if (fromAbove) return fresnelAmplitudes(cosLocal, nUpper_, lower_[l]);
+  return fresnelAmplitudes(cosLocal, lower_[l].real(), Complex(nUpper_, 0));
+}
+
+bool escapes(const PeriodicScene& scene, const Vec3& x, const Vec3& side, const Vec3& d, unsigned prim, bool up) {
+  TraceResult r = scene.trace(x + side * scene.rayEpsilon(), d, int(prim));
+  if (r.kind == TraceResult::Kind::Hit || r.kind == TraceResult::Kind::TooManyWraps) return false;
+  if (!scene.periodic()) return true;
+  return up ? r.kind == TraceResult::Kind::EscapedUp : r.kind == TraceResult::Kind::EscapedDown;
+}
+
+std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielectric) {
+  std::vector<int> bins;
+  for (int b = 0; b < grid.binCount(); ++b) {
+    if (grid.projectedSolidAngle(b) <= 0) continue;
+    bool reflection = grid.isUpper(b) == fromAbove;
+    if (reflection || dielectric) bins.push_back(b);
+  }
+  return bins;
+}
+
+}  // namespace mbsdf::wave

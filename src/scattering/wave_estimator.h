@@ -1,0 +1,66 @@
+// Estimators of the scalar-diffraction single-scattering BSDF f_ws (PHYSICS.md §5) and of the power
+// diffracted by masked points P_msk (§6), behind one interface so that they can be compared
+// (the `paper` baseline against better ones) and new ones plugged in.
+//
+// Both estimate, per exit bin Ωo and wavelength, the bin-averaged
+//   f_ws(Ωo) = ∫_Ωo p(ωo) dω / Ω⊥(Ωo)
+// with visibility rays shared by all wavelengths and phases in double precision.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/direction_grid.h"
+#include "geometry/embree_scene.h"
+#include "geometry/microgeometry.h"
+#include "optics/material.h"
+#include "scattering/coherence_window.h"
+
+namespace mbsdf {
+
+struct WaveSettings {
+  std::string estimator = "area";  // "area" | "paper" | "orders"
+  int samplesPerBin = 256;         // area: points x directions per exit bin; paper: passes
+  int pointsPerDirection = 64;     // area: points per exit direction; directions = samples / points (>= 2)
+  int incidenceDirections = 4;     // orders: incidence directions per slice (bin-averaged incidence)
+  uint64_t seed = 1;
+  bool computeMasked = false;      // also estimate P_msk for the lost component
+};
+
+struct WaveTileResult {
+  int nLambda = 0, nBins = 0;
+  // Per (λ, bin), λ-major, 1/sr. Bins that were not computed (the other hemisphere of a
+  // conductor) hold 0.
+  std::vector<double> fws, fwsErr, pmsk, pmskErr;
+  uint64_t samples = 0;  // Kirchhoff samples (point x direction) per wavelength
+  uint64_t rays = 0;
+  double seconds = 0;
+};
+
+struct WaveContext {
+  const Microgeometry& geometry;
+  const PeriodicScene& scene;
+  const Material& material;
+  std::vector<double> lambda_um;
+  const DirectionGrid& grid;
+  CoherenceWindow window;
+  WaveSettings settings;
+};
+
+class WaveEstimator {
+ public:
+  virtual ~WaveEstimator() = default;
+  virtual std::string name() const = 0;
+  // exactDirection: a collimated beam (as in PathTracer::run); otherwise the incidence direction is
+  // drawn cosine-weighted inside the incidence bin.
+  virtual WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
+                             const std::function<void(uint64_t)>& progress = {}) const = 0;
+};
+
+// "area" (AreaWaveEstimator) or "paper" (PaperWaveEstimator); throws std::invalid_argument.
+std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx);
+
+}  // namespace mbsdf
