@@ -12,6 +12,7 @@
 #include "geometry/embree_scene.h"
 #include "io/bsdf_file.h"
 #include "scattering/path_tracer.h"
+#include "scattering/wave_estimator.h"
 
 namespace mbsdf {
 namespace {
@@ -32,6 +33,25 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   settings.seed = job.seed;
   settings.tallyGeoMasked = job.components.has(Component::Lost);
   PathTracer tracer(scene, job.material, job.lambda_um(), grid, settings);
+  std::unique_ptr<WaveEstimator> wave;
+  if (job.needsWave()) {
+    WaveSettings ws;
+    ws.estimator = job.resolvedWaveEstimator();
+    ws.samplesPerBin = int(job.waveSamplesPerBin);
+    ws.pointsPerDirection = int(job.wavePointsPerDirection);
+    ws.incidenceDirections = int(job.waveIncidenceDirections);
+    ws.seed = job.seed;
+    ws.computeMasked = job.components.has(Component::Lost);
+    wave = makeWaveEstimator(WaveContext{job.geometry, scene, job.material, job.lambda_um(), grid,
+                                         CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um,
+                                                                              job.geometry.sizeX, job.geometry.sizeY,
+                                                                              job.geometry.periodic),
+                                         ws});
+    if (mpi.rank() == 0)
+      spdlog::info("scalar diffraction: {} estimator, {} samples per bin, coherence length {} µm{}", wave->name(),
+                   job.waveSamplesPerBin, job.scene.coherenceLength_um,
+                   job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
+  }
 
   const int nTiles = int(job.incidence.size());
   if (mpi.rank() == 0)
@@ -81,6 +101,12 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
       if (mpi.rank() == 0)
         while (receiveOne(false)) {}
     });
+    if (wave) {
+      WaveTileResult w = wave->run(t, inc.bin, exact);
+      addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
+      r.seconds += w.seconds;
+      r.rays += w.rays;
+    }
     paths += r.samples;
     if (mpi.rank() == 0) {
       writeResult(r);

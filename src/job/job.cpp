@@ -126,7 +126,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.exactIncidence = incSampling == "exact";
 
   ParamDict scene = root.table("scene");
-  job.scene.coherenceLength_um = scene.positive("coherence_length_um", 50.0);
+  job.scene.coherenceLength_um = scene.nonNegative("coherence_length_um", 50.0);
   job.scene.needs = scene.getStrings("needs", {"brdf", "btdf"});
   for (auto& n : job.scene.needs)
     if (n != "brdf" && n != "btdf") scene.fail("needs", "entries must be \"brdf\" or \"btdf\"");
@@ -136,17 +136,15 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.requestedComponents = eff.getStrings("components", {"auto"});
   for (const auto& c : job.requestedComponents) {
     if (c == "auto") {
-      // Geometric optics: what this version computes for every scene.
+      // Until the effects planner decides per scene: the paper's full model WM.
       job.components.add(Component::Coherent);
+      job.components.add(Component::Incoherent);
       job.components.add(Component::Multiple);
       continue;
     }
     auto comp = componentFromName(c);
     if (!comp || *comp == Component::GeoMasked)
       eff.fail("components", "unknown component '" + c + "' (auto, coherent, incoherent, multiple, lost)");
-    if (*comp == Component::Incoherent || *comp == Component::Lost)
-      eff.fail("components", "component '" + c + "' needs the scalar-diffraction estimator, which this version "
-                             "does not have yet (see README, 'Status')");
     job.components.add(*comp);
   }
 
@@ -154,10 +152,14 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.pathsPerSlice = uint64_t(samp.positiveInt("paths_per_slice", 1000000));
   job.maxDepth = int(samp.positiveInt("max_depth", 100));
   job.seed = uint64_t(samp.getInt("seed", 1));
-  job.waveEstimator = samp.getString("wave_estimator", "area");
-  if (job.waveEstimator != "paper" && job.waveEstimator != "area")
-    samp.fail("wave_estimator", "must be \"paper\" or \"area\"");
+  job.waveEstimator = samp.getString("wave_estimator", "auto");
+  if (job.waveEstimator != "paper" && job.waveEstimator != "area" && job.waveEstimator != "orders" &&
+      job.waveEstimator != "auto")
+    samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\" or \"paper\"");
   job.waveSamplesPerBin = samp.positiveInt("wave_samples_per_bin", 256);
+  job.wavePointsPerDirection = samp.positiveInt("wave_points_per_direction", 64);
+  if (job.wavePointsPerDirection < 2) samp.fail("wave_points_per_direction", "must be >= 2 (pairwise estimator)");
+  job.waveIncidenceDirections = samp.positiveInt("wave_incidence_directions", 4);
 
   ParamDict out = root.table("output");
   job.outputPath = out.getString("path", "out.h5");
@@ -167,8 +169,19 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   ParamDict geo = root.table("geometry");
   job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind);
 
+  if (job.waveEstimator == "orders" && !(job.geometry.periodic && job.scene.coherenceLength_um > 0))
+    samp.fail("wave_estimator", "\"orders\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
+
   root.reportUnused();
   return job;
+}
+
+std::string Job::resolvedWaveEstimator() const {
+  if (waveEstimator != "auto") return waveEstimator;
+  const double sigma = scene.coherenceLength_um / 6.0;
+  const double L = std::max(geometry.sizeX, geometry.sizeY);
+  if (geometry.periodic && sigma > 0 && 2 * kPi * sigma / L >= 4.0) return "orders";
+  return "area";
 }
 
 Job loadJob(const std::string& path) {

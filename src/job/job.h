@@ -41,11 +41,17 @@ struct Job {
   uint64_t pathsPerSlice = 1000000;
   int maxDepth = 100;
   uint64_t seed = 1;
-  std::string waveEstimator = "area";
+  std::string waveEstimator = "auto";  // resolved by resolvedWaveEstimator()
   int64_t waveSamplesPerBin = 256;
+  int64_t wavePointsPerDirection = 64;
+  int64_t waveIncidenceDirections = 4;
   std::string outputPath = "out.h5";
   bool previews = false;
 
+  bool needsWave() const { return components.has(Component::Incoherent) || components.has(Component::Lost); }
+  // "auto": `orders` for a periodic patch under a coherence window wider than about one period
+  // (2πσ/L >= 4: neighbouring order lobes are >= 5.7 standard deviations apart), otherwise `area`.
+  std::string resolvedWaveEstimator() const;
   std::vector<double> lambda_um() const {
     std::vector<double> v;
     for (double l : lambda_nm) v.push_back(l * 1e-3);

@@ -60,7 +60,13 @@ class WaveEstimator {
                              const std::function<void(uint64_t)>& progress = {}) const = 0;
 };
 
-// "area" (AreaWaveEstimator) or "paper" (PaperWaveEstimator); throws std::invalid_argument.
+// "area", "orders" or "paper"; throws std::invalid_argument.
 std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx);
+
+// Adds the wave components to a path-traced tile (PHYSICS.md §3, §6):
+//   incoherent = f_ws − coherent,   lost = P_msk / Ω⊥ − geo_masked,
+// with standard errors combined in quadrature. `tile` must hold coherent (and geo_masked for lost).
+struct TileResult;
+void addWaveComponents(TileResult& tile, const WaveTileResult& wave, bool incoherent, bool lost);
 
 }  // namespace mbsdf

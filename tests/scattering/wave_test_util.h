@@ -1,0 +1,44 @@
+// Helpers for the wave-optics tests: one wave tile on a geometry, hemispherical integrals.
+#pragma once
+#include <memory>
+
+#include "scattering/wave_estimator.h"
+#include "scattering_test_util.h"
+
+namespace mbsdf::test {
+
+struct WaveScenario {
+  Microgeometry geometry;
+  Material mat;
+  DirectionGrid grid;
+  std::vector<double> lambda_um;
+  std::unique_ptr<PeriodicScene> scene;
+  std::unique_ptr<WaveEstimator> estimator;
+  WaveScenario(Microgeometry g, Material m, DirectionGrid::Layout layout, std::vector<double> lambdas,
+               double coherenceLength_um, WaveSettings s)
+      : geometry(std::move(g)), mat(std::move(m)), grid(layout), lambda_um(std::move(lambdas)) {
+    scene = std::make_unique<PeriodicScene>(geometry);
+    estimator = makeWaveEstimator(WaveContext{
+        geometry, *scene, mat, lambda_um, grid,
+        CoherenceWindow::fromCoherenceLength(coherenceLength_um, geometry.sizeX, geometry.sizeY, geometry.periodic),
+        s});
+  }
+  WaveTileResult run(double theta_deg, double phi_deg, bool exact, int tile = 0) const {
+    Vec3 w = sphericalDirection(radians(theta_deg), radians(phi_deg));
+    return estimator->run(tile, grid.binOf(w), exact ? std::optional<Vec3>(w) : std::nullopt);
+  }
+  // Σ f Ω⊥ over a hemisphere (upper = true) and its standard error (root-sum-square).
+  std::pair<double, double> integral(const std::vector<double>& f, const std::vector<double>& e, int l,
+                                     bool upper) const {
+    double s = 0, v = 0;
+    for (int b = 0; b < grid.binCount(); ++b)
+      if (grid.isUpper(b) == upper) {
+        double op = grid.projectedSolidAngle(b);
+        s += f[size_t(l) * grid.binCount() + b] * op;
+        v += std::pow(e[size_t(l) * grid.binCount() + b] * op, 2);
+      }
+    return {s, std::sqrt(v)};
+  }
+};
+
+}  // namespace mbsdf::test
