@@ -1,5 +1,7 @@
 // Uniform sampling of points by surface area on a microgeometry (PHYSICS.md §5: "uniform area
-// sampling with a shadow ray"), with the triangle chosen from the cumulative area table.
+// sampling with a shadow ray"), with the triangle chosen from the cumulative area table. The table
+// follows a Morton (Z-order) curve through the triangle centroids, so that stratifying the first
+// random number stratifies the points over the surface.
 #pragma once
 #include <vector>
 
@@ -22,6 +24,7 @@ class SurfaceSampler {
  private:
   const Microgeometry& g_;
   std::vector<double> cdf_;
+  std::vector<unsigned> order_;  // triangle index of each table entry (Morton order)
   std::vector<Vec3> normals_;
   double total_ = 0;
 };

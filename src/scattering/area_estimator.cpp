@@ -9,6 +9,8 @@
 #include "core/rng.h"
 #include "scattering/wave_common.h"
 
+using mbsdf::wave::ExitVisibility;
+
 namespace mbsdf {
 
 namespace {
@@ -36,7 +38,7 @@ class ExitDirectionSampler {
     lobes_.clear();
     const CoherenceWindow& w = ctx.window;
     if (!w.active() || !ctx.scene.periodic()) return;
-    const bool transmission = grid_.isUpper(bin_) != fromAbove;
+    const bool transmission = !media.conductor() && grid_.isUpper(bin_) != fromAbove;
     const double Lx = ctx.scene.sizeX(), Ly = ctx.scene.sizeY();
     double x0, x1, y0, y1;
     grid_.xyBounds(bin_, &x0, &x1, &y0, &y1);
@@ -134,7 +136,7 @@ WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<
   const bool masked = ctx_.settings.computeMasked;
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   const wave::Media media(ctx_);
-  const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor());
+  const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor(), masked);
   const double area = sampler_.totalArea();
 
   WaveTileResult r;
@@ -164,7 +166,7 @@ WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<
       Vec3 wo;
       if (!dirs.sample(dirs.technique(k), u1, u2, &wo)) continue;  // outside the bin: estimate 0
       const double pdf = dirs.density(wo);
-      const bool transmission = (wo.z >= 0) != fromAbove;
+      const bool transmission = wave::isTransmission(media.conductor(), fromAbove, wo);
       const double cosI = std::abs(wi.z);
       std::fill(sv.begin(), sv.end(), Complex(0));
       std::fill(sm.begin(), sm.end(), Complex(0));
@@ -177,12 +179,9 @@ WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<
         if (cosLocal <= 0) continue;  // back-facing: X_j = 0
         ++localRays;
         if (!wave::escapes(ctx_.scene, sp.x, m, wi, sp.prim, fromAbove)) continue;  // shadowed
-        const double mo = dot(m, wo);
-        if (transmission ? mo >= 0 : mo <= 0) continue;  // exit direction not on the scattering side
-        ++localRays;
-        const bool visible = transmission ? wave::escapes(ctx_.scene, sp.x, -m, wo, sp.prim, !fromAbove)
-                                          : wave::escapes(ctx_.scene, sp.x, m, wo, sp.prim, fromAbove);
-        if (!visible && !masked) continue;
+        const ExitVisibility vis = wave::visibleExit(ctx_.scene, sp.x, m, wo, sp.prim, fromAbove, transmission, &localRays);
+        if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
+        const bool visible = vis == ExitVisibility::Visible;
         auto& S = visible ? sv : sm;
         auto& Q = visible ? qv : qm;
         for (int l = 0; l < nL; ++l) {

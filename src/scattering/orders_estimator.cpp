@@ -10,6 +10,8 @@
 #include "core/rng.h"
 #include "scattering/wave_common.h"
 
+using mbsdf::wave::ExitVisibility;
+
 namespace mbsdf {
 
 namespace {
@@ -115,8 +117,12 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     std::vector<Order> orders;
     for (int l = 0; l < nL; ++l) {
       const double k0 = 2 * kPi / ctx_.lambda_um[l];
-      for (bool trans : {false, true}) {
+      // Reflected orders on the incident side; for the masked field of a conductor also the
+      // reflected orders below the horizon (side = false); for a dielectric the transmitted orders.
+      for (int side = 0; side < 3; ++side) {
+        const bool trans = side == 2;
         if (trans && media.conductor()) continue;
+        if (side == 1 && !(masked && media.conductor())) continue;
         const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
         const double reach = nO * k0 + nI * k0;  // |G| can be at most this for a propagating order
         const long amax = long(std::ceil(reach * Lx / (2 * kPi))), bmax = long(std::ceil(reach * Ly / (2 * kPi)));
@@ -127,7 +133,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
             double r2 = x * x + y * y;
             if (r2 >= 1) continue;  // evanescent
             double cz = std::sqrt(1 - r2);
-            bool up = fromAbove != trans;
+            bool up = fromAbove != (trans || side == 1);
             Order o;
             o.lambda = l;
             o.wo = {x, y, up ? cz : -cz};
@@ -140,9 +146,8 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       }
     }
     const size_t nO = orders.size();
-    // Accumulators per order and polarisation, per jackknife group: Σ X and Σ |X|².
+    // Accumulators per order, polarisation, group and visible/masked: Σ X.
     std::vector<Complex> S(nO * 2 * kGroups * 2, 0.0);
-    std::vector<double> Q(nO * 2 * kGroups * 2, 0.0);
     auto idx = [&](size_t o, int pol, int g, int msk) { return ((o * 2 + pol) * kGroups + g) * 2 + msk; };
     // Points in parallel blocks, each block accumulating into its own group: deterministic.
     const int blocks = kGroups;
@@ -151,7 +156,9 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       const int j0 = g * N / blocks, j1 = (g + 1) * N / blocks;
       for (int j = j0; j < j1; ++j) {
         Sampler ps(ctx_.settings.seed, uint32_t(tile), (uint64_t(k) << 32) | uint64_t(j), kOrdersStream + 1);
-        SurfaceSample sp = sampler_.sample(ps.get1D(), ps.get1D(), ps.get1D());
+        // Stratified over the surface within each group (the groups are independent replicas).
+        const double u1 = (double(j - j0) + ps.get1D()) / double(j1 - j0);
+        SurfaceSample sp = sampler_.sample(u1, ps.get1D(), ps.get1D());
         const Vec3 m = fromAbove ? sp.n : -sp.n;
         const double cosLocal = dot(m, wi);
         if (cosLocal <= 0) continue;
@@ -159,12 +166,9 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         if (!wave::escapes(scene, sp.x, m, wi, sp.prim, fromAbove)) continue;
         for (size_t o = 0; o < nO; ++o) {
           const Order& ord = orders[o];
-          const double mo = dot(m, ord.wo);
-          if (ord.transmission ? mo >= 0 : mo <= 0) continue;
-          ++blockRays[g];
-          const bool visible = ord.transmission ? wave::escapes(scene, sp.x, -m, ord.wo, sp.prim, !fromAbove)
-                                                : wave::escapes(scene, sp.x, m, ord.wo, sp.prim, fromAbove);
-          if (!visible && !masked) continue;
+          const ExitVisibility vis = wave::visibleExit(scene, sp.x, m, ord.wo, sp.prim, fromAbove, ord.transmission, &blockRays[g]);
+        if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
+        const bool visible = vis == ExitVisibility::Visible;
           const int l = ord.lambda;
           const double k0 = 2 * kPi / ctx_.lambda_um[l];
           const double nI = media.incident(l, fromAbove), nOut = ord.transmission ? media.other(l, fromAbove) : nI;
@@ -176,8 +180,6 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
           const Complex xs = kv.s * area, xp = kv.p * area;
           S[idx(o, 0, g, msk)] += xs;
           S[idx(o, 1, g, msk)] += xp;
-          Q[idx(o, 0, g, msk)] += std::norm(xs);
-          Q[idx(o, 1, g, msk)] += std::norm(xp);
         }
       }
     });
@@ -194,7 +196,11 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     for (size_t o = 0; o < nO; ++o) {
       const Order& ord = orders[o];
       for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
-        auto estimate = [&](int skip, double n) {
+        // Unbiased |Ĥ|² from the group sums S_g (independent replicas, each stratified):
+        // (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)). `skip` leaves one group out (jackknife).
+        auto estimate = [&](int skip) {
+          const double ng = double(N) / kGroups;
+          const int G = skip < 0 ? kGroups : kGroups - 1;
           double total = 0;
           for (int pol = 0; pol < 2; ++pol) {
             Complex sum = 0;
@@ -202,18 +208,18 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
             for (int g = 0; g < kGroups; ++g)
               if (g != skip) {
                 sum += S[idx(o, pol, g, msk)];
-                q += Q[idx(o, pol, g, msk)];
+                q += std::norm(S[idx(o, pol, g, msk)]);
               }
-            total += 0.5 * (std::norm(sum) - q) / (n * (n - 1));
+            total += 0.5 * (std::norm(sum) - q) / (ng * ng * G * (G - 1));
           }
           return total * ord.scale;
         };
-        const double P = estimate(-1, double(N));
+        const double P = estimate(-1);
         if (P == 0) continue;
         double jkMean = 0;
         std::vector<double> jk(kGroups);
         for (int g = 0; g < kGroups; ++g) {
-          jk[g] = estimate(g, double(N) * (kGroups - 1) / kGroups);
+          jk[g] = estimate(g);
           jkMean += jk[g] / kGroups;
         }
         double var = 0;
@@ -235,6 +241,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
                      std::vector<double>& f, std::vector<double>& e) {
     for (size_t i = 0; i < f.size(); ++i) {
       const int b = int(i % size_t(nB));
+      if (grid.projectedSolidAngle(b) <= 0) continue;  // disk pixels outside the unit disk
       const double toF = 1.0 / grid.projectedSolidAngle(b);
       double mean = 0, var = 0;
       for (int k = 0; k < K; ++k) mean += p[k][i] / K;

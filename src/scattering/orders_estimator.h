@@ -12,8 +12,9 @@
 //   P_G = (|Ĥ_G,s|² + |Ĥ_G,p|²)/2 / (4 n_i n_o k0² A_fp² cos θi cos θ_G)
 // (a flat mirror at normal incidence: Ĥ_0 = −2 k0 A_fp, P_0 = 1). The lobe is a Gaussian of standard
 // deviation 1/(√2 σ n_o k0) in (x, y) of ωo; its power is shared among the bins it covers.
-// |Ĥ_G|² is estimated from N points sampled uniformly by area with the unbiased pairwise form, its
-// standard error by a delete-a-group jackknife over 8 groups of points. Points and shadow rays are
+// |Ĥ_G|² is estimated from N points sampled uniformly by area, in 8 independent groups each
+// stratified over the surface (Morton order), by the unbiased cross-group form
+// (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)), with a delete-a-group jackknife standard error. Points and shadow rays are
 // shared by all orders and wavelengths; each (point, order direction) needs one masking ray.
 #pragma once
 #include "geometry/surface_sampler.h"

@@ -9,6 +9,8 @@
 #include "core/rng.h"
 #include "scattering/wave_common.h"
 
+using mbsdf::wave::ExitVisibility;
+
 namespace mbsdf {
 
 namespace {
@@ -30,7 +32,7 @@ WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional
   const bool fromAbove = wi.z >= 0;
   const double cosI = std::abs(wi.z);
   const wave::Media media(ctx_);
-  const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor());
+  const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor(), masked);
   const double Lx = scene.sizeX(), Ly = scene.sizeY(), sigma = window.sigma();
 
   WaveTileResult r;
@@ -79,13 +81,10 @@ WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional
       const Vec3 m = fromAbove ? hit.n : -hit.n;
       const double cosLocal = dot(m, wi);
       if (cosLocal <= 0) continue;
-      const bool transmission = (wo.z >= 0) != fromAbove;
-      const double mo = dot(m, wo);
-      if (transmission ? mo >= 0 : mo <= 0) continue;
-      ++localRays;
-      const bool visible = transmission ? wave::escapes(scene, hit.p, -m, wo, hit.prim, !fromAbove)
-                                        : wave::escapes(scene, hit.p, m, wo, hit.prim, fromAbove);
-      if (!visible && !masked) continue;
+      const bool transmission = wave::isTransmission(media.conductor(), fromAbove, wo);
+      const ExitVisibility vis = wave::visibleExit(scene, hit.p, m, wo, hit.prim, fromAbove, transmission, &localRays);
+        if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
+        const bool visible = vis == ExitVisibility::Visible;
       // Surface pdf of the traced point: pdf_u |m·ωi| / |n·ωi| (projection along ωi).
       const double jac = cosI / (cosLocal * pdfU);
       const double px = hit.p.x + shiftX, py = hit.p.y + shiftY;
@@ -117,7 +116,7 @@ WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional
         e[size_t(l) * nB + b] = std::max(0.0, var) / P * scale;  // its bias Var/P
       }
     };
-    const bool tBin = grid.isUpper(b) != fromAbove;
+    const bool tBin = !media.conductor() && grid.isUpper(b) != fromAbove;
     reduce(sv, qv, r.fws, r.fwsErr, tBin);
     if (masked) reduce(sm, qm, r.pmsk, r.pmskErr, tBin);
     rays += localRays;

@@ -30,8 +30,34 @@ class Media {
 // side (up when `up`), i.e. the point sees direction d.
 bool escapes(const PeriodicScene& scene, const Vec3& x, const Vec3& side, const Vec3& d, unsigned prim, bool up);
 
-// Exit bins with a nonzero projected solid angle on the reflection side (and the transmission side
-// for dielectrics), for light arriving from above (fromAbove) or below.
-std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielectric);
+// V(x, ωo) of PHYSICS.md §5 for a point x with normal m facing the incident medium.
+//  Visible: front-facing on the side the light leaves by, and unblocked.
+//  Blocked: front-facing but blocked by other geometry — the masked field of §6 (1 − V).
+//  BackFacing: the facet itself faces away. V = 0, but it is not part of the masked field either:
+//    the Kirchhoff integrand there is the forward "shadow-forming" field (for ωo = −ωi it does not
+//    vanish), not light that was reflected and then blocked; counting it as masked would add about
+//    the incident power again.
+// Counts the ray it casts in *rays.
+enum class ExitVisibility { BackFacing, Visible, Blocked };
+inline ExitVisibility visibleExit(const PeriodicScene& scene, const Vec3& x, const Vec3& m, const Vec3& wo,
+                                  unsigned prim, bool fromAbove, bool transmission, uint64_t* rays) {
+  const double mo = dot(m, wo);
+  if (transmission ? mo >= 0 : mo <= 0) return ExitVisibility::BackFacing;
+  ++*rays;
+  bool sees = transmission ? escapes(scene, x, -m, wo, prim, !fromAbove) : escapes(scene, x, m, wo, prim, fromAbove);
+  return sees ? ExitVisibility::Visible : ExitVisibility::Blocked;
+}
+
+// Exit bins with a nonzero projected solid angle on the reflection side, and on the other side for
+// dielectrics (transmission) or when the masked field is wanted (a conductor's facets can face
+// below the horizon: their masked field points into the other hemisphere, where the geometric
+// geo_masked tally of the same light lands too).
+std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielectric, bool masked);
+
+// Whether an exit direction is transmitted (the Kirchhoff transmission integrand) or reflected:
+// only a dielectric transmits; a conductor's directions on the other side are reflected (masked).
+inline bool isTransmission(bool conductor, bool fromAbove, const Vec3& wo) {
+  return !conductor && (wo.z >= 0) != fromAbove;
+}
 
 }  // namespace mbsdf::wave
