@@ -4,18 +4,24 @@
 //   ours: rays/s of PathTracer::run (periodic wrapping, Fresnel, tallies, deterministic merging)
 //   raw:  rays/s of bare rtcIntersect1 calls on the same Embree scene, with rays drawn like our
 //         primary rays (uniform footprint, cosine directions), parallelised the same way (TBB)
-// The ratio ours/raw is printed at the end (target >= 0.6).
+// The ratio ours/raw is printed at the end (target >= 0.6). Also: Kirchhoff samples per second per
+// core, and the time of one paper-resolution slice per wave estimator.
 #include <benchmark/benchmark.h>
 #include <tbb/parallel_for.h>
 
 #include <atomic>
 #include <cstdio>
+#include <map>
+#include <string>
 
 #include "core/rng.h"
 #include "geometry/embree_scene.h"
 #include "geometry/generators.h"
 #include "optics/material.h"
 #include "scattering/path_tracer.h"
+#include "scattering/wave_estimator.h"
+
+#include <tbb/info.h>
 
 using namespace mbsdf;
 
@@ -85,6 +91,61 @@ void BM_RawEmbreeRays(benchmark::State& state) {
   benchmark::DoNotOptimize(hits.load());
 }
 
+// Kirchhoff samples (point x exit direction, with shadow and masking rays, 8 wavelengths) per
+// second, with the `area` estimator on the same hemispheres scene, 30 x 60 bins per hemisphere.
+double gKirchhoffPerCore = 0;
+const std::vector<double> kEightLambdas = {0.41875, 0.45625, 0.49375, 0.53125, 0.56875, 0.60625, 0.64375, 0.68125};
+
+void BM_KirchhoffSamples(benchmark::State& state) {
+  Fixture& f = fixture();
+  Material al;
+  builtinMaterial("Al", &al);
+  DirectionGrid grid(ThetaPhiGrid{30, 60});
+  WaveSettings ws;
+  ws.estimator = "area";
+  ws.samplesPerBin = int(state.range(0));
+  WaveContext ctx{f.geometry, f.scene, al, kEightLambdas, grid, CoherenceWindow(0, 20, 20, true), ws};
+  auto est = makeWaveEstimator(ctx);
+  Vec3 wi = sphericalDirection(radians(30), 0);
+  uint64_t samples = 0;
+  double seconds = 0;
+  int tile = 0;
+  for (auto _ : state) {
+    WaveTileResult r = est->run(tile++, grid.binOf(wi), wi);
+    samples += r.samples;
+    seconds += r.seconds;
+  }
+  state.counters["samples_per_s"] = benchmark::Counter(double(samples), benchmark::Counter::kIsRate);
+  gKirchhoffPerCore = double(samples) / seconds / tbb::info::default_concurrency();
+  state.counters["samples_per_s_per_core"] = gKirchhoffPerCore;
+}
+
+// One slice at the paper's resolution (75 x 300 exit bins per hemisphere, 8 wavelengths,
+// 5 million Kirchhoff samples per slice = 222 per bin) on hemispheres, θi = 55°, per estimator.
+std::map<std::string, double> gSliceSeconds;
+void BM_PaperResolutionSlice(benchmark::State& state, std::string estimator) {
+  Fixture& f = fixture();
+  Material al;
+  builtinMaterial("Al", &al);
+  WaveSettings ws;
+  ws.estimator = estimator;
+  ws.samplesPerBin = 5000000 / f.grid.binsPerHemisphere();
+  WaveContext ctx{f.geometry, f.scene, al, kEightLambdas, f.grid,
+                  CoherenceWindow::fromCoherenceLength(estimator == "orders" ? 50.0 : 0.0, 20, 20, true), ws};
+  auto est = makeWaveEstimator(ctx);
+  Vec3 wi = sphericalDirection(radians(55), 0);
+  for (auto _ : state) {
+    WaveTileResult r = est->run(0, f.grid.binOf(wi), wi);
+    gSliceSeconds[estimator] = r.seconds;
+    state.counters["samples"] = double(r.samples);
+    state.counters["rays"] = double(r.rays);
+  }
+}
+
+BENCHMARK(BM_KirchhoffSamples)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+BENCHMARK_CAPTURE(BM_PaperResolutionSlice, paper, std::string("paper"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+BENCHMARK_CAPTURE(BM_PaperResolutionSlice, area, std::string("area"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+BENCHMARK_CAPTURE(BM_PaperResolutionSlice, orders, std::string("orders"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 BENCHMARK(BM_PathTracerRays)->Arg(1 << 20)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_RawEmbreeRays)->Arg(1 << 21)->Unit(benchmark::kMillisecond)->UseRealTime();
 
@@ -97,5 +158,10 @@ int main(int argc, char** argv) {
   if (gOurs > 0 && gRaw > 0)
     std::printf("\npath tracer: %.3g rays/s   raw rtcIntersect1: %.3g rays/s   ratio: %.2f (target >= 0.6)\n", gOurs,
                 gRaw, gOurs / gRaw);
+  if (gKirchhoffPerCore > 0)
+    std::printf("Kirchhoff samples (shadow + masking rays, 8 wavelengths): %.3g per second per core\n", gKirchhoffPerCore);
+  for (auto& [name, sec] : gSliceSeconds)
+    std::printf("paper-resolution slice (75x300 bins, 8 wavelengths, 5M samples) on hemispheres, %s: %.2f s\n",
+                name.c_str(), sec);
   return 0;
 }

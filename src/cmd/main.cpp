@@ -59,10 +59,12 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
       s["missed"] = st.missed;
       for (auto& [c, v] : st.energyReflected) s["energy"]["reflected"][c] = v;
       for (auto& [c, v] : st.energyTransmitted) s["energy"]["transmitted"][c] = v;
-      // Albedo of the components together, per wavelength (reflected + transmitted).
+      // Albedo of the model the file holds (its components summed, reflected + transmitted), per
+      // wavelength; `lost` is a diagnostic, not part of any model, and is left out.
       std::vector<double> total(f.wavelengths_nm().size(), 0.0);
       for (auto& [c, v] : st.energyReflected)
-        for (size_t l = 0; l < v.size(); ++l) total[l] += v[l] + st.energyTransmitted[c][l];
+        if (c != "lost")
+          for (size_t l = 0; l < v.size(); ++l) total[l] += v[l] + st.energyTransmitted[c][l];
       s["energy"]["total"] = total;
     }
     slices.push_back(s);
@@ -83,7 +85,8 @@ void printInfo(const nlohmann::json& j) {
             << "wavelengths: " << j["wavelengths_nm"].dump() << " nm\n"
             << "components:  " << j["components"].dump() << "\n"
             << "complete:    " << j["done_count"] << "/" << j["incidence_count"] << " slices\n";
-  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  reflected  transmitted  truncated\n";
+  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  reflected  transmitted  truncated\n"
+            << "(albedo: the components the file holds, without the lost diagnostic)\n";
   for (const auto& s : j["slices"]) {
     if (!s["done"].get<bool>()) continue;
     auto mean = [](const nlohmann::json& a) {
@@ -92,8 +95,10 @@ void printInfo(const nlohmann::json& j) {
       return a.empty() ? 0.0 : m / a.size();
     };
     double refl = 0, trans = 0;
-    for (auto& [c, v] : s["energy"]["reflected"].items()) refl += mean(v);
-    for (auto& [c, v] : s["energy"]["transmitted"].items()) trans += mean(v);
+    for (auto& [c, v] : s["energy"]["reflected"].items())
+      if (c != "lost") refl += mean(v);
+    for (auto& [c, v] : s["energy"]["transmitted"].items())
+      if (c != "lost") trans += mean(v);
     std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.6f %12.6f %10.2e\n", s["index"].get<int>(),
                 s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
                 (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(), refl + trans, refl, trans,
