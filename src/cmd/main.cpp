@@ -1,10 +1,11 @@
 // microbsdf: the command-line entry point (DESIGN.md "Command line").
-//   microbsdf run JOB.toml [-o OUT.h5] [--threads N] [--log-dir DIR] [-v]
+//   microbsdf run JOB.toml [-o OUT.h5] [--threads N] [--log-dir DIR] [--resume] [--max-hours H] [-v]
 //   microbsdf info OUT.h5 [--json]
 //   microbsdf slice OUT.h5 --theta-i DEG [--phi-i DEG] [--model GM] [--transmission] -o x.exr|x.csv
 //   microbsdf geometry JOB.toml -o patch.ply
 //   microbsdf check JOB.toml
-// Exit codes: 0 success, 2 bad input (job file, mesh, heightfield, arguments), 1 other failure.
+// Exit codes: 0 success, 2 bad input (job file, mesh, heightfield, arguments), 3 stopped early by a
+// signal (SIGTERM, SIGINT, SIGUSR1) or --max-hours (rerun with --resume), 1 other failure.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -115,7 +116,8 @@ int main(int argc, char** argv) {
 
   std::string jobPath, outPath, logDir, h5Path, model = "GM";
   int threads = 0, sliceSize = 256;
-  bool verbose = false, json = false, transmission = false;
+  bool verbose = false, json = false, transmission = false, resume = false;
+  double maxHours = 0;
   double thetaI = 0, phiI = 0;
 
   auto* run = app.add_subcommand("run", "compute the BSDF of a job (run it under mpirun/srun for several ranks)");
@@ -124,6 +126,8 @@ int main(int argc, char** argv) {
   run->add_option("--threads", threads, "threads per rank (default: all cores)");
   run->add_option("--log-dir", logDir, "folder for the per-rank log files (default: <output>.logs)");
   run->add_flag("-v,--verbose", verbose, "debug-level logging");
+  run->add_flag("--resume", resume, "keep the finished slices of an interrupted run of the same job (harmless on a fresh run)");
+  run->add_option("--max-hours", maxHours, "stop cleanly (exit code 3) before this wall time, in hours");
 
   auto* info = app.add_subcommand("info", "provenance, completeness and energy per slice of an output file");
   info->add_option("file", h5Path, "output HDF5 file")->required();
@@ -154,6 +158,7 @@ int main(int argc, char** argv) {
 
   if (run->parsed()) {
     MpiSession mpi(&argc, &argv);
+    installStopHandlers();
     setupLogging(mpi.rank(), "", "", verbose);
     std::optional<Job> job;
     std::string error;
@@ -176,10 +181,13 @@ int main(int argc, char** argv) {
       RunOptions opt;
       opt.outputPath = out;
       opt.threads = threads;
+      opt.resume = resume;
+      opt.maxHours = maxHours;
       RunSummary s = runJob(*job, mpi, opt);
+      if (s.stoppedEarly) return kExitStoppedEarly;
       if (mpi.rank() == 0)
-        spdlog::info("done: {} tiles, {} paths per wavelength group in total, {:.2f} s, wrote {}", s.tiles, s.paths,
-                     s.seconds, out);
+        spdlog::info("done: {} tiles ({} computed now, {} resumed), {} paths in total, {:.2f} s, wrote {}", s.tiles,
+                     s.computed, s.resumed, s.paths, s.seconds, out);
     } catch (const std::exception& e) {
       spdlog::error("run failed: {}", e.what());
       MPI_Abort(MPI_COMM_WORLD, kExitFailure);

@@ -3,10 +3,14 @@
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <chrono>
-#include <deque>
+#include <csignal>
+#include <map>
 #include <memory>
+#include <numeric>
 #include <optional>
+#include <set>
 
 #include "core/log.h"
 #include "geometry/embree_scene.h"
@@ -16,11 +20,30 @@
 
 namespace mbsdf {
 namespace {
-constexpr int kTagResult = 12;
+
+constexpr int kTagRequest = 11, kTagResult = 12, kTagStopped = 13, kTagAssign = 21;
+
+volatile std::sig_atomic_t gStop = 0;
+extern "C" void onStopSignal(int) { gStop = 1; }
+
+// Thrown from a progress callback to abandon the tile in flight.
+struct TileAbandoned {};
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+}  // namespace
+
+void installStopHandlers() {
+  struct sigaction sa {};
+  sa.sa_handler = onStopSignal;
+  sigemptyset(&sa.sa_mask);
+  for (int s : {SIGTERM, SIGINT, SIGUSR1}) sigaction(s, &sa, nullptr);
 }
+bool stopRequested() { return gStop != 0; }
 
 RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& options) {
-  auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   std::optional<tbb::global_control> threads;
   if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
 
@@ -61,74 +84,173 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
                  job.geometry.periodic ? ", periodic" : "", job.material.describe(), job.lambda_nm.size(), grid.kind(),
                  grid.binCount(), nTiles, mpi.size(), job.pathsPerSlice);
 
-  std::unique_ptr<BsdfFileWriter> writer;
-  if (mpi.rank() == 0) writer = std::make_unique<BsdfFileWriter>(outPath, job, grid);
+  // One tile: path tracing, then the wave estimator; the callback may abandon it (stop).
+  double tileSecondsSum = 0;
+  int tilesDone = 0;
+  auto computeTile = [&](int t, const std::function<void()>& between) {
+    const auto& inc = job.incidence[size_t(t)];
+    std::optional<Vec3> exact;
+    if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+    ProgressReporter pathProgress("tile " + std::to_string(t), job.pathsPerSlice, 30.0, false);
+    auto cb = [&](uint64_t done) {
+      pathProgress.update(done);
+      if (gStop) throw TileAbandoned{};
+      if (between) between();
+    };
+    auto ts = Clock::now();
+    TileResult r = tracer.run(t, t, inc.bin, exact, cb);
+    if (wave) {
+      WaveTileResult w = wave->run(t, inc.bin, exact, cb);
+      addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
+      r.rays += w.rays;
+    }
+    r.seconds = since(ts);
+    tileSecondsSum += r.seconds;
+    ++tilesDone;
+    return r;
+  };
 
+  RunSummary summary;
+  summary.tiles = nTiles;
+
+  if (mpi.rank() != 0) {
+    // Worker: ask for tiles until told there are none (or a stop abandons one).
+    int request = -1;
+    MPI_Send(&request, 1, MPI_INT, 0, kTagRequest, MPI_COMM_WORLD);
+    while (true) {
+      int t = -1;
+      MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+      if (t < 0) break;
+      try {
+        TileResult r = computeTile(t, {});
+        std::vector<double> buf = r.serialize();
+        MPI_Send(buf.data(), int(buf.size()), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD);
+        summary.paths += r.samples;
+        ++summary.computed;
+      } catch (const TileAbandoned&) {
+        spdlog::info("stop requested: tile {} abandoned", t);
+        MPI_Send(&t, 1, MPI_INT, 0, kTagStopped, MPI_COMM_WORLD);
+        // Rank 0 answers every message with an assignment; it will be -1 now.
+        MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        break;
+      }
+    }
+    int stopped = gStop ? 1 : 0, anyStopped = 0;
+    MPI_Allreduce(&stopped, &anyStopped, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    int incomplete = 0;
+    MPI_Bcast(&incomplete, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    summary.stoppedEarly = incomplete != 0;
+    summary.seconds = since(t0);
+    return summary;
+  }
+
+  // Rank 0: writer, queue, serving the workers between its own batches.
+  BsdfFileWriter writer(outPath, job, grid, options.resume);
+  std::set<int> finished(writer.resumedTiles().begin(), writer.resumedTiles().end());
+  summary.resumed = int(finished.size());
+  if (summary.resumed) spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary.resumed, nTiles, outPath);
+  std::vector<int> queue;
+  for (int t = 0; t < nTiles; ++t)
+    if (!finished.count(t)) queue.push_back(t);
+  // Most expensive first: grazing incidence bounces and wraps more.
+  auto cost = [&](int t) { return 1.0 / (std::abs(std::cos(radians(job.incidence[size_t(t)].theta_deg))) + 0.05); };
+  std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) { return cost(a) > cost(b); });
+  size_t next = 0;
+  bool stopAssigning = false;
   ProgressReporter progress("tiles", uint64_t(nTiles));
-  int written = 0;
+  int written = int(finished.size());
+  auto noteStop = [&](const char* why) {
+    if (!stopAssigning) spdlog::warn("{}: stopping cleanly after the tiles in flight", why);
+    stopAssigning = true;
+  };
+  // --max-hours: stop when the next tile would not finish in time (with a 1.5x margin).
+  auto outOfTime = [&]() {
+    if (options.maxHours <= 0) return false;
+    double mean = tilesDone ? tileSecondsSum / tilesDone : 0.0;
+    return since(t0) + 1.5 * mean > options.maxHours * 3600.0;
+  };
+  auto takeTile = [&]() -> int {
+    if (gStop) noteStop("signal received");
+    if (!stopAssigning && outOfTime()) noteStop("--max-hours reached");
+    if (stopAssigning || next >= queue.size()) return -1;
+    return queue[next++];
+  };
   auto writeResult = [&](const TileResult& r) {
-    writer->writeTile(r);
+    writer.writeTile(r);
     ++written;
     progress.update(uint64_t(written));
   };
-  auto receiveOne = [&](bool blocking) {
-    int flag = 0;
+  int activeWorkers = mpi.size() - 1;
+  bool lostTiles = false;
+  // Handles one message from a worker; returns false if none was waiting (non-blocking).
+  auto serveOne = [&](bool blocking) {
     MPI_Status st;
-    if (blocking) MPI_Probe(MPI_ANY_SOURCE, kTagResult, MPI_COMM_WORLD, &st), flag = 1;
-    else MPI_Iprobe(MPI_ANY_SOURCE, kTagResult, MPI_COMM_WORLD, &flag, &st);
+    int flag = 0;
+    if (blocking) {
+      MPI_Probe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &st);
+      flag = 1;
+    } else {
+      MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &st);
+    }
     if (!flag) return false;
-    int count = 0;
-    MPI_Get_count(&st, MPI_DOUBLE, &count);
-    std::vector<double> buf(static_cast<size_t>(count));
-    MPI_Recv(buf.data(), count, MPI_DOUBLE, st.MPI_SOURCE, kTagResult, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-    writeResult(TileResult::deserialize(buf));
+    if (st.MPI_TAG == kTagResult) {
+      int count = 0;
+      MPI_Get_count(&st, MPI_DOUBLE, &count);
+      std::vector<double> buf(static_cast<size_t>(count));
+      MPI_Recv(buf.data(), count, MPI_DOUBLE, st.MPI_SOURCE, kTagResult, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+      TileResult r = TileResult::deserialize(buf);
+      summary.paths += r.samples;
+      ++summary.computed;
+      writeResult(r);
+    } else {
+      int v = 0;
+      MPI_Recv(&v, 1, MPI_INT, st.MPI_SOURCE, st.MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+      if (st.MPI_TAG == kTagStopped) {
+        lostTiles = true;
+        noteStop("a rank was stopped");
+      }
+    }
+    int t = takeTile();
+    MPI_Send(&t, 1, MPI_INT, st.MPI_SOURCE, kTagAssign, MPI_COMM_WORLD);
+    if (t < 0) --activeWorkers;
     return true;
   };
+  auto serveAll = [&]() {
+    while (serveOne(false)) {
+    }
+  };
 
-  std::deque<std::vector<double>> sendBuffers;
-  std::vector<MPI_Request> requests;
-  uint64_t paths = 0;
-  for (int t = mpi.rank(); t < nTiles; t += mpi.size()) {
-    const auto& inc = job.incidence[t];
-    spdlog::debug("tile {}: incidence theta {:.3f} phi {:.3f} (bin {})", t, inc.theta_deg, inc.phi_deg, inc.bin);
-    ProgressReporter pathProgress("tile " + std::to_string(t) + " paths",
-                                  job.pathsPerSlice * (job.material.directionsIndependentOfLambda() ? 1 : job.lambda_nm.size()),
-                                  30.0, false);
-    std::optional<Vec3> exact;
-    if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
-    TileResult r = tracer.run(t, t, inc.bin, exact, [&](uint64_t done) {
-      pathProgress.update(done);
-      if (mpi.rank() == 0)
-        while (receiveOne(false)) {}
-    });
-    if (wave) {
-      WaveTileResult w = wave->run(t, inc.bin, exact);
-      addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
-      r.seconds += w.seconds;
-      r.rays += w.rays;
-    }
-    paths += r.samples;
-    if (mpi.rank() == 0) {
+  while (true) {
+    serveAll();
+    int t = takeTile();
+    if (t < 0) break;
+    try {
+      TileResult r = computeTile(t, serveAll);
+      summary.paths += r.samples;
+      ++summary.computed;
       writeResult(r);
-      while (receiveOne(false)) {}
-    } else {
-      sendBuffers.push_back(r.serialize());
-      requests.emplace_back();
-      MPI_Isend(sendBuffers.back().data(), int(sendBuffers.back().size()), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD,
-                &requests.back());
+    } catch (const TileAbandoned&) {
+      spdlog::info("stop requested: tile {} abandoned", t);
+      lostTiles = true;
+      noteStop("signal received");
     }
   }
-  if (mpi.rank() == 0) {
-    while (written < nTiles) receiveOne(true);
-    writer->finish();
-  } else if (!requests.empty()) {
-    MPI_Waitall(int(requests.size()), requests.data(), MPI_STATUSES_IGNORE);
+  while (activeWorkers > 0) serveOne(true);
+
+  int stopped = gStop ? 1 : 0, anyStopped = 0;
+  MPI_Allreduce(&stopped, &anyStopped, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  int incomplete = written < nTiles ? 1 : 0;
+  MPI_Bcast(&incomplete, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  if (incomplete) {
+    writer.close();
+    summary.stoppedEarly = true;
+    spdlog::warn("stopped early: {}/{} slices complete in {}.partial{}; run the same command with --resume to finish",
+                 written, nTiles, outPath, lostTiles ? " (tiles in flight were abandoned)" : "");
+  } else {
+    writer.finish();
   }
-  RunSummary s;
-  s.tiles = nTiles;
-  s.paths = paths;
-  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return s;
+  summary.seconds = since(t0);
+  return summary;
 }
 
 }  // namespace mbsdf

@@ -1,8 +1,15 @@
-// Runs a job over MPI ranks: the work is cut into tiles (one incidence direction x all
-// wavelengths, so rays are shared across wavelengths); tile t goes to rank t mod size. Every rank
-// computes its tiles with TBB threads; rank 0 also receives the others' TileResults and writes each
-// slice as it arrives (memory at rank 0 bounded by the tiles in flight). Results depend only on the
-// tile and sample keys, never on the rank or thread count.
+// Runs a job over MPI ranks (DESIGN.md "Distribution"). The work is cut into tiles (one incidence
+// direction x all wavelengths, so rays are shared across wavelengths). Rank 0 schedules them
+// dynamically, most expensive first (cost estimate: grazing incidence first), computes tiles too,
+// serves the other ranks between its own batches, and writes each slice as it arrives (memory at
+// rank 0 bounded by the tiles in flight). Results depend only on the tile and sample keys, never on
+// the rank or thread count.
+//
+// Checkpoint and restart (GROMACS -cpi / -maxh style): `resume` keeps the finished slices of an
+// earlier run of the same job (harmless on a fresh run); `maxHours` stops cleanly when the next
+// tile would not finish in time; SIGTERM, SIGINT and SIGUSR1 stop cleanly too (tiles in flight are
+// abandoned at their next batch). A clean stop closes the partial file and returns stoppedEarly;
+// the same command with --resume completes it.
 #pragma once
 #include <string>
 
@@ -14,13 +21,25 @@ namespace mbsdf {
 struct RunOptions {
   std::string outputPath;  // overrides the job's [output] path when not empty
   int threads = 0;         // 0: all cores
+  bool resume = false;
+  double maxHours = 0;     // 0: no limit
 };
 
 struct RunSummary {
-  int tiles = 0;
+  int tiles = 0;         // tiles of the job
+  int computed = 0;      // tiles computed in this run (all ranks)
+  int resumed = 0;       // tiles kept from an earlier run
+  bool stoppedEarly = false;
   double seconds = 0;
   uint64_t paths = 0;
 };
+
+// Exit code of a clean early stop (signal or --max-hours): rerun with --resume to complete.
+inline constexpr int kExitStoppedEarly = 3;
+
+// Installs the SIGTERM/SIGINT/SIGUSR1 handlers that request a clean stop.
+void installStopHandlers();
+bool stopRequested();
 
 RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& options);
 

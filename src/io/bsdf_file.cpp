@@ -1,10 +1,14 @@
 #include "io/bsdf_file.h"
 
 #include <hdf5_hl.h>
+#include <fcntl.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <set>
 #include <limits>
 
 #include "core/vecmath.h"
@@ -112,12 +116,79 @@ std::vector<T> read1D(hid_t file, const std::string& path, hid_t type) {
   return v;
 }
 
+
+// Every dataset that holds one row per incidence slice.
+std::vector<std::string> rowDatasets(const Job& job) {
+  std::vector<std::string> v;
+  for (Component c : job.components.list()) {
+    std::string n = componentName(c);
+    for (const char* g : {"/bsdf/", "/bsdf_stderr/", "/stats/energy_reflected/", "/stats/energy_transmitted/"})
+      v.push_back(g + n);
+  }
+  for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/seconds",
+                        "/bsdf/done"})
+    v.push_back(n);
+  return v;
+}
+
 }  // namespace
 
-BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid)
-    : path_(path), partial_(path + ".partial"), job_(job), grid_(grid) {
+BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid, bool resume)
+    : path_(path), partial_(path + ".partial"), journal_(path + ".journal"), job_(job), grid_(grid) {
   if (auto dir = std::filesystem::path(path).parent_path(); !dir.empty()) std::filesystem::create_directories(dir);
-  file_ = H5File(H5Fcreate(partial_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), "create " + partial_);
+  std::set<int> journaled;
+  if (resume && std::filesystem::exists(partial_) && std::filesystem::exists(journal_)) {
+    std::ifstream j(journal_);
+    std::string word;
+    int t;
+    while (j >> word >> t)
+      if (word == "tile") journaled.insert(t);
+  }
+  if (journaled.empty()) {
+    std::filesystem::remove(journal_);
+    create(partial_);
+    return;
+  }
+  // Resume: copy the finished slices of the old partial file (opened as a SWMR reader: readable
+  // even if its writer was killed) into a new one.
+  const std::string fresh = partial_ + ".new";
+  {
+    H5File old(H5Fopen(partial_.c_str(), H5F_ACC_RDONLY | H5F_ACC_SWMR_READ, H5P_DEFAULT),
+               "open " + partial_ + " to resume");
+    {
+      H5Attribute a(H5Aopen(old, "job_text", H5P_DEFAULT), "open attribute job_text");
+      H5Datatype t(H5Aget_type(a), "H5Aget_type");
+      std::string text(H5Tget_size(t), '\0');
+      h5check(H5Aread(a, t, text.data()), "read job_text");
+      while (!text.empty() && text.back() == '\0') text.pop_back();
+      if (text != job.text)
+        throw std::runtime_error(partial_ + " was written by a different job file; remove it (and " + journal_ +
+                                 ") or run without --resume");
+    }
+    std::vector<uint8_t> done = read1D<uint8_t>(old, "/bsdf/done", H5T_NATIVE_UINT8);
+    create(fresh);
+    for (int t : journaled) {
+      if (t < 0 || t >= int(done.size()) || !done[t]) continue;
+      for (const auto& d : rowDatasets(job)) writeRow(file_, d, t, readRowImpl(old, d, t), H5T_NATIVE_DOUBLE);
+      resumed_.push_back(t);
+    }
+    h5check(H5Fflush(file_, H5F_SCOPE_GLOBAL), "flush");
+  }
+  std::filesystem::rename(fresh, partial_);
+  // Rewrite the journal with what was kept (atomically).
+  {
+    std::ofstream j(journal_ + ".new", std::ios::trunc);
+    for (int t : resumed_) j << "tile " << t << "\n";
+  }
+  std::filesystem::rename(journal_ + ".new", journal_);
+}
+
+void BsdfFileWriter::create(const std::string& filename) {
+  H5Plist fapl(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate");
+  h5check(H5Pset_libver_bounds(fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST), "H5Pset_libver_bounds");
+  file_ = H5File(H5Fcreate(filename.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), "create " + filename);
+  const Job& job = job_;
+  const DirectionGrid& grid = grid_;
   hid_t f = file_.get();
   setStringAttr(f, "Conventions", "microbsdf-" + std::to_string(kSchemaVersion));
   setScalarAttr<int64_t>(f, "schema_version", H5T_NATIVE_INT64, kSchemaVersion);
@@ -214,8 +285,21 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
       describe(d, "1", std::string("fraction of incident power ") + n);
     }
   }
-  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+  // From here on only dataset writes: the file stays readable if the writer dies.
+  h5check(H5Fstart_swmr_write(f), "H5Fstart_swmr_write");
 }
+
+void BsdfFileWriter::appendJournal(int tile) {
+  // O_APPEND + fsync: the line is on disk before the next tile is written.
+  int fd = ::open(journal_.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+  if (fd < 0) throw std::runtime_error("cannot write " + journal_);
+  std::string line = "tile " + std::to_string(tile) + "\n";
+  bool ok = ::write(fd, line.data(), line.size()) == ssize_t(line.size()) && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!ok) throw std::runtime_error("cannot write " + journal_);
+}
+
+void BsdfFileWriter::close() { file_.reset(); }
 
 BsdfFileWriter::~BsdfFileWriter() {
   if (!finished_) {
@@ -248,11 +332,13 @@ void BsdfFileWriter::writeTile(const TileResult& r) {
   // Mark done last, then flush: a slice marked done is complete on disk.
   writeRow(f, "/bsdf/done", i, {1.0}, H5T_NATIVE_DOUBLE);
   h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+  appendJournal(i);
 }
 
 void BsdfFileWriter::finish() {
   file_.reset();
   std::filesystem::rename(partial_, path_);
+  std::filesystem::remove(journal_);
   finished_ = true;
 }
 

@@ -12,6 +12,13 @@
 //                           energy_reflected/<c>, energy_transmitted/<c> (nInc, nλ) = Σ f·Ω⊥
 // The writer writes each tile as it arrives and flushes; it writes to `<path>.partial` and renames
 // on completion, so an existing output is never damaged by a failed run.
+//
+// Crash safety (DESIGN.md "Distribution"): the partial file is written in HDF5's single-writer /
+// multiple-reader mode (SWMR, libver latest), whose ordered metadata flushes keep the file readable
+// whenever the writer dies; after each slice is flushed its tile number is appended to
+// `<path>.journal` and fsync'ed. `--resume` opens the old partial file as a SWMR reader, keeps the
+// slices that are both marked done in the file and listed in the journal, copies them into a fresh
+// partial file and goes on with the rest. A SIGKILL therefore loses at most the tiles in flight.
 #pragma once
 #include <map>
 #include <memory>
@@ -29,17 +36,26 @@ inline constexpr int kSchemaVersion = 1;
 
 class BsdfFileWriter {
  public:
-  BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid);
+  // resume: keep the finished slices of an earlier run of the same job (see above). Throws
+  // std::runtime_error if the partial file belongs to another job.
+  BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid, bool resume = false);
   ~BsdfFileWriter();
   void writeTile(const TileResult& r);
-  // Closes the file and renames it to its final path.
+  // Closes the file and renames it to its final path; removes the journal.
   void finish();
+  // Closes the partial file cleanly without finishing (clean stop); it stays resumable.
+  void close();
+  // Incidence indices whose slices are already complete (after a resume).
+  const std::vector<int>& resumedTiles() const { return resumed_; }
 
  private:
-  std::string path_, partial_;
+  void create(const std::string& file);
+  void appendJournal(int tile);
+  std::string path_, partial_, journal_;
   const Job& job_;
   const DirectionGrid& grid_;
   H5File file_;
+  std::vector<int> resumed_;
   bool finished_ = false;
 };
 

@@ -5,6 +5,8 @@ Usage: cli_test.py BUILD_DIR SOURCE_DIR TEST_NAME
 Each test prints what it checked and exits non-zero on failure. Every subprocess has a timeout.
 """
 import hashlib
+import signal
+import time
 import json
 import os
 import shutil
@@ -96,10 +98,141 @@ def test_determinism():
     run(["run", job, "-o", "t1.h5", "--threads", "1"])
     run(["run", job, "-o", "t2.h5", "--threads", "2"])
     run(["run", job, "-o", "n2.h5", "--threads", "1"], mpi=2)
-    a, b, c = datasets(os.path.join(TMP, "t1.h5")), datasets(os.path.join(TMP, "t2.h5")), datasets(os.path.join(TMP, "n2.h5"))
-    assert a == b, "1 vs 2 threads differ"
-    assert a == c, "1 rank vs 2 ranks differ"
-    print("byte-identical datasets for 1 thread, 2 threads and 2 ranks:", sorted(a))
+    run(["run", job, "-o", "n3.h5", "--threads", "1"], mpi=3)
+    ref = datasets(os.path.join(TMP, "t1.h5"))
+    for other in ("t2.h5", "n2.h5", "n3.h5"):
+        assert datasets(os.path.join(TMP, other)) == ref, f"{other} differs from 1 rank x 1 thread"
+    print("byte-identical datasets for 1 rank x 1 thread, 1 x 2, 2 x 1 and 3 x 1 (oversubscribed):", sorted(ref))
+
+
+def many_tiles_job(path, n_theta, output, paths=20000):
+    """A job with n_theta x 4 incidence directions on a small patch (each tile a fraction of a second)."""
+    inc = ", ".join(f"[{t:.2f}, {p:.1f}]" for t in np.linspace(0, 80, n_theta) for p in (0, 45, 90, 135))
+    with open(path, "w") as f:
+        f.write(f"""[geometry]
+kind = "hemispheres"
+size_um = [5.0, 5.0]
+radius_um = 2.0
+spacing_um = 5.0
+resolution_um = 0.25
+[material]
+name = "Al"
+[spectrum]
+wavelengths_nm = [450.0, 650.0]
+[directions]
+n_theta = 10
+n_phi = 20
+incidence = [{inc}]
+[effects]
+components = ["coherent", "incoherent", "multiple"]
+[sampling]
+paths_per_slice = {paths}
+wave_samples_per_bin = 64
+[output]
+path = "{output}"
+""")
+    return path
+
+
+def journal_count(out):
+    try:
+        return sum(1 for _ in open(out + ".journal"))
+    except FileNotFoundError:
+        return 0
+
+
+def start(args, mpi=2):
+    cmd = [shutil.which("mpirun"), "-np", str(mpi), "--oversubscribe", EXE] + args
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ENV, cwd=TMP,
+                            start_new_session=True)
+
+
+def wait_for(proc, out, fraction, total, timeout=300):
+    t0 = time.time()
+    while journal_count(out) < fraction * total:
+        if proc.poll() is not None:
+            return False
+        if time.time() - t0 > timeout:
+            sys.exit("FAIL: timeout waiting for progress")
+        time.sleep(0.02)
+    return True
+
+
+def test_crash_resume():
+    job = many_tiles_job(os.path.join(TMP, "job.toml"), 10, "crash.h5")
+    total = 40
+    run(["run", job, "-o", "ref.h5"], mpi=2)
+    out = os.path.join(TMP, "crash.h5")
+    kills = []
+    for fraction in (0.1, 0.5, 0.9):
+        p = start(["run", job, "-o", "crash.h5", "--resume"])
+        if wait_for(p, out, fraction, total):
+            os.killpg(p.pid, signal.SIGKILL)  # mpirun and every rank, at once
+            p.wait()
+            kills.append(journal_count(out))
+        else:
+            p.wait()
+    assert len(kills) == 3, f"the job finished before the kills: {kills}"
+    assert not os.path.exists(out), "killed runs must not produce the final file"
+    r = run(["run", job, "-o", "crash.h5", "--resume"], mpi=2)
+    assert "resuming" in r.stdout + r.stderr, r.stdout + r.stderr
+    assert datasets(out) == datasets(os.path.join(TMP, "ref.h5")), "resumed datasets differ from an uninterrupted run"
+    subprocess.run(["h5dump", "-H", out], check=True, capture_output=True, timeout=60)
+    assert not os.path.exists(out + ".journal") and not os.path.exists(out + ".partial")
+    print("SIGKILL after", kills, "of", total, "slices; resumed; datasets byte-identical to an uninterrupted run; h5dump reads it")
+
+
+def test_clean_stop():
+    job = many_tiles_job(os.path.join(TMP, "job.toml"), 10, "stop.h5")
+    total = 40
+    run(["run", job, "-o", "ref.h5"], mpi=2)
+    # SIGTERM to the ranks (what srun and Slurm do), SIGUSR1 to mpirun (it forwards it): the ranks
+    # stop at their next batch and exit 3. SIGTERM to mpirun itself makes Open MPI abort the job
+    # (exit 1), but the ranks still stop cleanly and leave a resumable file.
+    done = {}
+    for how, sig, target, code in (("term-ranks", signal.SIGTERM, "children", 3), ("usr1-mpirun", signal.SIGUSR1, "group", 3),
+                                   ("term-mpirun", signal.SIGTERM, "group", None)):
+        name = f"stop_{how}.h5"
+        p = start(["run", job, "-o", name])
+        assert wait_for(p, os.path.join(TMP, name), 0.3, total)
+        if target == "children":
+            subprocess.run(["pkill", "-TERM", "-P", str(p.pid)], check=True)
+        else:
+            os.killpg(p.pid, sig)
+        log, _ = p.communicate(timeout=120)
+        if code is not None:
+            assert p.returncode == code, f"{how}: exit {p.returncode}\n{log}"
+        else:
+            assert p.returncode != 0, f"{how}: exit 0"
+        partial = os.path.join(TMP, name + ".partial")
+        assert os.path.exists(partial) and not os.path.exists(os.path.join(TMP, name)), how
+        done[how] = journal_count(os.path.join(TMP, name))
+        run(["run", job, "-o", name, "--resume"], mpi=2)
+        assert datasets(os.path.join(TMP, name)) == datasets(os.path.join(TMP, "ref.h5")), how
+    done_after_term = done
+    # --max-hours: a limit of ~1.5 s stops before the end with exit code 3; --resume completes.
+    out2 = os.path.join(TMP, "maxh.h5")
+    r = run(["run", job, "-o", "maxh.h5", "--max-hours", "0.0004"], mpi=2, expect=3)
+    done_after_maxh = journal_count(out2)
+    assert 0 < done_after_maxh < total, done_after_maxh
+    run(["run", job, "-o", "maxh.h5", "--resume"], mpi=2)
+    assert datasets(out2) == datasets(os.path.join(TMP, "ref.h5"))
+    print(f"signals: slices done when stopped {done_after_term} of {total}; --max-hours: exit 3 after "
+          f"{done_after_maxh}/{total}; all completed by --resume, byte-identical to an uninterrupted run")
+
+
+def test_memory():
+    def peak_rss(n_theta):
+        job = many_tiles_job(os.path.join(TMP, f"mem{n_theta}.toml"), n_theta, f"mem{n_theta}.h5", paths=2000)
+        cmd = ["/usr/bin/python3", "-c",
+               "import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True, capture_output=True); "
+               "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)", EXE, "run", job, "-o", f"mem{n_theta}.h5"]
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=ENV, cwd=TMP, check=True)
+        return int(p.stdout.strip())
+    small, large = peak_rss(5), peak_rss(50)
+    growth = large / small - 1
+    print(f"rank 0 peak RSS: {small} KiB for 20 tiles, {large} KiB for 200 tiles: growth {100 * growth:.1f} %")
+    assert growth < 0.2, growth
 
 
 def test_slice_export():
