@@ -304,6 +304,139 @@ def test_geometry_export():
     print("geometry: PLY written and reloaded:", r.stdout.strip().splitlines()[1])
 
 
+class LocalSlurm:
+    """A one-node Slurm (munge, slurmctld, slurmd) started for a test, with its own slurm.conf."""
+
+    def __init__(self):
+        self.dir = os.path.join(TMP, "slurm")
+        os.makedirs(os.path.join(self.dir, "state"))
+        os.makedirs(os.path.join(self.dir, "spool"))
+        host = subprocess.run(["hostname", "-s"], capture_output=True, text=True, check=True).stdout.strip()
+        self.conf = os.path.join(self.dir, "slurm.conf")
+        d = self.dir
+        with open(self.conf, "w") as f:
+            f.write(f"""ClusterName=microbsdf-test
+SlurmctldHost={host}
+MpiDefault=pmix
+ProctrackType=proctrack/linuxproc
+TaskPlugin=task/none
+ReturnToService=2
+SlurmUser=root
+SlurmdUser=root
+AuthType=auth/munge
+StateSaveLocation={d}/state
+SlurmdSpoolDir={d}/spool
+SlurmctldPidFile={d}/slurmctld.pid
+SlurmdPidFile={d}/slurmd.pid
+SlurmctldLogFile={d}/slurmctld.log
+SlurmdLogFile={d}/slurmd.log
+SchedulerType=sched/backfill
+SelectType=select/cons_tres
+SelectTypeParameters=CR_Core
+JobCompType=jobcomp/none
+AccountingStorageType=accounting_storage/none
+NodeName={host} CPUs=2 RealMemory=2000 State=UNKNOWN
+PartitionName=debug Nodes={host} Default=YES MaxTime=INFINITE State=UP
+""")
+        self.env = dict(ENV, SLURM_CONF=self.conf)
+        os.makedirs("/run/munge", exist_ok=True)
+        shutil.chown("/run/munge", "munge", "munge")
+        if subprocess.run(["pgrep", "-x", "munged"], capture_output=True).returncode != 0:
+            subprocess.run(["munged", "--force"], check=True, capture_output=True, timeout=30)
+        for daemon in ("slurmctld", "slurmd"):
+            subprocess.run(["pkill", "-x", daemon], capture_output=True)
+        time.sleep(0.5)
+        subprocess.run(["slurmctld", "-f", self.conf], check=True, env=self.env, timeout=30)
+        subprocess.run(["slurmd", "-f", self.conf], check=True, env=self.env, timeout=30)
+        for _ in range(100):
+            out = subprocess.run(["sinfo", "-h", "-o", "%T"], capture_output=True, text=True, env=self.env).stdout
+            if "idle" in out:
+                return
+            time.sleep(0.2)
+        sys.exit("FAIL: the local Slurm did not come up:\n" + open(os.path.join(d, "slurmctld.log")).read()[-2000:])
+
+    def cmd(self, *args, check=True):
+        return subprocess.run(list(args), capture_output=True, text=True, env=self.env, timeout=120, check=check, cwd=TMP)
+
+    def submit(self, script, **env):
+        out = subprocess.run(["sbatch", "--chdir", TMP, script], capture_output=True, text=True, check=True,
+                             env=dict(self.env, **env), timeout=60, cwd=TMP).stdout
+        return out.split()[-1]
+
+    def job(self, jid):
+        text = self.cmd("scontrol", "show", "job", jid, check=False).stdout
+        return dict(kv.split("=", 1) for kv in text.split() if "=" in kv)
+
+    def wait(self, jid, timeout=300):
+        t0 = time.time()
+        while time.time() - t0 < timeout:
+            info = self.job(jid)
+            if info.get("JobState") in ("COMPLETED", "FAILED", "CANCELLED", "TIMEOUT", "NODE_FAIL"):
+                return info
+            time.sleep(0.5)
+        sys.exit(f"FAIL: Slurm job {jid} did not finish")
+
+    def stop(self):
+        for daemon in ("slurmd", "slurmctld"):
+            subprocess.run(["pkill", "-x", daemon], capture_output=True)
+
+
+def slurm_setup():
+    # The sbatch script runs `build/microbsdf` relative to its working directory.
+    os.symlink(BUILD, os.path.join(TMP, "build"))
+    shutil.copytree(os.path.join(SRC, "jobs"), os.path.join(TMP, "jobs"))
+    return LocalSlurm()
+
+
+def test_slurm_job():
+    slurm = slurm_setup()
+    try:
+        many_tiles_job(os.path.join(TMP, "job.toml"), 3, "out/ref.h5")
+        run(["run", "job.toml", "-o", "out/ref.h5"])
+        script = os.path.join(SRC, "jobs", "slurm", "microbsdf.sbatch")
+        for launcher in ("srun", "mpirun"):
+            out = f"out/{launcher}.h5"
+            jid = slurm.submit(script, JOB="job.toml", OUT=out, LAUNCHER=launcher)
+            info = slurm.wait(jid)
+            log = open(os.path.join(TMP, f"microbsdf-{jid}.out")).read()
+            assert info["JobState"] == "COMPLETED", f"{launcher}: {info.get('JobState')}\n{log}"
+            assert "on 2 ranks" in log, log
+            assert datasets(os.path.join(TMP, out)) == datasets(os.path.join(TMP, "out/ref.h5")), launcher
+            print(f"sbatch with {launcher}: COMPLETED on 2 ranks, datasets identical to a direct run")
+    finally:
+        slurm.stop()
+
+
+def test_slurm_requeue():
+    slurm = slurm_setup()
+    try:
+        many_tiles_job(os.path.join(TMP, "job.toml"), 10, "out/ref.h5")
+        run(["run", "job.toml", "-o", "out/ref.h5"], mpi=2)
+        out = os.path.join(TMP, "out/req.h5")
+        jid = slurm.submit(os.path.join(SRC, "jobs", "slurm", "microbsdf.sbatch"), JOB="job.toml", OUT="out/req.h5")
+        t0 = time.time()
+        while journal_count(out) < 8:
+            assert time.time() - t0 < 120, "no progress"
+            time.sleep(0.1)
+        # What Slurm does before the time limit with --signal=B:USR1@300.
+        slurm.cmd("scancel", "--signal=USR1", "--batch", jid)
+        t0 = time.time()
+        while slurm.job(jid).get("Restarts", "0") == "0":
+            assert time.time() - t0 < 60, "the job was not requeued"
+            time.sleep(0.2)
+        # A requeued job waits for its BeginTime (a scheduler delay); release it at once.
+        slurm.cmd("scontrol", "update", f"JobId={jid}", "StartTime=now", check=False)
+        info = slurm.wait(jid)
+        log = open(os.path.join(TMP, f"microbsdf-{jid}.out")).read()
+        assert info["JobState"] == "COMPLETED", log
+        assert "stopped cleanly; requeueing" in log and "resuming:" in log, log
+        assert datasets(out) == datasets(os.path.join(TMP, "out/ref.h5"))
+        print(f"USR1 to the batch script: clean stop, requeued (Restarts={info['Restarts']}), resumed, completed; "
+              "datasets identical to an uninterrupted run")
+    finally:
+        slurm.stop()
+
+
 TESTS = {n[5:]: f for n, f in globals().items() if n.startswith("test_")}
 try:
     TESTS[NAME]()
