@@ -4,6 +4,7 @@
 //   microbsdf slice OUT.h5 --theta-i DEG [--phi-i DEG] [--model GM] [--transmission] -o x.exr|x.csv
 //   microbsdf geometry JOB.toml -o patch.ply
 //   microbsdf check JOB.toml
+//   microbsdf plan JOB.toml [--json plan.json]
 // Exit codes: 0 success, 2 bad input (job file, mesh, heightfield, arguments), 3 stopped early by a
 // signal (SIGTERM, SIGINT, SIGUSR1) or --max-hours (rerun with --resume), 1 other failure.
 #include <CLI/CLI.hpp>
@@ -12,6 +13,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 
 #include "core/error.h"
@@ -22,6 +24,7 @@
 #include "io/bsdf_file.h"
 #include "io/slice_export.h"
 #include "job/job.h"
+#include "job/plan.h"
 
 using namespace mbsdf;
 
@@ -147,6 +150,12 @@ int main(int argc, char** argv) {
   geometry->add_option("-o,--output", outPath, "patch.ply")->required();
 
   auto* check = app.add_subcommand("check", "validate a job file and print what it describes");
+
+  std::string planJson;
+  auto* plan = app.add_subcommand("plan", "what a job will compute and cost (tiles, core-hours, output size), from a short pilot");
+  plan->add_option("job", jobPath, "job file (TOML)")->required();
+  plan->add_option("--json", planJson, "also write the plan as JSON to this file");
+  plan->add_option("--threads", threads, "threads for the pilot (default: all cores)");
   check->add_option("job", jobPath, "job file (TOML)")->required();
 
   try {
@@ -218,6 +227,19 @@ int main(int argc, char** argv) {
       std::cerr << "wrote " << outPath << ": " << job.geometry.vertices.size() << " vertices, "
                 << job.geometry.triangles.size() << " triangles, " << job.geometry.sizeX << " x " << job.geometry.sizeY
                 << " µm, z in [" << job.geometry.zMin() << ", " << job.geometry.zMax() << "] µm\n";
+      return 0;
+    }
+    if (plan->parsed()) {
+      Job job = loadJob(jobPath);
+      PlanOptions po;
+      po.threads = threads;
+      nlohmann::json p = planJob(job, po);
+      std::cout << formatPlan(p);
+      if (!planJson.empty()) {
+        std::ofstream f(planJson);
+        f << p.dump(2) << "\n";
+        if (!f) throw std::runtime_error("cannot write " + planJson);
+      }
       return 0;
     }
     if (check->parsed()) {

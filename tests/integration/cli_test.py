@@ -403,6 +403,21 @@ def test_slurm_job():
             assert "on 2 ranks" in log, log
             assert datasets(os.path.join(TMP, out)) == datasets(os.path.join(TMP, "out/ref.h5")), launcher
             print(f"sbatch with {launcher}: COMPLETED on 2 ranks, datasets identical to a direct run")
+        # A job array over two job files (the parameter-sweep script).
+        many_tiles_job(os.path.join(TMP, "a.toml"), 2, "out/a-direct.h5")
+        many_tiles_job(os.path.join(TMP, "b.toml"), 3, "out/b-direct.h5")
+        with open(os.path.join(TMP, "sweep.txt"), "w") as f:
+            f.write("a.toml\nb.toml\n")
+        jid = subprocess.run(["sbatch", "--chdir", TMP, "--array=0-1", os.path.join(SRC, "jobs", "slurm", "sweep.sbatch")],
+                             capture_output=True, text=True, check=True, timeout=60, cwd=TMP,
+                             env=dict(slurm.env, SWEEP="sweep.txt", OUTDIR="out/sweep")).stdout.split()[-1]
+        for task in ("0", "1"):
+            info = slurm.wait(f"{jid}_{task}")
+            assert info["JobState"] == "COMPLETED", info
+        for name in ("a", "b"):
+            run(["run", f"{name}.toml", "-o", f"out/{name}-direct.h5"])
+            assert datasets(os.path.join(TMP, f"out/sweep/{name}.h5")) == datasets(os.path.join(TMP, f"out/{name}-direct.h5"))
+        print("job array (sweep.sbatch) over two job files: both COMPLETED with the expected datasets")
     finally:
         slurm.stop()
 

@@ -1,0 +1,148 @@
+#include "job/plan.h"
+
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+
+#include <chrono>
+#include <cmath>
+#include <optional>
+#include <sstream>
+
+#include "geometry/embree_scene.h"
+#include "scattering/path_tracer.h"
+#include "scattering/wave_estimator.h"
+
+namespace mbsdf {
+
+nlohmann::json planJob(const Job& job, const PlanOptions& options) {
+  std::optional<tbb::global_control> threads;
+  if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
+  const int cores = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
+  DirectionGrid grid(job.gridLayout);
+  const int nTiles = int(job.incidence.size()), nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  nlohmann::json p;
+  p["job"] = job.file;
+  p["geometry"] = {{"kind", job.geometryKind}, {"triangles", job.geometry.triangles.size()},
+                   {"size_um", {job.geometry.sizeX, job.geometry.sizeY}}, {"periodic", job.geometry.periodic}};
+  p["material"] = job.material.describe();
+  p["wavelengths"] = nL;
+  p["grid"] = {{"kind", grid.kind()}, {"bins", nB}};
+  p["tiles"] = nTiles;
+  std::vector<std::string> comps;
+  for (Component c : job.components.list()) comps.push_back(componentName(c));
+  p["components"] = comps;
+  if (job.needsWave()) p["wave_estimator"] = job.resolvedWaveEstimator();
+
+  // Pilot: the most expensive tile (the most grazing incidence) at a reduced budget.
+  int pilot = 0;
+  for (int t = 1; t < nTiles; ++t)
+    if (std::abs(std::cos(radians(job.incidence[t].theta_deg))) <
+        std::abs(std::cos(radians(job.incidence[pilot].theta_deg))))
+      pilot = t;
+  const auto& inc = job.incidence[size_t(pilot)];
+  std::optional<Vec3> exact;
+  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  auto ts = std::chrono::steady_clock::now();
+  PeriodicScene scene(job.geometry);
+  const double sceneSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
+  PathTracerSettings ps;
+  ps.paths = std::min<uint64_t>(job.pathsPerSlice, options.pilotPaths);
+  ps.maxDepth = job.maxDepth;
+  ps.seed = job.seed;
+  ps.tallyGeoMasked = job.components.has(Component::Lost);
+  PathTracer tracer(scene, job.material, job.lambda_um(), grid, ps);
+  TileResult pr = tracer.run(pilot, pilot, inc.bin, exact);
+  const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
+  const double pathSeconds = pr.seconds * double(job.pathsPerSlice) / double(ps.paths);
+  double waveSeconds = 0;
+  if (job.needsWave()) {
+    WaveSettings ws;
+    ws.estimator = job.resolvedWaveEstimator();
+    ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
+                                     ws.estimator == "area" ? 2 * int(job.wavePointsPerDirection) : 16);
+    ws.pointsPerDirection = int(job.wavePointsPerDirection);
+    ws.incidenceDirections = int(job.waveIncidenceDirections);
+    ws.seed = job.seed;
+    ws.computeMasked = job.components.has(Component::Lost);
+    auto est = makeWaveEstimator(WaveContext{job.geometry, scene, job.material, job.lambda_um(), grid,
+                                             CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um,
+                                                                                  job.geometry.sizeX, job.geometry.sizeY,
+                                                                                  job.geometry.periodic),
+                                             ws});
+    WaveTileResult wr = est->run(pilot, inc.bin, exact);
+    waveSeconds = wr.seconds * double(job.waveSamplesPerBin) / double(ws.samplesPerBin);
+  }
+  const double tileSeconds = pathSeconds + waveSeconds;
+  const double coreHours = tileSeconds * nTiles * cores / 3600.0;
+  p["pilot"] = {{"tile", pilot},
+                {"theta_deg", inc.theta_deg},
+                {"paths", ps.paths},
+                {"path_seconds", pr.seconds},
+                {"path_seconds_per_wavelength_group", pr.seconds / groups},
+                {"scene_build_seconds", sceneSeconds},
+                {"cores", cores}};
+  p["estimate"] = {{"seconds_per_tile", tileSeconds},
+                   {"path_seconds_per_tile", pathSeconds},
+                   {"wave_seconds_per_tile", waveSeconds},
+                   {"wall_seconds_on_these_cores", tileSeconds * nTiles + sceneSeconds},
+                   {"core_hours", coreHours}};
+  // Output: float32 value + standard error per component, uncompressed upper bound.
+  const double outBytes = double(nTiles) * nL * nB * 4.0 * 2.0 * double(comps.size());
+  // Memory per rank: the scene (Embree + double copies), one tile result (doubles, value + error
+  // for up to five tallies) and the path tracer's batch of events.
+  const double sceneBytes = double(job.geometry.triangles.size()) * 150.0 + double(job.geometry.vertices.size()) * 60.0;
+  const double tileBytes = double(nL) * nB * 8.0 * 2.0 * 5.0 * 2.0;
+  const double batchBytes = 256.0 * 1024.0 * (32.0 + 8.0 * nL);
+  p["output_bytes_uncompressed"] = outBytes;
+  p["memory_bytes_per_rank"] = sceneBytes + tileBytes + batchBytes;
+  // Suggested Slurm resources: ranks of 8 cores, enough to finish in about 12 hours.
+  const int cpusPerTask = 8;
+  int ntasks = std::max(1, std::min(nTiles, int(std::ceil(coreHours / (12.0 * cpusPerTask)))));
+  double wallHours = tileSeconds * cores / cpusPerTask * std::ceil(double(nTiles) / ntasks) / 3600.0;
+  int minutes = int(std::ceil(wallHours * 60 * 1.3)) + 10;
+  std::ostringstream sb;
+  sb << "#SBATCH --ntasks=" << ntasks << "\n#SBATCH --cpus-per-task=" << cpusPerTask << "\n#SBATCH --time="
+     << minutes / 60 << ":" << (minutes % 60 < 10 ? "0" : "") << minutes % 60 << ":00\n#SBATCH --mem-per-cpu="
+     << std::max(1, int(std::ceil((sceneBytes + tileBytes + batchBytes) / cpusPerTask / 1e9 * 2))) << "G\n"
+     << "#SBATCH --signal=B:USR1@300\n#SBATCH --requeue\n";
+  p["sbatch"] = sb.str();
+  return p;
+}
+
+std::string formatPlan(const nlohmann::json& p) {
+  std::ostringstream o;
+  auto n = [](const nlohmann::json& v) {
+    std::ostringstream s;
+    s.precision(3);
+    s << v.get<double>();
+    return s.str();
+  };
+  auto gb = [](double b) {
+    std::ostringstream s;
+    s.precision(3);
+    s << b / 1e9 << " GB";
+    return s.str();
+  };
+  o << "job:            " << p["job"].get<std::string>() << "\n"
+    << "geometry:       " << p["geometry"]["kind"].get<std::string>() << ", " << p["geometry"]["triangles"]
+    << " triangles\n"
+    << "material:       " << p["material"].get<std::string>() << "\n"
+    << "components:     " << p["components"].dump() << (p.contains("wave_estimator") ? " (wave estimator " + p["wave_estimator"].get<std::string>() + ")" : "") << "\n"
+    << "grid:           " << p["grid"]["kind"].get<std::string>() << ", " << p["grid"]["bins"] << " bins; "
+    << p["wavelengths"] << " wavelengths\n"
+    << "tiles:          " << p["tiles"] << " (one per incidence direction, all wavelengths)\n"
+    << "pilot:          tile " << p["pilot"]["tile"] << " (theta " << n(p["pilot"]["theta_deg"]) << "°), "
+    << p["pilot"]["paths"] << " paths in " << n(p["pilot"]["path_seconds"]) << " s on " << p["pilot"]["cores"]
+    << " cores\n"
+    << "per tile:       " << n(p["estimate"]["seconds_per_tile"]) << " s (paths " << n(p["estimate"]["path_seconds_per_tile"])
+    << " s, wave " << n(p["estimate"]["wave_seconds_per_tile"]) << " s) on these cores\n"
+    << "total:          " << n(p["estimate"]["core_hours"]) << " core-hours; "
+    << n(p["estimate"]["wall_seconds_on_these_cores"]) << " s on these cores\n"
+    << "output:         " << gb(p["output_bytes_uncompressed"].get<double>()) << " uncompressed (upper bound)\n"
+    << "memory / rank:  " << gb(p["memory_bytes_per_rank"].get<double>()) << "\n"
+    << "suggested Slurm header:\n"
+    << p["sbatch"].get<std::string>();
+  return o.str();
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,21 @@
+// `microbsdf plan`: what a job will compute and what it will cost, from a short pilot run of the
+// most expensive tile (grazing incidence) at a reduced budget, extrapolated linearly in the number
+// of paths and wave samples: tiles, seconds per tile, core-hours, output size, memory per rank and
+// a suggested #SBATCH header.
+#pragma once
+#include <nlohmann/json.hpp>
+
+#include "job/job.h"
+
+namespace mbsdf {
+
+struct PlanOptions {
+  uint64_t pilotPaths = 20000;
+  int pilotWaveDivisor = 16;  // the pilot uses 1/16 of the wave samples (at least 2 per bin)
+  int threads = 0;            // 0: all cores
+};
+
+nlohmann::json planJob(const Job& job, const PlanOptions& options);
+std::string formatPlan(const nlohmann::json& plan);
+
+}  // namespace mbsdf
