@@ -27,7 +27,7 @@ struct Order {
 };
 
 // Fractions of a Gaussian lobe (centre (cx, cy), standard deviation sd in the xy plane of the
-// hemisphere `zs`) that fall in each bin: a fixed 32 x 32 stratified pattern through the inverse
+// hemisphere `zs`) that fall in each bin: a fixed 16 x 16 stratified pattern through the inverse
 // normal CDF, deterministic. Directions outside the unit disk are evanescent and dropped.
 void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double zs,
               std::vector<std::pair<int, double>>* out) {
@@ -46,7 +46,7 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
     out->push_back({c, 1.0});
     return;
   }
-  constexpr int K = 32;
+  constexpr int K = 16;
   auto invNormal = [](double p) {  // Acklam-free: Newton on erfc, enough for a stratified pattern
     double x = 0;
     for (int i = 0; i < 40; ++i) {
@@ -192,9 +192,16 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       pm[k].assign(size_t(nL) * nB, 0.0);
       vm[k].assign(size_t(nL) * nB, 0.0);
     }
-    std::vector<std::pair<int, double>> share;
-    for (size_t o = 0; o < nO; ++o) {
+    // Per order (in parallel): power, jackknife variance and the lobe's share of each bin; then
+    // accumulated into the bins in order (deterministic).
+    struct OrderPower {
+      double P[2] = {0, 0}, var[2] = {0, 0};
+      std::vector<std::pair<int, double>> share;
+    };
+    std::vector<OrderPower> op(nO);
+    tbb::parallel_for(size_t(0), nO, [&](size_t o) {
       const Order& ord = orders[o];
+      bool any = false;
       for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
         // Unbiased |Ĥ|² from the group sums S_g (independent replicas, each stratified):
         // (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)). `skip` leaves one group out (jackknife).
@@ -216,21 +223,28 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         };
         const double P = estimate(-1);
         if (P == 0) continue;
-        double jkMean = 0;
-        std::vector<double> jk(kGroups);
+        double jk[kGroups], jkMean = 0;
         for (int g = 0; g < kGroups; ++g) {
           jk[g] = estimate(g);
           jkMean += jk[g] / kGroups;
         }
         double var = 0;
         for (double v : jk) var += (v - jkMean) * (v - jkMean);
-        var *= double(kGroups - 1) / kGroups;
-        lobeBins(grid, ord.wo.x, ord.wo.y, ord.sd, ord.wo.z >= 0 ? 1.0 : -1.0, &share);
+        op[o].P[msk] = P;
+        op[o].var[msk] = var * double(kGroups - 1) / kGroups;
+        any = true;
+      }
+      if (any) lobeBins(grid, ord.wo.x, ord.wo.y, ord.sd, ord.wo.z >= 0 ? 1.0 : -1.0, &op[o].share);
+    });
+    for (size_t o = 0; o < nO; ++o) {
+      const Order& ord = orders[o];
+      for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
+        if (op[o].P[msk] == 0) continue;
         auto& pt = msk ? pm[k] : pv[k];
         auto& vt = msk ? vm[k] : vv[k];
-        for (auto [bin, frac] : share) {
-          pt[size_t(ord.lambda) * nB + bin] += P * frac;
-          vt[size_t(ord.lambda) * nB + bin] += var * frac * frac;
+        for (auto [bin, frac] : op[o].share) {
+          pt[size_t(ord.lambda) * nB + bin] += op[o].P[msk] * frac;
+          vt[size_t(ord.lambda) * nB + bin] += op[o].var[msk] * frac * frac;
         }
       }
     }
