@@ -158,6 +158,14 @@ def wait_for(proc, out, fraction, total, timeout=300):
     return True
 
 
+def wait_session_gone(sid, timeout=60):
+    """Waits until no process of the session is left (ranks outlive mpirun for a moment)."""
+    t0 = time.time()
+    while subprocess.run(["pgrep", "-s", str(sid)], capture_output=True).returncode == 0:
+        assert time.time() - t0 < timeout, "processes of the killed job are still running"
+        time.sleep(0.05)
+
+
 def test_crash_resume():
     job = many_tiles_job(os.path.join(TMP, "job.toml"), 10, "crash.h5")
     total = 40
@@ -167,8 +175,11 @@ def test_crash_resume():
     for fraction in (0.1, 0.5, 0.9):
         p = start(["run", job, "-o", "crash.h5", "--resume"])
         if wait_for(p, out, fraction, total):
-            os.killpg(p.pid, signal.SIGKILL)  # mpirun and every rank, at once
+            # mpirun and every rank at once (Open MPI puts each rank in its own process group, but
+            # all stay in mpirun's session).
+            subprocess.run(["pkill", "-KILL", "-s", str(p.pid)])
             p.wait()
+            wait_session_gone(p.pid)
             kills.append(journal_count(out))
         else:
             p.wait()
@@ -200,6 +211,7 @@ def test_clean_stop():
         else:
             os.killpg(p.pid, sig)
         log, _ = p.communicate(timeout=120)
+        wait_session_gone(p.pid)
         if code is not None:
             assert p.returncode == code, f"{how}: exit {p.returncode}\n{log}"
         else:
