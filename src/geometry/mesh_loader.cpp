@@ -6,6 +6,7 @@
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -158,8 +159,12 @@ Microgeometry loadPly(const std::string& path, double scale) {
       else if (fmt != "binary_little_endian") throw InputError(path + ":" + std::to_string(lineNo) + ": unknown PLY format '" + fmt + "'");
     } else if (kw == "element") {
       PlyElement e;
-      ss >> e.name >> e.count;
-      if (!ss) throw InputError(path + ":" + std::to_string(lineNo) + ": malformed element line");
+      long long count = -1;
+      ss >> e.name >> count;
+      // Signed read: "-4" must be an error, not 2^64 − 4 elements (found by fuzz_mesh).
+      if (!ss || count < 0 || count > (1ll << 31))
+        throw InputError(path + ":" + std::to_string(lineNo) + ": malformed element line (count must be 0 to 2^31)");
+      e.count = size_t(count);
       elements.push_back(e);
     } else if (kw == "property") {
       if (elements.empty()) throw InputError(path + ":" + std::to_string(lineNo) + ": property before element");
@@ -191,9 +196,19 @@ Microgeometry loadPly(const std::string& path, double scale) {
       Vec3 v;
       for (const auto& p : e.props) {
         if (p.isList) {
-          size_t n = size_t(r.read(p.countType));
+          // Counts and indices come from the file: check them before converting (a negative or
+          // huge double converted to an integer is undefined behaviour; found by fuzz_mesh).
+          const double count = r.read(p.countType);
+          if (!(count >= 0 && count <= 65536 && count == std::floor(count)))
+            throw InputError(path + ": " + e.name + " " + std::to_string(i) + " has an invalid list length");
+          const size_t n = size_t(count);
           std::vector<uint32_t> idx(n);
-          for (size_t k = 0; k < n; ++k) idx[k] = uint32_t(r.read(p.type));
+          for (size_t k = 0; k < n; ++k) {
+            const double v = r.read(p.type);
+            if (!(v >= 0 && v < 4294967296.0 && v == std::floor(v)))
+              throw InputError(path + ": " + e.name + " " + std::to_string(i) + " has an invalid vertex index");
+            idx[k] = uint32_t(v);
+          }
           if (e.name == "face" && (p.name == "vertex_indices" || p.name == "vertex_index")) {
             for (size_t k = 1; k + 1 < n; ++k) g.triangles.push_back({idx[0], idx[k], idx[k + 1]});
           }

@@ -105,3 +105,17 @@ TEST(HeightfieldLoader, ExrRoundTripAndNaN) {
   write(junk, "not an exr");
   EXPECT_THROW(loadHeightfieldExr(junk, &rw, &rh), InputError);
 }
+
+// Inputs found by the fuzzers (scripts/fuzz): each must end in an InputError naming the file.
+TEST(MeshLoader, FuzzRegressions) {
+  for (const auto& entry : std::filesystem::directory_iterator(std::string(MICROBSDF_SOURCE_DIR) + "/tests/fuzz/regressions/mesh")) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_FALSE(bytes.empty());
+    // As in fuzz_mesh: the first byte picks the format, the rest is the file.
+    std::string path = tmp(std::string("regression") + ((bytes[0] & 1) ? ".ply" : ".obj"));
+    write(path, bytes.substr(1));
+    std::string e = errorOf(path);
+    EXPECT_NE(e.find("regression"), std::string::npos) << entry.path() << ": " << e;
+  }
+}
