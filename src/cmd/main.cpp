@@ -63,6 +63,7 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
       s["missed"] = st.missed;
       for (auto& [c, v] : st.energyReflected) s["energy"]["reflected"][c] = v;
       for (auto& [c, v] : st.energyTransmitted) s["energy"]["transmitted"][c] = v;
+      for (auto& [c, v] : st.relError) s["rel_error"][c] = v;
       // Albedo of the model the file holds (its components summed, reflected + transmitted), per
       // wavelength; `lost` is a diagnostic, not part of any model, and is left out.
       std::vector<double> total(f.wavelengths_nm().size(), 0.0);
@@ -89,8 +90,9 @@ void printInfo(const nlohmann::json& j) {
             << "wavelengths: " << j["wavelengths_nm"].dump() << " nm\n"
             << "components:  " << j["components"].dump() << "\n"
             << "complete:    " << j["done_count"] << "/" << j["incidence_count"] << " slices\n";
-  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  reflected  transmitted  truncated\n"
-            << "(albedo: the components the file holds, without the lost diagnostic)\n";
+  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  reflected  transmitted  truncated  rel.error\n"
+            << "(albedo: the components the file holds, without the lost diagnostic; rel.error: the largest\n"
+            << " estimated relative standard error of a slice over its components but lost, and wavelengths)\n";
   for (const auto& s : j["slices"]) {
     if (!s["done"].get<bool>()) continue;
     auto mean = [](const nlohmann::json& a) {
@@ -103,10 +105,15 @@ void printInfo(const nlohmann::json& j) {
       if (c != "lost") refl += mean(v);
     for (auto& [c, v] : s["energy"]["transmitted"].items())
       if (c != "lost") trans += mean(v);
-    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.6f %12.6f %10.2e\n", s["index"].get<int>(),
+    double rel = 0;
+    if (s.contains("rel_error"))
+      for (auto& [c, v] : s["rel_error"].items())
+        if (c != "lost")
+          for (auto& x : v) rel = std::max(rel, x.get<double>());
+    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.6f %12.6f %10.2e %10.2e\n", s["index"].get<int>(),
                 s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
                 (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(), refl + trans, refl, trans,
-                mean(s["truncated"]));
+                mean(s["truncated"]), rel);
   }
 }
 

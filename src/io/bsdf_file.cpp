@@ -122,7 +122,8 @@ std::vector<std::string> rowDatasets(const Job& job) {
   std::vector<std::string> v;
   for (Component c : job.components.list()) {
     std::string n = componentName(c);
-    for (const char* g : {"/bsdf/", "/bsdf_stderr/", "/stats/energy_reflected/", "/stats/energy_transmitted/"})
+    for (const char* g : {"/bsdf/", "/bsdf_stderr/", "/stats/energy_reflected/", "/stats/energy_transmitted/",
+                          "/stats/rel_error/"})
       v.push_back(g + n);
   }
   for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/seconds",
@@ -132,6 +133,21 @@ std::vector<std::string> rowDatasets(const Job& job) {
 }
 
 }  // namespace
+
+std::vector<double> sliceRelativeError(const TileResult& r, Component c, const DirectionGrid& grid) {
+  std::vector<double> out(r.nLambda, 0.0);
+  for (int l = 0; l < r.nLambda; ++l) {
+    double var = 0, mass = 0;
+    for (int b = 0; b < r.nBins; ++b) {
+      double op = grid.projectedSolidAngle(b);
+      double e = r.stdError[int(c)][size_t(l) * r.nBins + b] * op;
+      var += e * e;
+      mass += std::abs(r.at(c, l, b)) * op;
+    }
+    out[l] = mass > 0 ? std::sqrt(var) / mass : 0.0;
+  }
+  return out;
+}
 
 BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid, bool resume)
     : path_(path), partial_(path + ".partial"), journal_(path + ".journal"), job_(job), grid_(grid) {
@@ -252,6 +268,7 @@ void BsdfFileWriter::create(const std::string& filename) {
     H5Group s(H5Gcreate2(f, "stats", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /stats");
     H5Group er(H5Gcreate2(s, "energy_reflected", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
     H5Group et(H5Gcreate2(s, "energy_transmitted", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
+    H5Group re(H5Gcreate2(s, "rel_error", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
     H5Dataset wl(H5Dopen2(f, "/spectrum/wavelength_nm", H5P_DEFAULT), "open wavelength");
     H5Dataset ib(H5Dopen2(f, "/incidence/bin", H5P_DEFAULT), "open incidence bin");
     H5Dataset gt(H5Dopen2(f, "/grid/theta_deg", H5P_DEFAULT), "open grid theta");
@@ -272,6 +289,11 @@ void BsdfFileWriter::create(const std::string& filename) {
       for (hid_t grp : {er.get(), et.get()}) {
         H5Dataset d = create3D(grp, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
         describe(d, "1", "hemispherical integral sum(f * projected_solid_angle) of " + name);
+      }
+      {
+        H5Dataset d = create3D(re, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+        describe(d, "1", "estimated relative standard error of the slice: sqrt(sum (stderr * projected_solid_angle)^2) / "
+                         "sum |f| * projected_solid_angle, of " + name);
       }
     }
     {
@@ -323,6 +345,7 @@ void BsdfFileWriter::writeTile(const TileResult& r) {
       }
     writeRow(f, "/stats/energy_reflected/" + name, i, refl, H5T_NATIVE_DOUBLE);
     writeRow(f, "/stats/energy_transmitted/" + name, i, trans, H5T_NATIVE_DOUBLE);
+    writeRow(f, "/stats/rel_error/" + name, i, sliceRelativeError(r, c, grid_), H5T_NATIVE_DOUBLE);
   }
   writeRow(f, "/stats/truncated", i, r.truncated, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/leaked", i, r.leaked, H5T_NATIVE_DOUBLE);
@@ -391,6 +414,9 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   for (const auto& c : components()) {
     s.energyReflected[c] = readRow("/stats/energy_reflected/" + c, incidence);
     s.energyTransmitted[c] = readRow("/stats/energy_transmitted/" + c, incidence);
+    std::string rel = "/stats/rel_error/" + c;
+    if (H5Lexists(file_, "/stats/rel_error", H5P_DEFAULT) > 0 && H5Lexists(file_, rel.c_str(), H5P_DEFAULT) > 0)
+      s.relError[c] = readRow(rel, incidence);
   }
   return s;
 }

@@ -9,7 +9,8 @@
 //   /bsdf_stderr/<component> the standard error of each value, same layout
 //   /bsdf/done              uint8 (nInc), 1 when that slice is complete
 //   /stats/...              per slice: samples, seconds, truncated/leaked/missed (nInc, nλ),
-//                           energy_reflected/<c>, energy_transmitted/<c> (nInc, nλ) = Σ f·Ω⊥
+//                           energy_reflected/<c>, energy_transmitted/<c> (nInc, nλ) = Σ f·Ω⊥,
+//                           rel_error/<c> (nInc, nλ): estimated relative standard error
 // The writer writes each tile as it arrives and flushes; it writes to `<path>.partial` and renames
 // on completion, so an existing output is never damaged by a failed run.
 //
@@ -64,7 +65,13 @@ struct SliceStats {
   double seconds = 0;
   std::vector<double> truncated, leaked, missed;
   std::map<std::string, std::vector<double>> energyReflected, energyTransmitted;
+  std::map<std::string, std::vector<double>> relError;  // per component, per wavelength
 };
+
+// Estimated relative standard error of a slice of one component, per wavelength:
+// sqrt(Σ_b (σ_b Ω⊥_b)²) / Σ_b |f_b| Ω⊥_b (PHYSICS.md §3 units; the bins of a path-traced component
+// are negatively correlated, so this is an upper bound for its hemispherical integral).
+std::vector<double> sliceRelativeError(const TileResult& r, Component c, const DirectionGrid& grid);
 
 class BsdfFileReader {
  public:

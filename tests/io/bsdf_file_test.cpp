@@ -1,0 +1,96 @@
+// The HDF5 schema: writer and reader round trip, NaN fill for unwritten slices, the per-slice
+// statistics (energies, relative error) and resuming from a partial file.
+#include "io/bsdf_file.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+using namespace mbsdf;
+
+namespace {
+Job smallJob() {
+  return loadJobFromString(
+      "[directions]\nn_theta = 2\nn_phi = 4\nincidence = [[10.0, 0.0], [50.0, 0.0]]\n"
+      "[spectrum]\nwavelengths_nm = [450.0, 650.0]\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n",
+      "t.toml", "");
+}
+TileResult tile(const Job& job, const DirectionGrid& g, int index, double base) {
+  TileResult r;
+  r.incidenceIndex = index;
+  r.incidenceBin = job.incidence[index].bin;
+  r.nLambda = 2;
+  r.nBins = g.binCount();
+  r.samples = 1000;
+  for (Component c : {Component::Coherent, Component::Multiple}) {
+    r.value[int(c)].assign(size_t(2) * g.binCount(), 0.0);
+    r.stdError[int(c)].assign(size_t(2) * g.binCount(), 0.0);
+  }
+  // One lit bin per wavelength: f = base / Ω⊥, σ = 0.1 f.
+  for (int l = 0; l < 2; ++l) {
+    r.at(Component::Coherent, l, 3) = base / g.projectedSolidAngle(3);
+    r.stdError[int(Component::Coherent)][size_t(l) * g.binCount() + 3] = 0.1 * base / g.projectedSolidAngle(3);
+  }
+  r.truncated = r.leaked = r.missed = {0.0, 0.0};
+  return r;
+}
+}  // namespace
+
+TEST(BsdfFile, RoundTripStatisticsAndNaNFill) {
+  Job job = smallJob();
+  DirectionGrid g(job.gridLayout);
+  std::string path = (std::filesystem::temp_directory_path() / "microbsdf_schema_test.h5").string();
+  std::filesystem::remove(path);
+  {
+    BsdfFileWriter w(path, job, g);
+    w.writeTile(tile(job, g, 1, 0.25));
+    w.finish();
+  }
+  BsdfFileReader f(path);
+  EXPECT_EQ(f.incidenceCount(), 2);
+  EXPECT_FALSE(f.done(0));
+  EXPECT_TRUE(f.done(1));
+  EXPECT_EQ(f.wavelengths_nm(), (std::vector<double>{450.0, 650.0}));
+  EXPECT_EQ(f.intAttribute("schema_version"), kSchemaVersion);
+  EXPECT_EQ(f.attribute("job_text"), job.text);
+  auto s = f.slice("coherent", 1);
+  EXPECT_FLOAT_EQ(float(s[3]), float(0.25 / g.projectedSolidAngle(3)));
+  EXPECT_TRUE(std::isnan(f.slice("coherent", 0)[3])) << "unwritten slices read as NaN";
+  SliceStats st = f.stats(1);
+  EXPECT_NEAR(st.energyReflected["coherent"][0], 0.25, 1e-12);
+  EXPECT_NEAR(st.relError["coherent"][1], 0.1, 1e-12);
+  EXPECT_EQ(st.relError["multiple"][0], 0.0);
+  EXPECT_EQ(st.samples, 1000u);
+}
+
+TEST(BsdfFile, ResumeKeepsJournaledSlices) {
+  Job job = smallJob();
+  DirectionGrid g(job.gridLayout);
+  std::string path = (std::filesystem::temp_directory_path() / "microbsdf_resume_test.h5").string();
+  for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(path + ext);
+  {
+    BsdfFileWriter w(path, job, g);
+    w.writeTile(tile(job, g, 0, 0.5));
+    // destroyed without finish(): a stopped run
+  }
+  ASSERT_TRUE(std::filesystem::exists(path + ".partial"));
+  {
+    BsdfFileWriter w(path, job, g, /*resume=*/true);
+    ASSERT_EQ(w.resumedTiles(), std::vector<int>{0});
+    w.writeTile(tile(job, g, 1, 0.25));
+    w.finish();
+  }
+  BsdfFileReader f(path);
+  EXPECT_TRUE(f.done(0));
+  EXPECT_TRUE(f.done(1));
+  EXPECT_FLOAT_EQ(float(f.slice("coherent", 0)[3]), float(0.5 / g.projectedSolidAngle(3)));
+  EXPECT_FALSE(std::filesystem::exists(path + ".journal"));
+  // A different job must not resume from this partial file.
+  {
+    BsdfFileWriter w(path, job, g);
+    w.writeTile(tile(job, g, 0, 0.5));
+  }
+  Job other = loadJobFromString(job.text + "\n[output]\npath = \"x.h5\"\n", "t.toml", "");
+  EXPECT_THROW(BsdfFileWriter(path, other, g, true), std::runtime_error);
+}
