@@ -1,7 +1,8 @@
 // microbsdf: the command-line entry point (DESIGN.md "Command line").
 //   microbsdf run JOB.toml [-o OUT.h5] [--threads N] [--log-dir DIR] [--resume] [--max-hours H] [-v]
 //   microbsdf info OUT.h5 [--json]
-//   microbsdf slice OUT.h5 --theta-i DEG [--phi-i DEG] [--model GM] [--transmission] -o x.exr|x.csv
+//   microbsdf slice OUT.h5 --theta-i DEG [--phi-i DEG] [--model GM] [--transmission|--both]
+//                  [--style true|false] -o x.exr|x.png|x.csv
 //   microbsdf geometry JOB.toml -o patch.ply
 //   microbsdf check JOB.toml
 //   microbsdf plan JOB.toml [--json plan.json]
@@ -149,8 +150,17 @@ int main(int argc, char** argv) {
   slice->add_option("--phi-i", phiI, "incidence azimuth (degrees)");
   slice->add_option("--model", model, "GS, GM, WS, WM or a component name")->capture_default_str();
   slice->add_flag("--transmission", transmission, "exit directions in the lower hemisphere (BTDF)");
-  slice->add_option("--size", sliceSize, "EXR image size in pixels")->capture_default_str();
-  slice->add_option("-o,--output", outPath, "x.exr or x.csv")->required();
+  slice->add_option("--size", sliceSize, "image height in pixels")->capture_default_str();
+  bool both = false;
+  std::string style = "true";
+  double exposure = 1.0, log2Min = -10, log2Max = 10;
+  slice->add_flag("--both", both, "reflection (left) and transmission (right) side by side");
+  slice->add_option("--style", style, "PNG: true (CIE 1931 -> sRGB) or false (log2 false colour)")
+      ->check(CLI::IsMember({"true", "false"}))->capture_default_str();
+  slice->add_option("--exposure", exposure, "true colour: scale of the linear sRGB values")->capture_default_str();
+  slice->add_option("--log2-min", log2Min, "false colour: lower end of the log2 scale")->capture_default_str();
+  slice->add_option("--log2-max", log2Max, "false colour: upper end of the log2 scale")->capture_default_str();
+  slice->add_option("-o,--output", outPath, "x.exr, x.png or x.csv")->required();
 
   auto* geometry = app.add_subcommand("geometry", "write the job's microgeometry patch as PLY");
   geometry->add_option("job", jobPath, "job file (TOML)")->required();
@@ -222,7 +232,17 @@ int main(int argc, char** argv) {
     }
     if (slice->parsed()) {
       BsdfFileReader f(h5Path);
-      SliceRequest req{thetaI, phiI, model, transmission, sliceSize};
+      SliceRequest req;
+      req.theta_deg = thetaI;
+      req.phi_deg = phiI;
+      req.model = model;
+      req.transmission = transmission;
+      req.both = both;
+      req.size = sliceSize;
+      req.style = style;
+      req.exposure = exposure;
+      req.log2Min = log2Min;
+      req.log2Max = log2Max;
       int inc = exportSlice(f, req, outPath);
       std::cerr << "wrote " << outPath << " (incidence theta " << f.incidenceTheta(inc) << ", phi "
                 << f.incidencePhi(inc) << ")\n";

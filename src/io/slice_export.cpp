@@ -1,15 +1,35 @@
 #include "io/slice_export.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
 
+#include "core/colour.h"
 #include "io/exr_image.h"
+#include "io/png_image.h"
 #include "scattering/components.h"
 
 namespace mbsdf {
+
+Colour3 falseColour(double t) {
+  // Viridis (van der Walt & Smith, matplotlib), 9 control points, linear in between.
+  static const double kStops[9][3] = {{68, 1, 84},    {71, 44, 122},  {59, 81, 139},  {44, 113, 142}, {33, 144, 141},
+                                      {39, 173, 129}, {92, 200, 99},  {170, 220, 50}, {253, 231, 37}};
+  t = std::clamp(t, 0.0, 1.0) * 8;
+  int k = std::min(7, int(t));
+  double u = t - k;
+  Colour3 c;
+  for (int i = 0; i < 3; ++i) c[i] = ((1 - u) * kStops[k][i] + u * kStops[k + 1][i]) / 255.0;
+  return c;
+}
+
+double srgbEncode(double linear) {
+  linear = std::clamp(linear, 0.0, 1.0);
+  return linear <= 0.0031308 ? 12.92 * linear : 1.055 * std::pow(linear, 1 / 2.4) - 0.055;
+}
 
 std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& model, int incidence,
                                std::vector<double>* stdError) {
@@ -45,31 +65,72 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
   const auto& lambda = file.wavelengths_nm();
   const int nL = int(lambda.size()), nB = grid.binCount();
   std::string ext = std::filesystem::path(outPath).extension().string();
-  if (ext == ".exr") {
-    const int S = req.size;
-    std::vector<ExrChannel> ch;
-    for (int l = 0; l < nL; ++l) {
-      char name[32];
-      std::snprintf(name, sizeof name, "%.1fnm", lambda[l]);
-      ch.push_back({name, std::vector<float>(size_t(S) * S, 0.f)});
-    }
-    ch.push_back({"mean", std::vector<float>(size_t(S) * S, 0.f)});
+  if (ext == ".exr" || ext == ".png") {
+    const int S = req.size, W = req.both ? 2 * S : S;
+    SpectrumToColour colour(lambda);
+    // Per pixel: the spectrum of the bin it falls in (NaN outside the disk).
+    std::vector<double> spec(size_t(W) * S * nL, std::nan(""));
     for (int j = 0; j < S; ++j)
-      for (int i = 0; i < S; ++i) {
-        double x = -1 + 2.0 * (i + 0.5) / S, y = 1 - 2.0 * (j + 0.5) / S;
+      for (int i = 0; i < W; ++i) {
+        const bool trans = req.both ? i >= S : req.transmission;
+        const int ii = i % S;
+        double x = -1 + 2.0 * (ii + 0.5) / S, y = 1 - 2.0 * (j + 0.5) / S;
         double r2 = x * x + y * y;
         if (r2 > 1) continue;
         double z = std::sqrt(1 - r2);
-        int b = grid.binOf({x, y, req.transmission ? -z : z});
+        int b = grid.binOf({x, y, trans ? -z : z});
+        for (int l = 0; l < nL; ++l) spec[(size_t(j) * W + i) * nL + l] = f[size_t(l) * nB + b];
+      }
+    if (ext == ".exr") {
+      std::vector<ExrChannel> ch;
+      for (int l = 0; l < nL; ++l) {
+        char name[32];
+        std::snprintf(name, sizeof name, "%.1fnm", lambda[l]);
+        ch.push_back({name, std::vector<float>(size_t(W) * S, 0.f)});
+      }
+      for (const char* n : {"mean", "R", "G", "B", "Y"}) ch.push_back({n, std::vector<float>(size_t(W) * S, 0.f)});
+      for (size_t p = 0; p < size_t(W) * S; ++p) {
+        const double* v = &spec[p * nL];
+        if (std::isnan(v[0])) continue;
         double mean = 0;
         for (int l = 0; l < nL; ++l) {
-          double v = f[size_t(l) * nB + b];
-          ch[l].pixels[size_t(j) * S + i] = float(v);
-          mean += v / nL;
+          ch[l].pixels[p] = float(v[l]);
+          mean += v[l] / nL;
         }
-        ch.back().pixels[size_t(j) * S + i] = float(mean);
+        Colour3 rgb = colour.linearSrgb(v), xyz = colour.xyz(v);
+        ch[nL].pixels[p] = float(mean);
+        for (int c = 0; c < 3; ++c) ch[nL + 1 + c].pixels[p] = float(rgb[c]);
+        ch[nL + 4].pixels[p] = float(xyz[1]);
       }
-    writeExr(outPath, S, S, ch);
+      writeExr(outPath, W, S, ch);
+    } else {
+      const int bar = req.style == "false" ? std::max(8, S / 16) : 0;
+      RgbImage img;
+      img.width = W;
+      img.height = S + bar;
+      img.rgb.assign(size_t(img.width) * img.height * 3, 0);
+      auto put = [&](int i, int j, const Colour3& c) {
+        for (int k = 0; k < 3; ++k) img.rgb[(size_t(j) * W + i) * 3 + k] = uint8_t(std::lround(std::clamp(c[k], 0.0, 1.0) * 255));
+      };
+      for (int j = 0; j < S; ++j)
+        for (int i = 0; i < W; ++i) {
+          const double* v = &spec[(size_t(j) * W + i) * nL];
+          if (std::isnan(v[0])) continue;
+          if (req.style == "false") {
+            double mean = 0;
+            for (int l = 0; l < nL; ++l) mean += v[l] / nL;
+            double t = mean > 0 ? (std::log2(mean) - req.log2Min) / (req.log2Max - req.log2Min) : 0.0;
+            put(i, j, falseColour(t));
+          } else {
+            Colour3 rgb = colour.linearSrgb(v);
+            for (double& c : rgb) c = srgbEncode(c * req.exposure);
+            put(i, j, rgb);
+          }
+        }
+      for (int j = S; j < S + bar; ++j)
+        for (int i = 0; i < W; ++i) put(i, j, falseColour((i + 0.5) / W));
+      writePng(outPath, img);
+    }
   } else if (ext == ".csv") {
     std::ofstream o(outPath);
     if (!o) throw std::runtime_error("cannot write " + outPath);
@@ -90,7 +151,7 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
       o << "\n";
     }
   } else {
-    throw std::invalid_argument("unknown slice format '" + ext + "' (use .exr or .csv)");
+    throw std::invalid_argument("unknown slice format '" + ext + "' (use .exr, .png or .csv)");
   }
   return inc;
 }

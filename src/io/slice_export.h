@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "core/colour.h"
 #include "io/bsdf_file.h"
 
 namespace mbsdf {
@@ -12,15 +13,28 @@ struct SliceRequest {
   double theta_deg = 0, phi_deg = 0;
   std::string model = "GM";  // GS | GM | WS | WM | a component name
   bool transmission = false; // lower hemisphere of exit directions
-  int size = 256;            // EXR width = height
+  bool both = false;         // reflection (left) and transmission (right) side by side
+  int size = 256;            // image height; width = size (2 size with `both`)
+  std::string style = "true";  // PNG: "true" colour (CIE 1931 -> sRGB) or "false" colour (log2 scale)
+  double exposure = 1.0;       // true colour: multiplies the linear sRGB values
+  double log2Min = -10, log2Max = 10;  // false colour: the range of log2(f) (paper Fig. 5: −10 … 10)
 };
 
 // Sum of the model's components that the file holds (missing ones are an error).
 std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& model, int incidence,
                                std::vector<double>* stdError = nullptr);
 
-// Writes by extension: .exr (disk projection, one channel per wavelength "<λ>nm" plus "mean"),
-// .csv (one row per exit bin). Returns the incidence index used.
+// Writes by extension, on the paper's disk projection (x = sin θ cos φ, y = sin θ sin φ, +y up):
+//  .exr: float channels "<λ>nm" per wavelength, "mean" (over λ), "R", "G", "B" (linear sRGB of the
+//        spectrum through the CIE 1931 matching functions) and "Y";
+//  .png: true colour (sRGB, gamma-encoded, × exposure) or false colour: log2 of the spectral mean
+//        on [log2Min, log2Max] with a colour bar along the bottom (the paper's Fig. 5 scale);
+//  .csv: one row per exit bin.
+// Returns the incidence index used.
 int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::string& outPath);
+
+// The false-colour map (viridis) at t in [0, 1], and the sRGB transfer function.
+Colour3 falseColour(double t);
+double srgbEncode(double linear);
 
 }  // namespace mbsdf
