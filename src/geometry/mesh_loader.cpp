@@ -192,6 +192,12 @@ Microgeometry loadPly(const std::string& path, double scale) {
   PlyReader r(f, ascii, big, path);
   Microgeometry g;
   for (const auto& e : elements) {
+    if (e.props.empty()) continue;  // nothing to read (and no reason to loop 2^31 times)
+    if (e.name == "vertex") {
+      int xyz = 0;
+      for (const auto& p : e.props) xyz += !p.isList && (p.name == "x" || p.name == "y" || p.name == "z");
+      if (xyz != 3) throw InputError(path + ": the vertex element needs x, y and z properties");
+    }
     for (size_t i = 0; i < e.count; ++i) {
       Vec3 v;
       for (const auto& p : e.props) {

@@ -9,6 +9,8 @@
 #include "geometry/generators.h"
 #include "geometry/mesh_loader.h"
 
+#include <cmath>
+
 namespace mbsdf {
 
 namespace {
@@ -50,16 +52,29 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     }
   };
 
+  // Impossible sizes fail here, before anything is allocated (found by fuzz_job: a tiny
+  // resolution_um made a hemispheres patch of billions of triangles).
+  constexpr double kMaxTriangles = 2e7;
+  auto budget = [&](const std::string& key, double triangles) {
+    if (!(triangles <= kMaxTriangles))
+      geo.fail(key, fmt::format("would generate about {:.3g} triangles (limit {:.3g}); use a coarser resolution or "
+                                "a smaller patch", triangles, kMaxTriangles));
+  };
+  auto rings = [](double length, double res) { return std::max(2.0, std::ceil(length / res)); };
   Microgeometry g;
   if (kind == "flat") {
     auto s = size2({20.0, 20.0});
     double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
+    if (res < 0) geo.fail("resolution_um", "must be >= 0");
+    if (res > 0) budget("resolution_um", 2 * rings(s[0], res) * rings(s[1], res));
     g = makeFlat(s[0], s[1], res);
   } else if (kind == "sine-grating") {
     auto s = size2({20.0, 20.0});
     double period = geo.positive("period_um", 5.0), amp = geo.nonNegative("amplitude_um", 0.05);
-    int spp = int(geo.positiveInt("samples_per_period", 64));
+    int64_t spp = geo.positiveInt("samples_per_period", 64);
     double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
+    if (res < 0) geo.fail("resolution_um", "must be >= 0");
+    budget("samples_per_period", 2.0 * double(spp) * std::ceil(s[0] / period) * (res > 0 ? rings(s[1], res) : 1));
     g = guard("period_um", [&] { return makeSineGrating(s[0], s[1], period, amp, spp, res); });
   } else if (kind == "binary-grating") {
     auto s = size2({20.0, 20.0});
@@ -67,6 +82,8 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     double duty = geo.getDouble("duty", 0.5);
     if (!(duty > 0 && duty < 1)) geo.fail("duty", "must be in (0, 1)");
     double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
+    if (res < 0) geo.fail("resolution_um", "must be >= 0");
+    budget("period_um", 10.0 * std::ceil(s[0] / period) * (res > 0 ? rings(s[1], res) * rings(period + 2 * depth, res) : 1));
     g = guard("period_um", [&] { return makeBinaryGrating(s[0], s[1], period, depth, duty, res); });
   } else if (kind == "ridged") {
     auto s = size2({20.0, 20.0});
@@ -74,6 +91,9 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     double apex = geo.getDouble("apex_angle_deg", 90.0);
     if (!(apex > 0 && apex < 180)) geo.fail("apex_angle_deg", "must be in (0, 180)");
     double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
+    if (res < 0) geo.fail("resolution_um", "must be >= 0");
+    budget("period_um", 4.0 * std::ceil(s[0] / period) *
+                            (res > 0 ? rings(s[1], res) * rings(period / std::sin(radians(apex / 2)), res) : 1));
     g = guard("period_um", [&] { return makeRidged(s[0], s[1], period, apex, res); });
   } else if (kind == "gaussian") {
     auto s = size2({20.0, 20.0});
@@ -90,6 +110,8 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     double r = geo.positive("radius_um", 2.0);
     auto sp = pair2("spacing_um", 5.0);
     double res = geo.positive("resolution_um", r / 16);
+    budget("resolution_um", 2 * std::ceil(s[0] / sp[0]) * std::ceil(s[1] / sp[1]) * rings(2 * kPi * r, res) *
+                                (rings(std::max(sp[0], sp[1]), res) + rings(0.5 * kPi * r, res)));
     g = guard("spacing_um", [&] { return makeDomeLattice(s[0], s[1], sp[0], sp[1], r, r, r, res); });
   } else if (kind == "axicon") {
     auto s = size2({10.0, 10.0});
@@ -98,6 +120,9 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
       geo.fail("radii_um", "expected three positive radii [rx, ry, height]");
     auto sp = pair2("spacing_um", 1.0);
     double res = geo.positive("resolution_um", std::min(radii[0], radii[1]) / 16);
+    const double rmax = std::max({radii[0], radii[1], radii[2]});
+    budget("resolution_um", 2 * std::ceil(s[0] / sp[0]) * std::ceil(s[1] / sp[1]) * rings(2 * kPi * rmax, res) *
+                                (rings(std::max(sp[0], sp[1]), res) + rings(0.5 * kPi * rmax, res)));
     g = guard("spacing_um", [&] { return makeDomeLattice(s[0], s[1], sp[0], sp[1], radii[0], radii[1], radii[2], res); });
   } else if (kind == "overhang") {
     auto s = size2({20.0, 20.0});
@@ -105,6 +130,8 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     double stemR = geo.positive("stem_radius_um", 0.8), stemH = geo.positive("stem_height_um", 1.5);
     double capR = geo.positive("cap_radius_um", 2.0), capH = geo.positive("cap_height_um", 1.0);
     double res = geo.positive("resolution_um", capR / 16);
+    budget("resolution_um", 2 * std::ceil(s[0] / sp) * std::ceil(s[1] / sp) * rings(2 * kPi * capR, res) *
+                                (rings(sp, res) + rings(stemH, res) + rings(capR, res) + rings(0.5 * kPi * std::max(capR, capH), res)));
     g = guard("cap_radius_um", [&] { return makeOverhang(s[0], s[1], sp, stemR, stemH, capR, capH, res); });
   } else if (kind == "mesh") {
     std::string file = geo.getString("file", "");

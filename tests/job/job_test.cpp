@@ -3,6 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+
 #include "core/error.h"
 
 using namespace mbsdf;
@@ -84,4 +88,20 @@ TEST(Job, WavelengthRangeTable) {
   Job j = loadJobFromString("[spectrum]\nwavelengths_nm = { min = 400.0, max = 700.0, count = 3 }\n", "t.toml", "");
   ASSERT_EQ(j.lambda_nm.size(), 3u);
   EXPECT_DOUBLE_EQ(j.lambda_nm[1], 550.0);
+}
+
+// Inputs found by fuzz_job (scripts/fuzz): each must be accepted or rejected with an InputError,
+// quickly (they used to run for minutes).
+TEST(Job, FuzzRegressions) {
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::string(MICROBSDF_SOURCE_DIR) + "/tests/fuzz/regressions/job")) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    auto t0 = std::chrono::steady_clock::now();
+    try {
+      loadJobFromString(text, "fuzz.toml", "/nonexistent");
+    } catch (const InputError&) {
+    }
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0) << entry.path();
+  }
 }
