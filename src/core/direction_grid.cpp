@@ -1,3 +1,4 @@
+#include "core/overloaded.h"
 #include "core/direction_grid.h"
 
 #include <cmath>
@@ -6,10 +7,6 @@
 namespace mbsdf {
 namespace {
 
-template <class... Ts>
-struct Overloaded : Ts... { using Ts::operator()...; };
-template <class... Ts>
-Overloaded(Ts...) -> Overloaded<Ts...>;
 
 // Disk pixel (i, j) covers x in [-1 + 2i/W, -1 + 2(i+1)/W], y likewise. Its projected solid
 // angle is the area of (pixel ∩ unit disk); its solid angle is the integral of 1/cos theta over

@@ -7,6 +7,20 @@
 
 namespace mbsdf {
 namespace {
+RTCRayHit makeRayHit(const Vec3& o, const Vec3& d, float tnear, float tfar) {
+  RTCRayHit rh;
+  rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
+  rh.ray.dir_x = float(d.x); rh.ray.dir_y = float(d.y); rh.ray.dir_z = float(d.z);
+  rh.ray.tnear = tnear;
+  rh.ray.tfar = tfar;
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.flags = 0;
+  rh.ray.time = 0.f;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+
 void embreeError(void*, RTCError code, const char* str) {
   throw std::runtime_error(std::string("Embree error ") + std::to_string(int(code)) + ": " + (str ? str : ""));
 }
@@ -67,16 +81,7 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
 bool PeriodicScene::intersectRaw(const Vec3& o, const Vec3& d, double tfar, double* t) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
-  RTCRayHit rh;
-  rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
-  rh.ray.dir_x = float(d.x); rh.ray.dir_y = float(d.y); rh.ray.dir_z = float(d.z);
-  rh.ray.tnear = 0.f;
-  rh.ray.tfar = float(tfar);
-  rh.ray.mask = 0xFFFFFFFFu;
-  rh.ray.flags = 0;
-  rh.ray.time = 0.f;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  RTCRayHit rh = makeRayHit(o, d, 0.f, float(tfar));
   rtcIntersect1(scene_.get(), &ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
   *t = rh.ray.tfar;
@@ -106,15 +111,7 @@ TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d, int ignorePrim) const {
     RTCRayHit rh;
     float tnear = 0.f;
     for (int retry = 0; retry < 4; ++retry) {
-      rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
-      rh.ray.dir_x = float(d.x); rh.ray.dir_y = float(d.y); rh.ray.dir_z = float(d.z);
-      rh.ray.tnear = tnear;
-      rh.ray.tfar = tExit == inf ? std::numeric_limits<float>::infinity() : float(tExit + eps_);
-      rh.ray.mask = 0xFFFFFFFFu;
-      rh.ray.flags = 0;
-      rh.ray.time = 0.f;
-      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+      rh = makeRayHit(o, d, tnear, tExit == inf ? std::numeric_limits<float>::infinity() : float(tExit + eps_));
       rtcIntersect1(scene_.get(), &ctx, &rh);
       // Only the first segment after a hit can meet the triangle it leaves (a flat triangle
       // cannot be crossed twice by one straight segment; after a wrap it is another copy).

@@ -1,3 +1,4 @@
+#include "core/overloaded.h"
 #include "optics/material.h"
 
 #include <algorithm>
@@ -9,10 +10,6 @@
 
 namespace mbsdf {
 namespace {
-template <class... Ts>
-struct Overloaded : Ts... { using Ts::operator()...; };
-template <class... Ts>
-Overloaded(Ts...) -> Overloaded<Ts...>;
 
 double interpolate(const std::vector<double>& x, const std::vector<double>& y, double xv) {
   if (xv < x.front() || xv > x.back()) throw std::out_of_range("wavelength outside table");

@@ -139,15 +139,7 @@ WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<
   const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor(), masked);
   const double area = sampler_.totalArea();
 
-  WaveTileResult r;
-  r.nLambda = nL;
-  r.nBins = nB;
-  r.fws.assign(size_t(nL) * nB, 0.0);
-  r.fwsErr.assign(size_t(nL) * nB, 0.0);
-  if (masked) {
-    r.pmsk.assign(size_t(nL) * nB, 0.0);
-    r.pmskErr.assign(size_t(nL) * nB, 0.0);
-  }
+  WaveTileResult r(nL, nB, masked);
   std::atomic<uint64_t> rays{0};
 
   auto doBin = [&](int b) {

@@ -96,15 +96,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   const double Lx = scene.sizeX(), Ly = scene.sizeY(), area = sampler_.totalArea();
   const double sigma = ctx_.window.sigma();
 
-  WaveTileResult r;
-  r.nLambda = nL;
-  r.nBins = nB;
-  r.fws.assign(size_t(nL) * nB, 0.0);
-  r.fwsErr.assign(size_t(nL) * nB, 0.0);
-  if (masked) {
-    r.pmsk.assign(size_t(nL) * nB, 0.0);
-    r.pmskErr.assign(size_t(nL) * nB, 0.0);
-  }
+  WaveTileResult r(nL, nB, masked);
   // Per incidence sample k: power per (λ, bin) and its variance; averaged over k at the end.
   std::vector<std::vector<double>> pv(K), pm(K), vv(K), vm(K);
   std::atomic<uint64_t> rays{0};

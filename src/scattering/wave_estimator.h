@@ -31,6 +31,11 @@ struct WaveSettings {
 };
 
 struct WaveTileResult {
+  WaveTileResult() = default;
+  // Zeroed tables for nLambda x nBins values (P_msk too when `masked`).
+  WaveTileResult(int nL, int nB, bool masked)
+      : nLambda(nL), nBins(nB), fws(size_t(nL) * nB, 0.0), fwsErr(size_t(nL) * nB, 0.0),
+        pmsk(masked ? size_t(nL) * nB : 0, 0.0), pmskErr(masked ? size_t(nL) * nB : 0, 0.0) {}
   int nLambda = 0, nBins = 0;
   // Per (λ, bin), λ-major, 1/sr. Bins that were not computed (the other hemisphere of a
   // conductor) hold 0.
