@@ -2,6 +2,7 @@
 #include "core/direction_grid.h"
 
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 
 namespace mbsdf {
@@ -49,7 +50,8 @@ void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* o
 DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
   std::visit(Overloaded{
                  [&](const ThetaPhiGrid& g) {
-                   if (g.nTheta < 1 || g.nPhi < 1) throw std::invalid_argument("grid size must be >= 1");
+                   if (g.nTheta < 1 || g.nPhi < 1 || int64_t(g.nTheta) * g.nPhi > (int64_t(1) << 30))
+                     throw std::invalid_argument("grid size must be between 1 and 2^30 bins per hemisphere");
                    perHemisphere_ = g.nTheta * g.nPhi;
                    omega_.resize(perHemisphere_);
                    omegaProj_.resize(perHemisphere_);
@@ -66,7 +68,8 @@ DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
                    }
                  },
                  [&](const DiskGrid& g) {
-                   if (g.width < 1 || g.height < 1) throw std::invalid_argument("grid size must be >= 1");
+                   if (g.width < 1 || g.height < 1 || int64_t(g.width) * g.height > (int64_t(1) << 30))
+                     throw std::invalid_argument("grid size must be between 1 and 2^30 bins per hemisphere");
                    perHemisphere_ = g.width * g.height;
                    omega_.resize(perHemisphere_);
                    omegaProj_.resize(perHemisphere_);

@@ -87,10 +87,19 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
 
   ParamDict dirs = root.table("directions");
   std::string gridKind = dirs.getString("grid", "theta-phi");
+  // Bins per hemisphere at most 2.5e7 (the paper's resolution is 22,500): beyond that the tables do
+  // not fit in memory, and the products would overflow (found by fuzz_job).
+  constexpr int64_t kMaxBins = 25000000;
   if (gridKind == "theta-phi") {
-    job.gridLayout = ThetaPhiGrid{int(dirs.positiveInt("n_theta", 75)), int(dirs.positiveInt("n_phi", 300))};
+    int64_t nt = dirs.positiveInt("n_theta", 75), np = dirs.positiveInt("n_phi", 300);
+    if (nt > kMaxBins || np > kMaxBins || nt * np > kMaxBins)
+      dirs.fail(nt > np ? "n_theta" : "n_phi", "n_theta x n_phi must be at most 2.5e7 bins per hemisphere");
+    job.gridLayout = ThetaPhiGrid{int(nt), int(np)};
   } else if (gridKind == "disk") {
-    job.gridLayout = DiskGrid{int(dirs.positiveInt("width", 64)), int(dirs.positiveInt("height", 64))};
+    int64_t w = dirs.positiveInt("width", 64), h = dirs.positiveInt("height", 64);
+    if (w > kMaxBins || h > kMaxBins || w * h > kMaxBins)
+      dirs.fail(w > h ? "width" : "height", "width x height must be at most 2.5e7 pixels per hemisphere");
+    job.gridLayout = DiskGrid{int(w), int(h)};
   } else {
     dirs.fail("grid", "must be \"theta-phi\" or \"disk\"");
   }
@@ -150,16 +159,21 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
 
   ParamDict samp = root.table("sampling");
   job.pathsPerSlice = uint64_t(samp.positiveInt("paths_per_slice", 1000000));
-  job.maxDepth = int(samp.positiveInt("max_depth", 100));
+  auto bounded = [&](const std::string& key, int64_t def, int64_t max) {
+    int64_t v = samp.positiveInt(key, def);
+    if (v > max) samp.fail(key, "must be at most " + std::to_string(max));
+    return v;
+  };
+  job.maxDepth = int(bounded("max_depth", 100, 1000000));
   job.seed = uint64_t(samp.getInt("seed", 1));
   job.waveEstimator = samp.getString("wave_estimator", "auto");
   if (job.waveEstimator != "paper" && job.waveEstimator != "area" && job.waveEstimator != "orders" &&
       job.waveEstimator != "auto")
     samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\" or \"paper\"");
-  job.waveSamplesPerBin = samp.positiveInt("wave_samples_per_bin", 256);
-  job.wavePointsPerDirection = samp.positiveInt("wave_points_per_direction", 64);
+  job.waveSamplesPerBin = bounded("wave_samples_per_bin", 256, 1000000000);
+  job.wavePointsPerDirection = bounded("wave_points_per_direction", 64, 1000000000);
   if (job.wavePointsPerDirection < 2) samp.fail("wave_points_per_direction", "must be >= 2 (pairwise estimator)");
-  job.waveIncidenceDirections = samp.positiveInt("wave_incidence_directions", 4);
+  job.waveIncidenceDirections = bounded("wave_incidence_directions", 4, 1000000);
 
   ParamDict out = root.table("output");
   job.outputPath = out.getString("path", "out.h5");
