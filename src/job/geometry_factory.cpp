@@ -104,6 +104,8 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     auto s = size2({20.0, 20.0});
     double rms = geo.positive("rms_um", 0.132), feature = geo.positive("feature_um", 5.0);
     double density = geo.positive("density", 3.0), texel = geo.positive("texel_um", feature / 16);
+    if (!(density * s[0] * s[1] / (kPi * feature * feature) <= 1e7))
+      geo.fail("density", "would place more than 1e7 noise impulses on the patch");
     g = makeNoise(s[0], s[1], rms, feature, density, gridSizeFor(s[0], texel), gridSizeFor(s[1], texel), seed);
   } else if (kind == "hemispheres") {
     auto s = size2({20.0, 20.0});

@@ -54,12 +54,14 @@ std::vector<double> parseWavelengths(const ParamDict& s) {
     ParamDict t = s.table("wavelengths_nm");
     double lo = t.positive("min", 400), hi = t.positive("max", 700);
     int64_t count = t.positiveInt("count", 8);
+    if (count > 100000) t.fail("count", "must be at most 100000");
     if (hi < lo) t.fail("max", "must be >= min");
     for (int64_t i = 0; i < count; ++i) l.push_back(lo + (i + 0.5) * (hi - lo) / double(count));
     return l;
   }
   l = s.getDoubles("wavelengths_nm", {});
   if (l.empty()) s.fail("wavelengths_nm", "needs at least one wavelength");
+  if (l.size() > 100000) s.fail("wavelengths_nm", "at most 100000 wavelengths");
   for (double v : l)
     if (!(v > 0)) s.fail("wavelengths_nm", "wavelengths must be positive (nm)");
   return l;
