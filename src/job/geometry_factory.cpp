@@ -54,7 +54,7 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
 
   // Impossible sizes fail here, before anything is allocated (found by fuzz_job: a tiny
   // resolution_um made a hemispheres patch of billions of triangles).
-  constexpr double kMaxTriangles = 2e7;
+  constexpr double kMaxTriangles = 1e7;
   auto budget = [&](const std::string& key, double triangles) {
     if (!(triangles <= kMaxTriangles))
       geo.fail(key, fmt::format("would generate about {:.3g} triangles (limit {:.3g}); use a coarser resolution or "
