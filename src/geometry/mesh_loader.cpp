@@ -274,10 +274,15 @@ std::vector<double> loadHeightfieldExr(const std::string& path, int* width, int*
       if (it == ch.end()) throw InputError(path + ": EXR has no channels");
       name = it.name();
     }
+    // Sizes come from the file: check them before allocating (found by fuzz_heightfield).
+    if (w <= 0 || h <= 0 || w > 65536 || h > 65536 || int64_t(w) * h > 100000000)
+      throw InputError(path + ": EXR data window of " + std::to_string(w) + " x " + std::to_string(h) +
+                       " pixels is empty or too large (at most 65536 per side and 1e8 pixels)");
     std::vector<float> buf(size_t(w) * h);
     Imf::FrameBuffer fb;
-    fb.insert(name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(buf.data() - dw.min.x - size_t(dw.min.y) * w),
-                               sizeof(float), sizeof(float) * w));
+    // Slice::Make handles a data window that does not start at (0, 0) without pointer arithmetic
+    // outside the buffer (the classic `data - min.x - min.y * w` is undefined behaviour).
+    fb.insert(name, Imf::Slice::Make(Imf::FLOAT, buf.data(), dw));
     file.setFrameBuffer(fb);
     file.readPixels(dw.min.y, dw.max.y);
     std::vector<double> out(buf.begin(), buf.end());

@@ -32,9 +32,7 @@ std::vector<ExrChannel> readExr(const std::string& path, int* width, int* height
   for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it)
     out.push_back({it.name(), std::vector<float>(size_t(w) * h)});
   Imf::FrameBuffer fb;
-  for (auto& c : out)
-    fb.insert(c.name, Imf::Slice(Imf::FLOAT, (char*)(c.pixels.data() - dw.min.x - size_t(dw.min.y) * w), sizeof(float),
-                                 sizeof(float) * w));
+  for (auto& c : out) fb.insert(c.name, Imf::Slice::Make(Imf::FLOAT, c.pixels.data(), dw));
   file.setFrameBuffer(fb);
   file.readPixels(dw.min.y, dw.max.y);
   *width = w;

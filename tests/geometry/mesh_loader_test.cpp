@@ -119,3 +119,19 @@ TEST(MeshLoader, FuzzRegressions) {
     EXPECT_NE(e.find("regression"), std::string::npos) << entry.path() << ": " << e;
   }
 }
+
+// Inputs found by fuzz_heightfield: an InputError naming the file, or a successful read.
+TEST(HeightfieldLoader, FuzzRegressions) {
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::string(MICROBSDF_SOURCE_DIR) + "/tests/fuzz/regressions/heightfield")) {
+    std::string path = tmp("regression.exr");
+    std::filesystem::copy_file(entry.path(), path, std::filesystem::copy_options::overwrite_existing);
+    int w = 0, h = 0;
+    try {
+      auto v = loadHeightfieldExr(path, &w, &h);
+      EXPECT_EQ(v.size(), size_t(w) * h);
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("regression.exr"), std::string::npos) << e.what();
+    }
+  }
+}
