@@ -85,7 +85,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
                  grid.binCount(), nTiles, mpi.size(), job.pathsPerSlice);
 
   // One tile: path tracing, then the wave estimator; the callback may abandon it (stop).
-  double tileSecondsSum = 0;
+  double tileSecondsSum = 0, pathSecondsSum = 0, waveSecondsSum = 0;
   int tilesDone = 0;
   auto computeTile = [&](int t, const std::function<void()>& between) {
     const auto& inc = job.incidence[size_t(t)];
@@ -99,8 +99,11 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     };
     auto ts = Clock::now();
     TileResult r = tracer.run(t, t, inc.bin, exact, cb);
+    pathSecondsSum += since(ts);
     if (wave) {
+      auto tw = Clock::now();
       WaveTileResult w = wave->run(t, inc.bin, exact, cb);
+      waveSecondsSum += since(tw);
       addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
       r.rays += w.rays;
     }
@@ -139,6 +142,8 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     MPI_Allreduce(&stopped, &anyStopped, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
     int incomplete = 0;
     MPI_Bcast(&incomplete, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    double times[2] = {pathSecondsSum, waveSecondsSum};
+    MPI_Reduce(times, nullptr, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     summary.stoppedEarly = incomplete != 0;
     summary.seconds = since(t0);
     return summary;
@@ -175,10 +180,18 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     if (stopAssigning || next >= queue.size()) return -1;
     return queue[next++];
   };
+  // Mean over the slices written now of each component's Σ f Ω⊥ (averaged over wavelengths).
+  std::map<std::string, double> energySum;
   auto writeResult = [&](const TileResult& r) {
     writer.writeTile(r);
     ++written;
     progress.update(uint64_t(written));
+    for (Component c : job.components.list()) {
+      double e = 0;
+      for (int l = 0; l < r.nLambda; ++l)
+        for (int b = 0; b < r.nBins; ++b) e += r.at(c, l, b) * grid.projectedSolidAngle(b) / r.nLambda;
+      energySum[componentName(c)] += e;
+    }
   };
   int activeWorkers = mpi.size() - 1;
   bool lostTiles = false;
@@ -241,6 +254,16 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   MPI_Allreduce(&stopped, &anyStopped, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
   int incomplete = written < nTiles ? 1 : 0;
   MPI_Bcast(&incomplete, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  double times[2] = {pathSecondsSum, waveSecondsSum}, total[2] = {0, 0};
+  MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  {
+    std::string energies;
+    for (auto& [c, e] : energySum)
+      energies += fmt::format("{}{} {:.4f}", energies.empty() ? "" : ", ", c, e / std::max(1, summary.computed));
+    spdlog::info("summary: {} slices computed now, {} resumed; {:.1f} s wall; tile time summed over ranks: "
+                 "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
+                 summary.computed, summary.resumed, since(t0), total[0], total[1], summary.paths, energies);
+  }
   if (incomplete) {
     writer.close();
     summary.stoppedEarly = true;
