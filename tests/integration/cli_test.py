@@ -451,8 +451,17 @@ def test_slurm_requeue():
         while slurm.job(jid).get("Restarts", "0") == "0":
             assert time.time() - t0 < 60, "the job was not requeued"
             time.sleep(0.2)
-        # A requeued job waits for its BeginTime (a scheduler delay); release it at once.
-        slurm.cmd("scontrol", "update", f"JobId={jid}", "StartTime=now", check=False)
+        # A requeued job waits for its BeginTime (a scheduler delay of about two minutes); release it
+        # at once, retrying while the requeue is still in progress.
+        t0 = time.time()
+        while time.time() - t0 < 60:
+            state = slurm.job(jid)
+            if state.get("JobState") != "PENDING" or state.get("Reason") != "BeginTime":
+                if state.get("JobState") != "PENDING":
+                    break
+            else:
+                slurm.cmd("scontrol", "update", f"JobId={jid}", "StartTime=now", check=False)
+            time.sleep(0.5)
         info = slurm.wait(jid)
         log = open(os.path.join(TMP, f"microbsdf-{jid}.out")).read()
         assert info["JobState"] == "COMPLETED", log
