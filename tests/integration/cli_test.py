@@ -455,11 +455,10 @@ def test_slurm_requeue():
         # at once, retrying while the requeue is still in progress.
         t0 = time.time()
         while time.time() - t0 < 60:
-            state = slurm.job(jid)
-            if state.get("JobState") != "PENDING" or state.get("Reason") != "BeginTime":
-                if state.get("JobState") != "PENDING":
-                    break
-            else:
+            state = slurm.job(jid).get("JobState")
+            if state in ("RUNNING", "COMPLETED", "FAILED", "CANCELLED", "TIMEOUT"):
+                break
+            if state == "PENDING":
                 slurm.cmd("scontrol", "update", f"JobId={jid}", "StartTime=now", check=False)
             time.sleep(0.5)
         info = slurm.wait(jid)
