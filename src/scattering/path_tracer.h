@@ -25,6 +25,7 @@
 #include "geometry/embree_scene.h"
 #include "optics/material.h"
 #include "scattering/components.h"
+#include "scattering/path_tally.h"
 #include "scattering/tile_result.h"
 
 namespace mbsdf {
@@ -60,10 +61,8 @@ class PathTracer {
                     std::optional<Vec3> exactDirection = std::nullopt) const;
 
  private:
-  struct Event;
-  struct Chunk;
-  void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, Chunk& out,
-                 PathRecord* rec) const;
+  void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group,
+                 PathChunk& out, PathRecord* rec) const;
 
   const PeriodicScene& scene_;
   const Material& material_;

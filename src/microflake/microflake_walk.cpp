@@ -1,0 +1,161 @@
+#include "microflake/microflake_walk.h"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "core/rng.h"
+
+namespace mbsdf {
+
+MicroflakeWalk::MicroflakeWalk(const MicroflakeDistribution& dist, const Material& material,
+                               std::vector<double> lambda_um, const DirectionGrid& grid, MicroflakeSettings settings)
+    : dist_(dist), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid), settings_(settings) {
+  for (double l : lambda_um_) ior_.push_back(material_.isPerfectConductor() ? Complex(0, 0) : material_.ior(l));
+  const bool specularDielectric = settings_.flakes == FlakeKind::Specular && !material_.isConductor();
+  if (specularDielectric && !dist_.isHeightfield())
+    throw std::invalid_argument(
+        "dielectric flakes need a heightfield NDF (the flip to the other side of the surface assumes one)");
+  groups_ = wavelengthGroups(int(lambda_um_.size()),
+                             settings_.flakes == FlakeKind::Diffuse || material_.directionsIndependentOfLambda());
+}
+
+void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group,
+                          PathChunk& out, PathRecord* rec) const {
+  const std::vector<int>& lambdas = groups_[group];
+  const size_t nl = lambdas.size();
+  Sampler s(settings_.seed, uint32_t(tile), path, uint32_t(group));
+  DirectionSample wi = grid_.sampleCosine(incidenceBin, s.get1D(), s.get1D());
+  if (exact) wi = DirectionSample{*exact, 1.0};
+  double w[64];
+  std::vector<double> wbig;
+  double* wp = w;
+  if (nl > 64) {
+    wbig.resize(nl);
+    wp = wbig.data();
+  }
+  for (size_t k = 0; k < nl; ++k) wp[k] = wi.weight;
+  auto addTo = [&](std::vector<double>& v) {
+    for (size_t k = 0; k < nl; ++k) v[lambdas[k]] += wp[k];
+  };
+  if (rec) rec->wi = wi.w;
+  const bool conductor = material_.isConductor(), perfect = material_.isPerfectConductor();
+  const bool specular = settings_.flakes == FlakeKind::Specular;
+  const double n1 = material_.outsideIor;
+  const double n2 = conductor ? 1.0 : ior_[lambdas[0]].real();
+
+  // Local frame of the current side: upper side = world frame; lower side = point-reflected.
+  bool upper = wi.w.z >= 0;
+  if (!upper && (conductor || !specular)) {
+    // Light from below an opaque surface: nothing enters.
+    addTo(out.missed);
+    return;
+  }
+  Vec3 d = upper ? -wi.w : wi.w;  // travel direction in the local frame (downward)
+  double z = 0;                   // depth in the local medium (z <= 0)
+  int depth = 0;
+  while (true) {
+    // Free flight (seed Eqs. 9–11); escape through z = 0 when travelling upward.
+    const double ell = dist_.freePath(d, s.get1D());
+    const double zNext = z + ell * d.z;
+    if (d.z > 0 && !(zNext < 0)) {
+      if (depth == 0) {  // cannot happen: the first flight is downward
+        addTo(out.missed);
+        break;
+      }
+      const Vec3 wo = upper ? d : -d;
+      const int bin = grid_.binOf(wo);
+      out.tally(bin, depth == 1 ? Component::Coherent : Component::Multiple, group, wp, nl);
+      if (rec) {
+        rec->wo = wo;
+        rec->exitBin = bin;
+      }
+      break;
+    }
+    z = zNext;
+    if (!std::isfinite(z)) {  // horizontal flight with σ = 0 cannot occur for a valid NDF; be safe
+      addTo(out.truncated);
+      break;
+    }
+    if (++depth > settings_.maxDepth) {
+      addTo(out.truncated);
+      break;
+    }
+    // Russian roulette once every weight is below 1/4: unbiased, and it ends the long walks of
+    // absorbing media (a conservative walk's length is heavy-tailed) instead of truncating them.
+    double wmax = 0;
+    for (size_t k = 0; k < nl; ++k) wmax = std::max(wmax, wp[k]);
+    if (wmax < 0.25) {
+      const double survive = wmax / 0.25;
+      if (!(s.get1D() < survive)) break;
+      for (size_t k = 0; k < nl; ++k) wp[k] /= survive;
+    }
+    const Vec3 v = -d;  // towards where the light came from
+    std::optional<Vec3> m = dist_.sampleVisible(v, s);
+    if (!m) {
+      addTo(out.truncated);
+      break;
+    }
+    const double cosM = std::clamp(dot(v, *m), 0.0, 1.0);
+    for (size_t k = 0; k < nl; ++k) wp[k] *= settings_.flakeAlbedo;
+    if (!specular) {
+      // Lambertian flake: cosine-weighted about m.
+      const double u1 = s.get1D(), u2 = s.get1D();
+      const double r = std::sqrt(u1), phi = 2 * kPi * u2;
+      const Vec3 a = std::abs(m->x) > 0.9 ? Vec3{0, 1, 0} : Vec3{1, 0, 0};
+      const Vec3 t = normalize(cross(a, *m)), b = cross(*m, t);
+      d = normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + *m * std::sqrt(std::max(0.0, 1 - u1)));
+    } else if (conductor) {
+      if (!perfect)
+        for (size_t k = 0; k < nl; ++k) wp[k] *= fresnelReflectance(cosM, n1, ior_[lambdas[k]]);
+      d = normalize(reflect(v, *m));
+    } else {
+      const double etaI = upper ? n1 : n2, etaT = upper ? n2 : n1;
+      const double F = fresnelReflectance(cosM, etaI, Complex(etaT, 0));
+      Vec3 wt;
+      if (s.get1D() < F || !refract(v, *m, etaI / etaT, &wt)) {
+        d = normalize(reflect(v, *m));
+      } else {
+        // Continue on the other side (Heitz et al. 2016): point-reflected frame, flipped height.
+        upper = !upper;
+        d = -wt;
+        z = std::log(-std::expm1(z));
+      }
+    }
+  }
+  if (rec) {
+    rec->depth = depth;
+    rec->weight.assign(wp, wp + nl);
+  }
+}
+
+TileResult MicroflakeWalk::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
+                               const std::function<void(uint64_t)>& progress) const {
+  if (exactDirection) exactDirection = normalize(*exactDirection);
+  const auto t0 = std::chrono::steady_clock::now();
+  PathTallyPlan plan;
+  plan.grid = &grid_;
+  plan.nLambda = int(lambda_um_.size());
+  plan.groups = groups_;
+  plan.paths = settings_.paths;
+  plan.components = {Component::Coherent, Component::Multiple};
+  TileResult r = runPaths(
+      plan, [&](uint64_t p, int g, PathChunk& c) { walk(tile, incidenceBin, exactDirection, p, g, c, nullptr); },
+      progress);
+  r.tile = tile;
+  r.incidenceIndex = incidenceIndex;
+  r.incidenceBin = incidenceBin;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+MicroflakeWalk::PathRecord MicroflakeWalk::replay(int tile, int incidenceBin, uint64_t path, int group,
+                                                  std::optional<Vec3> exactDirection) const {
+  PathChunk c(int(lambda_um_.size()));
+  PathRecord rec;
+  if (exactDirection) exactDirection = normalize(*exactDirection);
+  walk(tile, incidenceBin, exactDirection, path, group, c, &rec);
+  return rec;
+}
+
+}  // namespace mbsdf

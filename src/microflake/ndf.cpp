@@ -1,0 +1,235 @@
+#include "microflake/ndf.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "core/overloaded.h"
+#include "core/quadrature.h"
+
+namespace mbsdf {
+
+namespace {
+
+constexpr double kSqrtPi = 1.7724538509055160273;
+constexpr int kVmfTableSize = 1025;
+constexpr int kMaxRejections = 1 << 22;
+
+// I0(x) e^{−x} (exponentially scaled modified Bessel function), without overflow.
+double besselI0Scaled(double x) {
+  if (x < 200) return std::cyl_bessel_i(0.0, x) * std::exp(-x);
+  // Asymptotic series (Abramowitz & Stegun 9.7.1); the next term is below 1e-12 for x >= 200.
+  const double t = 1.0 / (8 * x);
+  return (1 + t * (1 + t * (4.5 + t * (37.5 + t * 459.375)))) / std::sqrt(2 * kPi * x);
+}
+
+// ∫_0^1 μ e^{κ(μ−1)} dμ = (κ − 1 + e^{−κ}) / κ², by series for small κ.
+double vmfProjectedMass(double kappa) {
+  if (kappa < 1e-2) return 0.5 - kappa / 6 + kappa * kappa / 24 - kappa * kappa * kappa / 120;
+  return (kappa + std::expm1(-kappa)) / (kappa * kappa);
+}
+
+// Orthonormal frame (t, b) around a unit vector n (Duff et al. 2017).
+void frame(const Vec3& n, Vec3* t, Vec3* b) {
+  const double sign = std::copysign(1.0, n.z);
+  const double a = -1.0 / (sign + n.z), c = n.x * n.y * a;
+  *t = {1 + sign * n.x * n.x * a, sign * c, -sign * n.x};
+  *b = {c, sign + n.y * n.y * a, -n.y};
+}
+
+// Anisotropic stretch: q = sqrt(αx² d_x² + αy² d_y²) = α(φ) sin θ.
+template <typename N>
+double stretchedSin(const N& n, const Vec3& d) {
+  return std::sqrt(n.alphaX * n.alphaX * d.x * d.x + n.alphaY * n.alphaY * d.y * d.y);
+}
+
+}  // namespace
+
+double standardNormal(double u1, double u2) {
+  return std::sqrt(-2.0 * std::log1p(-u1)) * std::cos(2 * kPi * u2);
+}
+
+MicroflakeDistribution::MicroflakeDistribution(Ndf ndf) : ndf_(ndf) {
+  std::visit(Overloaded{[](const BeckmannNdf& n) {
+                          if (!(n.alphaX > 0 && n.alphaY > 0)) throw std::invalid_argument("alpha must be positive");
+                        },
+                        [](const GgxNdf& n) {
+                          if (!(n.alphaX > 0 && n.alphaY > 0)) throw std::invalid_argument("alpha must be positive");
+                        },
+                        [&](const VonMisesFisherNdf& n) {
+                          if (!(n.kappa >= 0 && n.kappa <= 1e4))
+                            throw std::invalid_argument("kappa must be in [0, 1e4]");
+                          vmfNorm_ = 1.0 / (2 * kPi * vmfProjectedMass(n.kappa));
+                          if (n.kappa == 0) return;
+                          // σ(μ) = C 2π ∫_0^1 u e^{κ(−uμ − 1)} I0(κ s √(1−u²)) du, s = √(1−μ²): the
+                          // azimuthal integral around −d done in closed form (modified Bessel I0).
+                          const double k = n.kappa;
+                          const int panels = 48;
+                          QuadratureRule gl = gaussLegendre(12, 0.0, 1.0 / panels);
+                          vmfSigma_.resize(kVmfTableSize);
+                          for (int i = 0; i < kVmfTableSize; ++i) {
+                            const double mu = -1.0 + 2.0 * i / (kVmfTableSize - 1);
+                            const double s = std::sqrt(std::max(0.0, 1 - mu * mu));
+                            double sum = 0;
+                            for (int p = 0; p < panels; ++p)
+                              for (size_t j = 0; j < gl.x.size(); ++j) {
+                                const double u = gl.x[j] + double(p) / panels;
+                                const double x = k * s * std::sqrt(std::max(0.0, 1 - u * u));
+                                sum += gl.w[j] * u * std::exp(k * (-u * mu - 1) + x) * besselI0Scaled(x);
+                              }
+                            vmfSigma_[i] = vmfNorm_ * 2 * kPi * sum;
+                          }
+                        }},
+             ndf_);
+}
+
+std::string MicroflakeDistribution::describe() const {
+  return std::visit(Overloaded{[](const BeckmannNdf& n) { return fmt::format("Beckmann αx={} αy={}", n.alphaX, n.alphaY); },
+                               [](const GgxNdf& n) { return fmt::format("GGX αx={} αy={}", n.alphaX, n.alphaY); },
+                               [](const VonMisesFisherNdf& n) {
+                                 return n.kappa == 0 ? std::string("constant full-sphere NDF (isotropic medium)")
+                                                     : fmt::format("von Mises–Fisher κ={}", n.kappa);
+                               }},
+                    ndf_);
+}
+
+double MicroflakeDistribution::D(const Vec3& m) const {
+  return std::visit(Overloaded{[&](const BeckmannNdf& n) {
+                                 if (m.z <= 0) return 0.0;
+                                 const double z2 = m.z * m.z;
+                                 const double e = (m.x * m.x / (n.alphaX * n.alphaX) + m.y * m.y / (n.alphaY * n.alphaY)) / z2;
+                                 return std::exp(-e) / (kPi * n.alphaX * n.alphaY * z2 * z2);
+                               },
+                               [&](const GgxNdf& n) {
+                                 if (m.z <= 0) return 0.0;
+                                 const double z2 = m.z * m.z;
+                                 const double e = (m.x * m.x / (n.alphaX * n.alphaX) + m.y * m.y / (n.alphaY * n.alphaY)) / z2;
+                                 return 1.0 / (kPi * n.alphaX * n.alphaY * z2 * z2 * (1 + e) * (1 + e));
+                               },
+                               [&](const VonMisesFisherNdf& n) { return vmfNorm_ * std::exp(n.kappa * (m.z - 1)); }},
+                    ndf_);
+}
+
+double MicroflakeDistribution::sigmaUpHeightfield(const Vec3& d) const {
+  return std::visit(
+      Overloaded{[&](const BeckmannNdf& n) {
+                   // Λ cos θ = [q e^{−ν²}/√π − d_z erfc ν] / 2 with ν = d_z / q (finite at the horizon).
+                   const double q = stretchedSin(n, d);
+                   if (q == 0) return 0.0;
+                   const double nu = d.z / q;
+                   if (nu > 20) {
+                     // Asymptotic expansion of erfc (relative error < 1e-8 here); below ν = 20 the direct form
+                     // loses only log10(2ν²) digits to cancellation.
+                     const double i2 = 1.0 / (nu * nu);
+                     return q * std::exp(-nu * nu) / (2 * kSqrtPi) *
+                            (0.5 * i2 - 0.75 * i2 * i2 + 1.875 * i2 * i2 * i2 - 6.5625 * i2 * i2 * i2 * i2);
+                   }
+                   return 0.5 * (q * std::exp(-nu * nu) / kSqrtPi - d.z * std::erfc(nu));
+                 },
+                 [&](const GgxNdf& n) {
+                   // Λ cos θ = (√(d_z² + q²) − d_z) / 2, rationalised.
+                   const double q = stretchedSin(n, d);
+                   return 0.5 * q * q / (d.z + std::sqrt(d.z * d.z + q * q));
+                 },
+                 [](const VonMisesFisherNdf&) { return 0.0; }},
+      ndf_);
+}
+
+double MicroflakeDistribution::lambda(const Vec3& w) const {
+  if (!isHeightfield()) throw std::logic_error("Smith Λ is defined for heightfield NDFs only");
+  if (w.z <= 0) return std::numeric_limits<double>::infinity();
+  return sigmaUpHeightfield(w) / w.z;
+}
+
+double MicroflakeDistribution::sigmaVmfTable(double mu) const {
+  const double x = (std::clamp(mu, -1.0, 1.0) + 1) * 0.5 * (kVmfTableSize - 1);
+  const int i = std::min(kVmfTableSize - 2, int(x));
+  const double t = x - i;
+  return (1 - t) * vmfSigma_[i] + t * vmfSigma_[i + 1];
+}
+
+double MicroflakeDistribution::sigma(const Vec3& d) const {
+  if (const auto* v = std::get_if<VonMisesFisherNdf>(&ndf_)) return v->kappa == 0 ? 1.0 : sigmaVmfTable(d.z);
+  if (d.z >= 0) return sigmaUpHeightfield(d);
+  return -d.z + sigmaUpHeightfield(-d);  // seed Eq. 19: (1 + Λ(−d)) |d_z|
+}
+
+double MicroflakeDistribution::freePath(const Vec3& d, double u) const {
+  const double s = sigma(d);
+  if (!(s > 0)) return std::numeric_limits<double>::infinity();
+  return -std::log1p(-u) / s;
+}
+
+std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler& s) const {
+  auto heightfield = [&](double ax, double ay, bool ggx) -> std::optional<Vec3> {
+    // Slope space (Heitz & d'Eon 2014): D(m)⟨v,m⟩dm = P22(s) max(0, v_z − v_x s_x − v_y s_y) ds. After
+    // stretching to α = 1 and rotating v' = (αx v_x, αy v_y) onto +x, the weight is
+    // max(0, v_z − r s∥) with r = |v'| and the isotropic P22_11 factorises into P2(s∥) P(s⊥ | s∥).
+    const double vx = ax * v.x, vy = ay * v.y;
+    const double r = std::sqrt(vx * vx + vy * vy);
+    const double cphi = r > 0 ? vx / r : 1.0, sphi = r > 0 ? vy / r : 0.0;
+    // Envelope |v_z| + r|s∥|: a mixture of P2 and |s|P2 (E|s| = 1/√π for Beckmann, 1 for GGX).
+    const double meanAbs = ggx ? 1.0 : 1.0 / kSqrtPi;
+    const double pFirst = std::abs(v.z) / (std::abs(v.z) + r * meanAbs);
+    double sPar = 0;
+    for (int tries = 0;; ++tries) {
+      if (tries == kMaxRejections) return std::nullopt;
+      const double u0 = s.get1D(), u1 = s.get1D(), u2 = s.get1D(), u3 = s.get1D();
+      if (u0 < pFirst) {
+        sPar = ggx ? (2 * u1 - 1) / (2 * std::sqrt(std::max(u1 * (1 - u1), 1e-300)))
+                   : standardNormal(u1, u2) / std::sqrt(2.0);
+      } else {
+        const double a = ggx ? std::sqrt(std::max(0.0, 1.0 / ((1 - u1) * (1 - u1)) - 1.0)) : std::sqrt(-std::log1p(-u1));
+        sPar = u2 < 0.5 ? a : -a;
+      }
+      const double wgt = v.z - r * sPar;
+      if (wgt > 0 && u3 * (std::abs(v.z) + r * std::abs(sPar)) < wgt) break;
+    }
+    double sPerp;
+    if (!ggx) {
+      sPerp = standardNormal(s.get1D(), s.get1D()) / std::sqrt(2.0);
+    } else {
+      // P(s⊥ | s∥) ∝ (1 + s∥² + s⊥²)^{-2}: s⊥ = √(1+s∥²) t with t ∝ (1+t²)^{-2}, i.e. t = T₃/√3 for
+      // Student's t with 3 degrees of freedom.
+      const double z0 = standardNormal(s.get1D(), s.get1D());
+      double chi2 = 0;
+      for (int k = 0; k < 3; ++k) {
+        const double z = standardNormal(s.get1D(), s.get1D());
+        chi2 += z * z;
+      }
+      const double t = z0 / std::sqrt(chi2);  // T₃/√3 = Z / √χ²₃
+      sPerp = std::sqrt(1 + sPar * sPar) * t;
+    }
+    const double sx = ax * (cphi * sPar - sphi * sPerp), sy = ay * (sphi * sPar + cphi * sPerp);
+    return normalize(Vec3{-sx, -sy, 1.0});
+  };
+  return std::visit(
+      Overloaded{[&](const BeckmannNdf& n) { return heightfield(n.alphaX, n.alphaY, false); },
+                 [&](const GgxNdf& n) { return heightfield(n.alphaX, n.alphaY, true); },
+                 [&](const VonMisesFisherNdf& n) -> std::optional<Vec3> {
+                   if (n.kappa == 0) {
+                     // Constant NDF: ⟨v,m⟩ on the hemisphere around v (cosine-weighted).
+                     const double u1 = s.get1D(), u2 = s.get1D();
+                     const double rr = std::sqrt(u1), phi = 2 * kPi * u2;
+                     Vec3 t, b;
+                     frame(v, &t, &b);
+                     return normalize(t * (rr * std::cos(phi)) + b * (rr * std::sin(phi)) + v * std::sqrt(std::max(0.0, 1 - u1)));
+                   }
+                   // Propose from the vMF density on the sphere (exact inversion of m_z), accept with ⟨v,m⟩.
+                   for (int tries = 0; tries < kMaxRejections; ++tries) {
+                     const double u1 = s.get1D(), u2 = s.get1D(), u3 = s.get1D();
+                     const double mz = std::clamp(
+                         1 + std::log1p(-u1 * -std::expm1(-2 * n.kappa)) / n.kappa, -1.0, 1.0);
+                     const double sr = std::sqrt(std::max(0.0, 1 - mz * mz)), phi = 2 * kPi * u2;
+                     const Vec3 m{sr * std::cos(phi), sr * std::sin(phi), mz};
+                     const double c = dot(v, m);
+                     if (c > 0 && u3 < c) return m;
+                   }
+                   return std::nullopt;
+                 }},
+      ndf_);
+}
+
+}  // namespace mbsdf

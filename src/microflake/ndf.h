@@ -1,0 +1,75 @@
+// Microflake normal distributions for statistically described surfaces (PHYSICS.md §9).
+// Sources: Dupuy, Heitz & d'Eon 2016 (the seed paper, ../shared/papers), Heitz 2014 ("Understanding
+// the masking-shadowing function in microfacet-based BRDFs": Λ, G2) and Heitz & d'Eon 2014
+// ("Importance sampling microfacet-based BSDFs using the distribution of visible normals").
+//
+// A closed set of value types:
+//  - BeckmannNdf, GgxNdf: heightfield NDFs (zero below the horizon), anisotropic (αx, αy),
+//    normalised by ∫ D(m) ⟨m, z⟩ dm = 1 (seed Eq. 17).
+//  - VonMisesFisherNdf: the full-sphere family D ∝ exp(κ m·z) of seed Sec. 4.3, with the same
+//    normalisation (Eq. 17). κ → ∞ is a flat mirror, large κ is Beckmann-like with α² ≈ 2/κ and
+//    κ = 0 is the constant NDF D = 1/π (σ = 1, isotropic phase function with mirror flakes:
+//    Chandrasekhar's medium).
+//
+// The medium (density 1, z ≤ 0) has the extinction σ(d) = ∫ ⟨−d, m⟩ D(m) dm for travel direction d
+// (seed Eq. 4); for heightfield NDFs σ = Λ(d) d_z upward and (1 + Λ(−d)) |d_z| downward (Eqs. 18–19),
+// in closed form; for the vMF family from a numeric table. Collisions pick a visible normal with
+// density ⟨−d, m⟩ D(m) / σ(d) (Eq. 6), sampled exactly (slope-space rejection for heightfields,
+// vMF proposal with rejection for the sphere family; both have bounded expected cost because the
+// rare directions with small σ are also rarely collided with).
+#pragma once
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "core/rng.h"
+#include "core/vecmath.h"
+
+namespace mbsdf {
+
+struct BeckmannNdf {
+  double alphaX = 0.3, alphaY = 0.3;
+};
+struct GgxNdf {
+  double alphaX = 0.3, alphaY = 0.3;
+};
+struct VonMisesFisherNdf {
+  double kappa = 0.0;
+};
+using Ndf = std::variant<BeckmannNdf, GgxNdf, VonMisesFisherNdf>;
+
+class MicroflakeDistribution {
+ public:
+  explicit MicroflakeDistribution(Ndf ndf);
+
+  const Ndf& ndf() const { return ndf_; }
+  bool isHeightfield() const { return !std::holds_alternative<VonMisesFisherNdf>(ndf_); }
+  std::string describe() const;
+
+  // D(m) for a unit normal m (1/sr).
+  double D(const Vec3& m) const;
+  // Smith Λ for a direction above the horizon (heightfield NDFs only).
+  double lambda(const Vec3& w) const;
+  // Height-correlated masking–shadowing G2 = 1 / (1 + Λ(wi) + Λ(wo)) (heightfield NDFs).
+  double G2(const Vec3& wi, const Vec3& wo) const { return 1.0 / (1.0 + lambda(wi) + lambda(wo)); }
+  // Extinction coefficient σ(d) for travel direction d (unit).
+  double sigma(const Vec3& d) const;
+  // Free path along d for a uniform number u (seed Eq. 10); +inf when σ(d) = 0.
+  double freePath(const Vec3& d, double u) const;
+  // A normal with density ⟨v, m⟩ D(m) / σ(−v) (seed Eq. 6 with v = −d, the direction the light
+  // came from). Empty only if the rejection loop hits its cap (reported as truncated).
+  std::optional<Vec3> sampleVisible(const Vec3& v, Sampler& s) const;
+
+ private:
+  double sigmaUpHeightfield(const Vec3& d) const;  // Λ(d) d_z for d_z >= 0
+  double sigmaVmfTable(double mu) const;
+  Ndf ndf_;
+  double vmfNorm_ = 0;             // C in D = C exp(κ (m_z − 1))
+  std::vector<double> vmfSigma_;   // σ(μ) on a uniform grid of μ = d_z in [−1, 1]
+};
+
+// Standard normal variates from two uniforms (Box–Muller).
+double standardNormal(double u1, double u2);
+
+}  // namespace mbsdf

@@ -1,0 +1,99 @@
+#include "scattering/path_tally.h"
+
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+
+namespace mbsdf {
+
+std::vector<std::vector<int>> wavelengthGroups(int nLambda, bool shared) {
+  std::vector<std::vector<int>> groups;
+  if (shared) {
+    std::vector<int> all;
+    for (int i = 0; i < nLambda; ++i) all.push_back(i);
+    groups.push_back(all);
+  } else {
+    for (int i = 0; i < nLambda; ++i) groups.push_back({i});
+  }
+  return groups;
+}
+
+TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
+                    const std::function<void(uint64_t)>& progress) {
+  const DirectionGrid& grid = *plan.grid;
+  const int nL = plan.nLambda, nB = grid.binCount();
+  const uint64_t N = plan.paths;
+  TileResult r;
+  r.nLambda = nL;
+  r.nBins = nB;
+  r.samples = N;
+  std::array<std::vector<double>, kComponentCount> sum, sum2;
+  for (Component c : plan.components) {
+    sum[int(c)].assign(size_t(nL) * nB, 0.0);
+    sum2[int(c)].assign(size_t(nL) * nB, 0.0);
+  }
+  r.truncated.assign(nL, 0.0);
+  r.leaked.assign(nL, 0.0);
+  r.missed.assign(nL, 0.0);
+
+  constexpr uint64_t kChunk = 1024;  // paths per chunk: the unit of deterministic merging
+  constexpr uint64_t kChunksPerBatch = 256;
+  for (int g = 0; g < int(plan.groups.size()); ++g) {
+    const uint64_t nChunks = (N + kChunk - 1) / kChunk;
+    for (uint64_t b0 = 0; b0 < nChunks; b0 += kChunksPerBatch) {
+      const uint64_t b1 = std::min(nChunks, b0 + kChunksPerBatch);
+      std::vector<PathChunk> chunks(b1 - b0, PathChunk(nL));
+      tbb::parallel_for(uint64_t(0), b1 - b0, [&](uint64_t ci) {
+        PathChunk& c = chunks[ci];
+        const uint64_t p0 = (b0 + ci) * kChunk, p1 = std::min(N, p0 + kChunk);
+        c.events.reserve(p1 - p0);
+        for (uint64_t p = p0; p < p1; ++p) trace(p, g, c);
+      });
+      // Merge in chunk order: identical sums for any number of threads.
+      for (const PathChunk& c : chunks) {
+        for (const PathChunk::Event& e : c.events) {
+          const auto& lambdas = plan.groups[e.group];
+          for (size_t k = 0; k < lambdas.size(); ++k) {
+            const double w = c.weights[e.weightOffset + k];
+            const size_t idx = size_t(lambdas[k]) * nB + e.bin;
+            sum[e.component][idx] += w;
+            sum2[e.component][idx] += w * w;
+          }
+        }
+        r.rays += c.rays;
+        for (int l = 0; l < nL; ++l) {
+          r.truncated[l] += c.truncated[l];
+          r.leaked[l] += c.leaked[l];
+          r.missed[l] += c.missed[l];
+        }
+      }
+      if (progress) progress(uint64_t(g) * N + std::min(N, b1 * kChunk));
+    }
+  }
+  const double dN = double(N);
+  for (Component c : plan.components) {
+    auto& v = r.value[int(c)];
+    auto& e = r.stdError[int(c)];
+    v.assign(size_t(nL) * nB, 0.0);
+    e.assign(size_t(nL) * nB, 0.0);
+    for (int l = 0; l < nL; ++l)
+      for (int b = 0; b < nB; ++b) {
+        const size_t i = size_t(l) * nB + b;
+        const double op = grid.projectedSolidAngle(b);
+        if (op <= 0) continue;
+        const double s1 = sum[int(c)][i], s2 = sum2[int(c)][i];
+        v[i] = s1 / (dN * op);
+        // Standard error of the mean of N i.i.d. per-path contributions (zero for most paths).
+        const double var = N > 1 ? std::max(0.0, (s2 - s1 * s1 / dN) / (dN - 1)) : 0.0;
+        e[i] = std::sqrt(var / dN) / op;
+      }
+  }
+  for (int l = 0; l < nL; ++l) {
+    r.truncated[l] /= dN;
+    r.leaked[l] /= dN;
+    r.missed[l] /= dN;
+  }
+  return r;
+}
+
+}  // namespace mbsdf

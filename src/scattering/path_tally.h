@@ -1,0 +1,53 @@
+// Deterministic Monte Carlo tallies over independent paths, shared by every geometric-optics
+// estimator (the explicit path tracer, the microflake random walk). A path tallies its weights
+// (one per wavelength of its group) into (component, exit bin); paths run in fixed chunks on TBB
+// threads and the chunks are merged in order, so the sums do not depend on the thread count
+// (non-negotiable 6). The result is the bin-averaged BSDF f(Ωo) = Σ w / (N Ω⊥(Ωo)) with the
+// standard error of that mean (PHYSICS.md §3–4).
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "core/direction_grid.h"
+#include "scattering/components.h"
+#include "scattering/tile_result.h"
+
+namespace mbsdf {
+
+class PathChunk {
+ public:
+  explicit PathChunk(int nLambda) : truncated(nLambda, 0.0), leaked(nLambda, 0.0), missed(nLambda, 0.0) {}
+  // Record weights w[0..lambdas.size()) of wavelength group `group` into (c, bin).
+  void tally(int bin, Component c, int group, const double* w, size_t n) {
+    events.push_back({bin, int(c), group, int(weights.size())});
+    weights.insert(weights.end(), w, w + n);
+  }
+  struct Event {
+    int32_t bin, component, group, weightOffset;
+  };
+  std::vector<Event> events;
+  std::vector<double> weights;
+  std::vector<double> truncated, leaked, missed;  // per wavelength, summed weights
+  uint64_t rays = 0;
+};
+
+struct PathTallyPlan {
+  const DirectionGrid* grid = nullptr;
+  int nLambda = 0;
+  std::vector<std::vector<int>> groups;  // wavelengths that share one path
+  uint64_t paths = 0;                    // per group
+  std::vector<Component> components;     // tallied components
+};
+
+// Runs `trace(path, group, chunk)` for every path of every group and reduces. `progress(done)` is
+// called from the calling thread between batches with the number of paths done over all groups
+// (it may throw to abandon the tile).
+using PathFunction = std::function<void(uint64_t path, int group, PathChunk& out)>;
+TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
+                    const std::function<void(uint64_t)>& progress);
+
+// Wavelength groups: one group for all wavelengths when paths do not depend on λ, else one each.
+std::vector<std::vector<int>> wavelengthGroups(int nLambda, bool shared);
+
+}  // namespace mbsdf
