@@ -16,12 +16,18 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
+#include <sstream>
+
+#include <tbb/global_control.h>
 
 #include "core/error.h"
 #include "core/log.h"
 #include "dist/mpi_session.h"
 #include "dist/runner.h"
 #include "geometry/microgeometry.h"
+#include "microflake/compare_smith.h"
+#include "microflake/ndf.h"
 #include "io/bsdf_file.h"
 #include "io/slice_export.h"
 #include "job/job.h"
@@ -175,6 +181,22 @@ int main(int argc, char** argv) {
   plan->add_option("--threads", threads, "threads for the pilot (default: all cores)");
   check->add_option("job", jobPath, "job file (TOML)")->required();
 
+  CompareSmithOptions cs;
+  std::string csJson, csThetas;
+  auto* compare = app.add_subcommand(
+      "compare-smith", "Smith microflake model vs an explicit Gaussian heightfield with the same Beckmann NDF");
+  compare->add_option("--alpha", cs.alpha, "Beckmann roughness")->capture_default_str();
+  compare->add_option("--material", cs.material, "built-in conductor")->capture_default_str();
+  compare->add_option("--lambda-nm", cs.lambda_nm, "wavelength (nm)")->capture_default_str();
+  compare->add_option("--theta", csThetas, "incidence angles in degrees, comma separated (default 0,30,60,80)");
+  compare->add_option("--paths", cs.paths, "paths per incidence angle and model")->capture_default_str();
+  compare->add_option("--size-um", cs.size_um, "side of the periodic heightfield patch")->capture_default_str();
+  compare->add_option("--correlation-um", cs.correlation_um, "correlation length ℓ of exp(-r²/ℓ²)")->capture_default_str();
+  compare->add_option("--texel-um", cs.texel_um, "heightfield spacing")->capture_default_str();
+  compare->add_option("--seed", cs.seed, "random seed (surface and paths)")->capture_default_str();
+  compare->add_option("--threads", threads, "threads (default: all cores)");
+  compare->add_option("--json", csJson, "also write the full result (incl. plane-of-incidence lobes) as JSON");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -250,6 +272,8 @@ int main(int argc, char** argv) {
     }
     if (geometry->parsed()) {
       Job job = loadJob(jobPath);
+      if (job.statistical)
+        throw InputError(jobPath + ": [geometry] kind = \"statistical\" has no explicit microgeometry to write");
       writePly(job.geometry, outPath);
       std::cerr << "wrote " << outPath << ": " << job.geometry.vertices.size() << " vertices, "
                 << job.geometry.triangles.size() << " triangles, " << job.geometry.sizeX << " x " << job.geometry.sizeY
@@ -269,11 +293,37 @@ int main(int argc, char** argv) {
       }
       return 0;
     }
+    if (compare->parsed()) {
+      if (!csThetas.empty()) {
+        cs.theta_deg.clear();
+        std::stringstream ss(csThetas);
+        for (std::string item; std::getline(ss, item, ',');) {
+          size_t used = 0;
+          double v = std::stod(item, &used);
+          if (used != item.size() || !(v >= 0 && v < 90)) throw InputError("--theta: '" + item + "' is not an angle in [0, 90)");
+          cs.theta_deg.push_back(v);
+        }
+      }
+      std::optional<tbb::global_control> limit;
+      if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
+      nlohmann::json r = compareSmith(cs);
+      std::cout << formatCompareSmith(r);
+      if (!csJson.empty()) {
+        std::ofstream f(csJson);
+        f << r.dump(1) << "\n";
+        if (!f) throw std::runtime_error("cannot write " + csJson);
+      }
+      return 0;
+    }
     if (check->parsed()) {
       Job job = loadJob(jobPath);
       DirectionGrid grid(job.gridLayout);
-      std::cout << jobPath << ": ok\n  geometry " << job.geometryKind << ", " << job.geometry.triangles.size()
-                << " triangles, " << job.geometry.sizeX << " x " << job.geometry.sizeY << " µm\n  material "
+      std::cout << jobPath << ": ok\n  geometry " << job.geometryKind << ", "
+                << (job.statistical ? MicroflakeDistribution(job.statistical->ndf).describe()
+                                    : std::to_string(job.geometry.triangles.size()) + " triangles, " +
+                                          std::to_string(job.geometry.sizeX) + " x " +
+                                          std::to_string(job.geometry.sizeY) + " µm")
+                << "\n  material "
                 << job.material.describe() << "\n  " << job.lambda_nm.size() << " wavelengths, grid " << grid.kind()
                 << " with " << grid.binCount() << " bins, " << job.incidence.size() << " incidence directions\n";
       return 0;

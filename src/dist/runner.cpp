@@ -15,7 +15,7 @@
 #include "core/log.h"
 #include "geometry/embree_scene.h"
 #include "io/bsdf_file.h"
-#include "scattering/path_tracer.h"
+#include "job/transport.h"
 #include "scattering/wave_estimator.h"
 
 namespace mbsdf {
@@ -49,13 +49,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
 
   const std::string outPath = options.outputPath.empty() ? job.outputPath : options.outputPath;
   DirectionGrid grid(job.gridLayout);
-  PeriodicScene scene(job.geometry);
-  PathTracerSettings settings;
-  settings.paths = job.pathsPerSlice;
-  settings.maxDepth = job.maxDepth;
-  settings.seed = job.seed;
-  settings.tallyGeoMasked = job.components.has(Component::Lost);
-  PathTracer tracer(scene, job.material, job.lambda_um(), grid, settings);
+  GeometricTransport transport(job, grid, job.pathsPerSlice);
   std::unique_ptr<WaveEstimator> wave;
   if (job.needsWave()) {
     WaveSettings ws;
@@ -65,7 +59,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     ws.incidenceDirections = int(job.waveIncidenceDirections);
     ws.seed = job.seed;
     ws.computeMasked = job.components.has(Component::Lost);
-    wave = makeWaveEstimator(WaveContext{job.geometry, scene, job.material, job.lambda_um(), grid,
+    wave = makeWaveEstimator(WaveContext{job.geometry, *transport.scene(), job.material, job.lambda_um(), grid,
                                          CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um,
                                                                               job.geometry.sizeX, job.geometry.sizeY,
                                                                               job.geometry.periodic),
@@ -78,11 +72,14 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
 
   const int nTiles = int(job.incidence.size());
   if (mpi.rank() == 0)
-    spdlog::info("job {}: {} ({} triangles, {:.3g} x {:.3g} µm{}), {}, {} wavelengths, grid {} ({} bins), {} tiles "
-                 "on {} ranks, {} paths per slice",
-                 job.file, job.geometryKind, job.geometry.triangles.size(), job.geometry.sizeX, job.geometry.sizeY,
-                 job.geometry.periodic ? ", periodic" : "", job.material.describe(), job.lambda_nm.size(), grid.kind(),
-                 grid.binCount(), nTiles, mpi.size(), job.pathsPerSlice);
+    spdlog::info("job {}: {} ({}), {}, {} wavelengths, grid {} ({} bins), {} tiles on {} ranks, {} paths per slice",
+                 job.file, job.geometryKind,
+                 job.statistical ? transport.describe()
+                                 : fmt::format("{} triangles, {:.3g} x {:.3g} µm{}", job.geometry.triangles.size(),
+                                               job.geometry.sizeX, job.geometry.sizeY,
+                                               job.geometry.periodic ? ", periodic" : ""),
+                 job.material.describe(), job.lambda_nm.size(), grid.kind(), grid.binCount(), nTiles, mpi.size(),
+                 job.pathsPerSlice);
 
   // One tile: path tracing, then the wave estimator; the callback may abandon it (stop).
   double tileSecondsSum = 0, pathSecondsSum = 0, waveSecondsSum = 0;
@@ -98,7 +95,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
       if (between) between();
     };
     auto ts = Clock::now();
-    TileResult r = tracer.run(t, t, inc.bin, exact, cb);
+    TileResult r = transport.run(t, t, inc.bin, exact, cb);
     pathSecondsSum += since(ts);
     if (wave) {
       auto tw = Clock::now();

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -65,6 +66,41 @@ std::vector<double> parseWavelengths(const ParamDict& s) {
   for (double v : l)
     if (!(v > 0)) s.fail("wavelengths_nm", "wavelengths must be positive (nm)");
   return l;
+}
+
+StatisticalSurface parseStatistical(const ParamDict& geo) {
+  StatisticalSurface st;
+  const std::string ndf = geo.getString("ndf", "beckmann");
+  auto alphas = [&]() {
+    std::vector<double> a = geo.getDoubles("alpha", {0.3});
+    if (a.size() == 1) a.push_back(a[0]);
+    if (a.size() != 2 || !(a[0] > 0 && a[1] > 0 && a[0] <= 100 && a[1] <= 100))
+      geo.fail("alpha", "expected one or two roughnesses in (0, 100] ([alpha_x, alpha_y])");
+    return a;
+  };
+  if (ndf == "beckmann") {
+    auto a = alphas();
+    st.ndf = BeckmannNdf{a[0], a[1]};
+  } else if (ndf == "ggx") {
+    auto a = alphas();
+    st.ndf = GgxNdf{a[0], a[1]};
+  } else if (ndf == "vmf") {
+    if (geo.has("alpha") == geo.has("kappa")) geo.fail("kappa", "the vmf NDF needs either kappa or alpha (kappa = 2/alpha²)");
+    double kappa = geo.has("kappa") ? geo.nonNegative("kappa", 0.0) : 2.0 / std::pow(geo.positive("alpha", 1.0), 2);
+    if (!(kappa <= 1e4)) geo.fail(geo.has("kappa") ? "kappa" : "alpha", "kappa must be at most 1e4 (alpha >= 0.0142)");
+    st.ndf = VonMisesFisherNdf{kappa};
+  } else if (ndf == "sphere") {
+    st.ndf = VonMisesFisherNdf{0.0};
+  } else {
+    geo.fail("ndf", "must be \"beckmann\", \"ggx\", \"vmf\" or \"sphere\" (constant full-sphere NDF)");
+  }
+  const std::string flakes = geo.getString("flakes", "specular");
+  if (flakes == "specular") st.flakes = FlakeKind::Specular;
+  else if (flakes == "diffuse") st.flakes = FlakeKind::Diffuse;
+  else geo.fail("flakes", "must be \"specular\" (the material's interface) or \"diffuse\" (Lambertian)");
+  st.flakeAlbedo = geo.nonNegative("flake_albedo", 1.0);
+  if (st.flakeAlbedo > 1) geo.fail("flake_albedo", "must be in [0, 1]");
+  return st;
 }
 
 }  // namespace
@@ -183,9 +219,29 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.previews = out.getBool("previews", false);
 
   ParamDict geo = root.table("geometry");
-  job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind);
+  if (geo.getString("kind", "flat") == "statistical") {
+    job.geometryKind = "statistical";
+    job.statistical = parseStatistical(geo);
+    if (!job.material.isConductor() && job.statistical->flakes == FlakeKind::Specular &&
+        std::holds_alternative<VonMisesFisherNdf>(job.statistical->ndf))
+      geo.fail("ndf", "dielectric flakes need a heightfield NDF (beckmann or ggx): the walk continues on the "
+                      "other side of the surface");
+    for (const auto& c : job.requestedComponents)
+      if (c == "incoherent" || c == "lost")
+        eff.fail("components", "a statistical surface has no explicit geometry for scalar diffraction: use "
+                               "coherent (single scattering) and multiple");
+    job.components = ComponentSet{};
+    job.components.add(Component::Coherent);
+    job.components.add(Component::Multiple);
+    if (std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") == job.requestedComponents.end()) {
+      job.components = ComponentSet{};
+      for (const auto& c : job.requestedComponents) job.components.add(*componentFromName(c));
+    }
+  } else {
+    job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind);
+  }
 
-  if (job.waveEstimator == "orders" && !(job.geometry.periodic && job.scene.coherenceLength_um > 0))
+  if (job.waveEstimator == "orders" && !job.statistical && !(job.geometry.periodic && job.scene.coherenceLength_um > 0))
     samp.fail("wave_estimator", "\"orders\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
 
   root.reportUnused();

@@ -3,11 +3,13 @@
 // InputError naming file, line and key, raised before any output file is touched.
 #pragma once
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/direction_grid.h"
 #include "geometry/microgeometry.h"
+#include "microflake/microflake_walk.h"
 #include "optics/material.h"
 #include "scattering/components.h"
 
@@ -24,11 +26,20 @@ struct SceneNeeds {
   double tolerance = 0.01;
 };
 
+// [geometry] kind = "statistical": a surface known only by its NDF, simulated by the microflake
+// volume model (PHYSICS.md §9).
+struct StatisticalSurface {
+  Ndf ndf = BeckmannNdf{};
+  FlakeKind flakes = FlakeKind::Specular;
+  double flakeAlbedo = 1.0;
+};
+
 struct Job {
   std::string file;  // job file path ("" for a string)
   std::string text;  // the full job text (stored in the output for provenance)
   std::string geometryKind;
-  Microgeometry geometry;
+  Microgeometry geometry;                       // empty for a statistical surface
+  std::optional<StatisticalSurface> statistical;  // set for kind = "statistical"
   Material material;
   std::string materialName;
   std::vector<double> lambda_nm;

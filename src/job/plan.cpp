@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "geometry/embree_scene.h"
+#include "job/transport.h"
 #include "scattering/path_tracer.h"
 #include "scattering/wave_estimator.h"
 
@@ -24,6 +25,7 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
   p["job"] = job.file;
   p["geometry"] = {{"kind", job.geometryKind}, {"triangles", job.geometry.triangles.size()},
                    {"size_um", {job.geometry.sizeX, job.geometry.sizeY}}, {"periodic", job.geometry.periodic}};
+  if (job.statistical) p["geometry"]["model"] = MicroflakeDistribution(job.statistical->ndf).describe();
   p["material"] = job.material.describe();
   p["wavelengths"] = nL;
   p["grid"] = {{"kind", grid.kind()}, {"bins", nB}};
@@ -43,17 +45,12 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
   std::optional<Vec3> exact;
   if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
   auto ts = std::chrono::steady_clock::now();
-  PeriodicScene scene(job.geometry);
+  const uint64_t pilotPaths = std::min<uint64_t>(job.pathsPerSlice, options.pilotPaths);
+  GeometricTransport transport(job, grid, pilotPaths);
   const double sceneSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
-  PathTracerSettings ps;
-  ps.paths = std::min<uint64_t>(job.pathsPerSlice, options.pilotPaths);
-  ps.maxDepth = job.maxDepth;
-  ps.seed = job.seed;
-  ps.tallyGeoMasked = job.components.has(Component::Lost);
-  PathTracer tracer(scene, job.material, job.lambda_um(), grid, ps);
-  TileResult pr = tracer.run(pilot, pilot, inc.bin, exact);
+  TileResult pr = transport.run(pilot, pilot, inc.bin, exact);
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
-  const double pathSeconds = pr.seconds * double(job.pathsPerSlice) / double(ps.paths);
+  const double pathSeconds = pr.seconds * double(job.pathsPerSlice) / double(pilotPaths);
   double waveSeconds = 0;
   if (job.needsWave()) {
     WaveSettings ws;
@@ -64,7 +61,7 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
     ws.incidenceDirections = int(job.waveIncidenceDirections);
     ws.seed = job.seed;
     ws.computeMasked = job.components.has(Component::Lost);
-    auto est = makeWaveEstimator(WaveContext{job.geometry, scene, job.material, job.lambda_um(), grid,
+    auto est = makeWaveEstimator(WaveContext{job.geometry, *transport.scene(), job.material, job.lambda_um(), grid,
                                              CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um,
                                                                                   job.geometry.sizeX, job.geometry.sizeY,
                                                                                   job.geometry.periodic),
@@ -76,7 +73,7 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
   const double coreHours = tileSeconds * nTiles * cores / 3600.0;
   p["pilot"] = {{"tile", pilot},
                 {"theta_deg", inc.theta_deg},
-                {"paths", ps.paths},
+                {"paths", pilotPaths},
                 {"path_seconds", pr.seconds},
                 {"path_seconds_per_wavelength_group", pr.seconds / groups},
                 {"scene_build_seconds", sceneSeconds},

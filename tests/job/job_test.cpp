@@ -105,3 +105,39 @@ TEST(Job, FuzzRegressions) {
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0) << entry.path();
   }
 }
+
+TEST(Job, StatisticalSurface) {
+  Job j = loadJobFromString(
+      "[geometry]\nkind = \"statistical\"\nndf = \"ggx\"\nalpha = [0.2, 0.4]\n[directions]\nincidence = [[0.0, 0.0]]\n",
+      "t.toml", "");
+  ASSERT_TRUE(j.statistical.has_value());
+  EXPECT_EQ(j.geometryKind, "statistical");
+  const auto* g = std::get_if<GgxNdf>(&j.statistical->ndf);
+  ASSERT_NE(g, nullptr);
+  EXPECT_DOUBLE_EQ(g->alphaX, 0.2);
+  EXPECT_DOUBLE_EQ(g->alphaY, 0.4);
+  // "auto" is single + multiple scattering (no explicit geometry for diffraction).
+  EXPECT_TRUE(j.components.has(Component::Coherent));
+  EXPECT_TRUE(j.components.has(Component::Multiple));
+  EXPECT_FALSE(j.components.has(Component::Incoherent));
+  Job v = loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"vmf\"\nalpha = 0.2\n", "t.toml", "");
+  EXPECT_NEAR(std::get<VonMisesFisherNdf>(v.statistical->ndf).kappa, 50.0, 1e-9);
+  Job s = loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"sphere\"\nflake_albedo = 0.5\n", "t.toml", "");
+  EXPECT_EQ(std::get<VonMisesFisherNdf>(s.statistical->ndf).kappa, 0.0);
+  EXPECT_EQ(s.statistical->flakeAlbedo, 0.5);
+
+  EXPECT_NE(errorOf("[geometry]\nkind = \"statistical\"\nndf = \"cauchy\"\n").find("geometry.ndf"), std::string::npos);
+  EXPECT_NE(errorOf("[geometry]\nkind = \"statistical\"\nalpha = -1.0\n").find("geometry.alpha"), std::string::npos);
+  EXPECT_NE(errorOf("[geometry]\nkind = \"statistical\"\nflake_albedo = 1.5\n").find("geometry.flake_albedo"),
+            std::string::npos);
+  EXPECT_NE(errorOf("[geometry]\nkind = \"statistical\"\nndf = \"vmf\"\n").find("geometry.kappa"), std::string::npos);
+  EXPECT_NE(errorOf("[geometry]\nkind = \"statistical\"\n[effects]\ncomponents = [\"incoherent\"]\n")
+                .find("effects.components"),
+            std::string::npos);
+  EXPECT_NE(errorOf("[geometry]\nkind = \"statistical\"\nndf = \"sphere\"\n[material]\nkind = \"dielectric\"\n")
+                .find("geometry.ndf"),
+            std::string::npos);
+  // Keys of explicit geometry are unused (reported) for a statistical surface.
+  EXPECT_NE(errorOf("[geometry]\nkind = \"statistical\"\nradius_um = 2.0\n").find("geometry.radius_um"),
+            std::string::npos);
+}

@@ -1,0 +1,39 @@
+#include "job/transport.h"
+
+#include <fmt/format.h>
+
+namespace mbsdf {
+
+GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid, uint64_t paths) {
+  if (job.statistical) {
+    flakes_ = std::make_unique<MicroflakeDistribution>(job.statistical->ndf);
+    MicroflakeSettings s;
+    s.paths = paths;
+    s.maxDepth = job.maxDepth;
+    s.seed = job.seed;
+    s.flakes = job.statistical->flakes;
+    s.flakeAlbedo = job.statistical->flakeAlbedo;
+    walk_ = std::make_unique<MicroflakeWalk>(*flakes_, job.material, job.lambda_um(), grid, s);
+  } else {
+    scene_ = std::make_unique<PeriodicScene>(job.geometry);
+    PathTracerSettings s;
+    s.paths = paths;
+    s.maxDepth = job.maxDepth;
+    s.seed = job.seed;
+    s.tallyGeoMasked = job.components.has(Component::Lost);
+    tracer_ = std::make_unique<PathTracer>(*scene_, job.material, job.lambda_um(), grid, s);
+  }
+}
+
+TileResult GeometricTransport::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
+                                   const std::function<void(uint64_t)>& progress) const {
+  if (walk_) return walk_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress);
+  return tracer_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress);
+}
+
+std::string GeometricTransport::describe() const {
+  if (flakes_) return "microflake random walk, " + flakes_->describe();
+  return "path tracer through the explicit microgeometry";
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,35 @@
+// The geometric-optics transport of a job: the explicit path tracer through the microgeometry
+// (PHYSICS.md §4), or the microflake random walk for a statistical surface (§9). Both produce the
+// same TileResult (coherent = single scattering, multiple = the rest), so the runner, the planner
+// and the comparison tool treat them alike. Owns what each needs (Embree scene or NDF tables).
+#pragma once
+#include <functional>
+#include <memory>
+#include <optional>
+
+#include "core/direction_grid.h"
+#include "geometry/embree_scene.h"
+#include "job/job.h"
+#include "microflake/microflake_walk.h"
+#include "scattering/path_tracer.h"
+
+namespace mbsdf {
+
+class GeometricTransport {
+ public:
+  // `paths` per wavelength group (the job's paths_per_slice, or a pilot budget).
+  GeometricTransport(const Job& job, const DirectionGrid& grid, uint64_t paths);
+  TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
+                 const std::function<void(uint64_t)>& progress = {}) const;
+  // The Embree scene of explicit geometry (null for a statistical surface).
+  const PeriodicScene* scene() const { return scene_.get(); }
+  std::string describe() const;
+
+ private:
+  std::unique_ptr<PeriodicScene> scene_;
+  std::unique_ptr<PathTracer> tracer_;
+  std::unique_ptr<MicroflakeDistribution> flakes_;
+  std::unique_ptr<MicroflakeWalk> walk_;
+};
+
+}  // namespace mbsdf
