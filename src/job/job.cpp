@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "core/error.h"
 #include "job/geometry_factory.h"
@@ -68,7 +70,46 @@ std::vector<double> parseWavelengths(const ParamDict& s) {
   return l;
 }
 
-StatisticalSurface parseStatistical(const ParamDict& geo) {
+// An isotropic NDF table: one "theta_deg, D" pair per line (comma or whitespace separated; '#'
+// comments), θ from the normal, any range in [0, 180], D in any scale (normalised by Eq. 17).
+TabulatedNdf loadNdfTable(const ParamDict& geo, const std::string& baseDir) {
+  const std::string name = geo.getString("ndf_file", "");
+  if (name.empty()) geo.fail("ndf_file", "ndf = \"tabulated\" needs ndf_file = <table of theta_deg, D>");
+  std::filesystem::path path(name);
+  if (!path.is_absolute() && !baseDir.empty()) path = std::filesystem::path(baseDir) / path;
+  std::ifstream in(path);
+  if (!in) geo.fail("ndf_file", "cannot read '" + path.string() + "'");
+  std::vector<std::pair<double, double>> rows;
+  std::string line;
+  for (int lineNo = 1; std::getline(in, line); ++lineNo) {
+    if (auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::istringstream ls(line);
+    double th, d;
+    if (!(ls >> th)) continue;  // blank or comment
+    std::string rest;
+    if (!(ls >> d) || (ls >> rest) || !(th >= 0 && th <= 180) || !(d >= 0) || !std::isfinite(d))
+      throw InputError(path.string() + ":" + std::to_string(lineNo) +
+                       ": expected 'theta_deg, D' with theta in [0, 180] and D >= 0");
+    if (!rows.empty() && !(th > rows.back().first))
+      throw InputError(path.string() + ":" + std::to_string(lineNo) + ": theta must increase from line to line");
+    rows.push_back({th, d});
+  }
+  if (rows.size() < 2) throw InputError(path.string() + ": an NDF table needs at least two rows");
+  TabulatedNdf t;
+  for (auto it = rows.rbegin(); it != rows.rend(); ++it) {  // increasing cos θ
+    t.cosTheta.push_back(std::cos(radians(it->first)));
+    t.value.push_back(it->second);
+  }
+  try {
+    normaliseNdfTable(t);  // normals above the horizon
+  } catch (const std::invalid_argument& e) {
+    throw InputError(path.string() + ": " + e.what());
+  }
+  return t;
+}
+
+StatisticalSurface parseStatistical(const ParamDict& geo, const std::string& baseDir) {
   StatisticalSurface st;
   const std::string ndf = geo.getString("ndf", "beckmann");
   auto alphas = [&]() {
@@ -91,8 +132,10 @@ StatisticalSurface parseStatistical(const ParamDict& geo) {
     st.ndf = VonMisesFisherNdf{kappa};
   } else if (ndf == "sphere") {
     st.ndf = VonMisesFisherNdf{0.0};
+  } else if (ndf == "tabulated") {
+    st.ndf = loadNdfTable(geo, baseDir);
   } else {
-    geo.fail("ndf", "must be \"beckmann\", \"ggx\", \"vmf\" or \"sphere\" (constant full-sphere NDF)");
+    geo.fail("ndf", "must be \"beckmann\", \"ggx\", \"vmf\", \"sphere\" (constant full-sphere NDF) or \"tabulated\"");
   }
   const std::string flakes = geo.getString("flakes", "specular");
   if (flakes == "specular") st.flakes = FlakeKind::Specular;
@@ -221,9 +264,9 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   ParamDict geo = root.table("geometry");
   if (geo.getString("kind", "flat") == "statistical") {
     job.geometryKind = "statistical";
-    job.statistical = parseStatistical(geo);
+    job.statistical = parseStatistical(geo, baseDir);
     if (!job.material.isConductor() && job.statistical->flakes == FlakeKind::Specular &&
-        std::holds_alternative<VonMisesFisherNdf>(job.statistical->ndf))
+        !std::holds_alternative<BeckmannNdf>(job.statistical->ndf) && !std::holds_alternative<GgxNdf>(job.statistical->ndf))
       geo.fail("ndf", "dielectric flakes need a heightfield NDF (beckmann or ggx): the walk continues on the "
                       "other side of the surface");
     for (const auto& c : job.requestedComponents)

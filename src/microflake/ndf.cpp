@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -47,6 +48,28 @@ double stretchedSin(const N& n, const Vec3& d) {
 
 }  // namespace
 
+void normaliseNdfTable(TabulatedNdf& t) {
+  const size_t n = t.cosTheta.size();
+  if (n < 2 || t.value.size() != n) throw std::invalid_argument("an NDF table needs at least two rows");
+  for (size_t i = 0; i < n; ++i) {
+    if (!(t.cosTheta[i] >= -1 && t.cosTheta[i] <= 1) || !(t.value[i] >= 0) || !std::isfinite(t.value[i]))
+      throw std::invalid_argument("NDF table: cos θ must be in [−1, 1] and D finite and >= 0");
+    if (i > 0 && !(t.cosTheta[i] > t.cosTheta[i - 1])) throw std::invalid_argument("NDF table: θ must be strictly monotone");
+  }
+  // Eq. 17: ∫ D ⟨m,z⟩ dm = 2π ∫_0^1 D(μ) μ dμ, exact (Simpson) for the piecewise-linear D.
+  double proj = 0;
+  for (size_t i = 1; i < n; ++i) {
+    const double a = t.cosTheta[i - 1], b = t.cosTheta[i], da = t.value[i - 1], db = t.value[i];
+    const double lo = std::max(a, 0.0);
+    if (!(b > lo)) continue;
+    auto Dl = [&](double x) { return da + (db - da) * (x - a) / (b - a); };
+    const double m = 0.5 * (lo + b);
+    proj += 2 * kPi * (b - lo) / 6 * (lo * Dl(lo) + 4 * m * Dl(m) + b * Dl(b));
+  }
+  if (!(proj > 0) || !std::isfinite(proj)) throw std::invalid_argument("NDF table: no normals above the horizon");
+  for (double& v : t.value) v /= proj;
+}
+
 double standardNormal(double u1, double u2) {
   return std::sqrt(-2.0 * std::log1p(-u1)) * std::cos(2 * kPi * u2);
 }
@@ -68,7 +91,7 @@ MicroflakeDistribution::MicroflakeDistribution(Ndf ndf) : ndf_(ndf) {
                           const double k = n.kappa;
                           const int panels = 48;
                           QuadratureRule gl = gaussLegendre(12, 0.0, 1.0 / panels);
-                          vmfSigma_.resize(kVmfTableSize);
+                          sigmaTable_.resize(kVmfTableSize);
                           for (int i = 0; i < kVmfTableSize; ++i) {
                             const double mu = -1.0 + 2.0 * i / (kVmfTableSize - 1);
                             const double s = std::sqrt(std::max(0.0, 1 - mu * mu));
@@ -79,10 +102,44 @@ MicroflakeDistribution::MicroflakeDistribution(Ndf ndf) : ndf_(ndf) {
                                 const double x = k * s * std::sqrt(std::max(0.0, 1 - u * u));
                                 sum += gl.w[j] * u * std::exp(k * (-u * mu - 1) + x) * besselI0Scaled(x);
                               }
-                            vmfSigma_[i] = vmfNorm_ * 2 * kPi * sum;
+                            sigmaTable_[i] = vmfNorm_ * 2 * kPi * sum;
+                          }
+                        },
+                        [&](TabulatedNdf& t) {
+                          normaliseNdfTable(t);
+                          const size_t n = t.cosTheta.size();
+                          tabCdf_.assign(n, 0.0);
+                          for (size_t i = 1; i < n; ++i)
+                            tabCdf_[i] = tabCdf_[i - 1] + 0.5 * (t.value[i - 1] + t.value[i]) * (t.cosTheta[i] - t.cosTheta[i - 1]);
+                          for (double& c : tabCdf_) c /= tabCdf_.back();
+                          // σ(μ) by quadrature in the frame around −d: u = ⟨−d,m⟩, ψ the azimuth.
+                          QuadratureRule gu = gaussLegendre(8, 0.0, 1.0 / 32), gp = gaussLegendre(8, 0.0, kPi / 8);
+                          sigmaTable_.resize(kVmfTableSize);
+                          for (int i = 0; i < kVmfTableSize; ++i) {
+                            const double mu = -1.0 + 2.0 * i / (kVmfTableSize - 1), sd = std::sqrt(std::max(0.0, 1 - mu * mu));
+                            double sum = 0;
+                            for (int p = 0; p < 32; ++p)
+                              for (size_t j = 0; j < gu.x.size(); ++j) {
+                                const double u = gu.x[j] + double(p) / 32, r = std::sqrt(std::max(0.0, 1 - u * u));
+                                double inner = 0;
+                                for (int q = 0; q < 8; ++q)
+                                  for (size_t k = 0; k < gp.x.size(); ++k)
+                                    inner += gp.w[k] * tabulatedD(-u * mu + r * sd * std::cos(gp.x[k] + q * kPi / 8));
+                                sum += gu.w[j] * u * 2 * inner;  // ψ ∈ [0, π] twice
+                              }
+                            sigmaTable_[i] = sum;
                           }
                         }},
              ndf_);
+}
+
+double MicroflakeDistribution::tabulatedD(double mz) const {
+  const auto& t = std::get<TabulatedNdf>(ndf_);
+  if (mz < t.cosTheta.front() || mz > t.cosTheta.back()) return 0.0;
+  const size_t i = std::min(t.cosTheta.size() - 2,
+                            size_t(std::upper_bound(t.cosTheta.begin(), t.cosTheta.end(), mz) - t.cosTheta.begin()) - 1);
+  const double f = (mz - t.cosTheta[i]) / (t.cosTheta[i + 1] - t.cosTheta[i]);
+  return t.value[i] + f * (t.value[i + 1] - t.value[i]);
 }
 
 std::string MicroflakeDistribution::describe() const {
@@ -91,6 +148,11 @@ std::string MicroflakeDistribution::describe() const {
                                [](const VonMisesFisherNdf& n) {
                                  return n.kappa == 0 ? std::string("constant full-sphere NDF (isotropic medium)")
                                                      : fmt::format("von Mises–Fisher κ={}", n.kappa);
+                               },
+                               [](const TabulatedNdf& n) {
+                                 return fmt::format("tabulated isotropic NDF ({} rows, θ from {:.3g}° to {:.3g}°)",
+                                                    n.cosTheta.size(), degrees(std::acos(n.cosTheta.back())),
+                                                    degrees(std::acos(n.cosTheta.front())));
                                }},
                     ndf_);
 }
@@ -108,7 +170,8 @@ double MicroflakeDistribution::D(const Vec3& m) const {
                                  const double e = (m.x * m.x / (n.alphaX * n.alphaX) + m.y * m.y / (n.alphaY * n.alphaY)) / z2;
                                  return 1.0 / (kPi * n.alphaX * n.alphaY * z2 * z2 * (1 + e) * (1 + e));
                                },
-                               [&](const VonMisesFisherNdf& n) { return vmfNorm_ * std::exp(n.kappa * (m.z - 1)); }},
+                               [&](const VonMisesFisherNdf& n) { return vmfNorm_ * std::exp(n.kappa * (m.z - 1)); },
+                               [&](const TabulatedNdf&) { return tabulatedD(m.z); }},
                     ndf_);
 }
 
@@ -133,7 +196,7 @@ double MicroflakeDistribution::sigmaUpHeightfield(const Vec3& d) const {
                    const double q = stretchedSin(n, d);
                    return 0.5 * q * q / (d.z + std::sqrt(d.z * d.z + q * q));
                  },
-                 [](const VonMisesFisherNdf&) { return 0.0; }},
+                 [](const auto&) { return 0.0; }},
       ndf_);
 }
 
@@ -143,15 +206,16 @@ double MicroflakeDistribution::lambda(const Vec3& w) const {
   return sigmaUpHeightfield(w) / w.z;
 }
 
-double MicroflakeDistribution::sigmaVmfTable(double mu) const {
+double MicroflakeDistribution::sigmaTable(double mu) const {
   const double x = (std::clamp(mu, -1.0, 1.0) + 1) * 0.5 * (kVmfTableSize - 1);
   const int i = std::min(kVmfTableSize - 2, int(x));
   const double t = x - i;
-  return (1 - t) * vmfSigma_[i] + t * vmfSigma_[i + 1];
+  return (1 - t) * sigmaTable_[i] + t * sigmaTable_[i + 1];
 }
 
 double MicroflakeDistribution::sigma(const Vec3& d) const {
-  if (const auto* v = std::get_if<VonMisesFisherNdf>(&ndf_)) return v->kappa == 0 ? 1.0 : sigmaVmfTable(d.z);
+  if (const auto* v = std::get_if<VonMisesFisherNdf>(&ndf_)) return v->kappa == 0 ? 1.0 : sigmaTable(d.z);
+  if (std::holds_alternative<TabulatedNdf>(ndf_)) return sigmaTable(d.z);
   if (d.z >= 0) return sigmaUpHeightfield(d);
   return -d.z + sigmaUpHeightfield(-d);  // seed Eq. 19: (1 + Λ(−d)) |d_z|
 }
@@ -226,6 +290,30 @@ std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler
                      const Vec3 m{sr * std::cos(phi), sr * std::sin(phi), mz};
                      const double c = dot(v, m);
                      if (c > 0 && u3 < c) return m;
+                   }
+                   return std::nullopt;
+                 },
+                 [&](const TabulatedNdf& t) -> std::optional<Vec3> {
+                   // Propose m_z from the piecewise-linear density (exact inversion of the quadratic CDF
+                   // inside an interval), φ uniform; accept with ⟨v,m⟩.
+                   for (int tries = 0; tries < kMaxRejections; ++tries) {
+                     const double u1 = s.get1D(), u2 = s.get1D(), u3 = s.get1D(), u4 = s.get1D();
+                     const size_t i = std::min(tabCdf_.size() - 2,
+                                               size_t(std::upper_bound(tabCdf_.begin(), tabCdf_.end(), u1) - tabCdf_.begin()) - 1);
+                     const double a = t.cosTheta[i], w = t.cosTheta[i + 1] - a, da = t.value[i], db = t.value[i + 1];
+                     // Density ∝ da + (db − da) x on x ∈ [0, 1]: solve (db − da) x²/2 + da x = u (da + db)/2.
+                     double x;
+                     if (std::abs(db - da) < 1e-12 * std::max(da, db)) {
+                       x = u2;
+                     } else {
+                       const double disc = da * da + u2 * (db * db - da * da);
+                       x = (std::sqrt(std::max(0.0, disc)) - da) / (db - da);
+                     }
+                     const double mz = std::clamp(a + w * std::clamp(x, 0.0, 1.0), -1.0, 1.0);
+                     const double sr = std::sqrt(std::max(0.0, 1 - mz * mz)), phi = 2 * kPi * u3;
+                     const Vec3 m{sr * std::cos(phi), sr * std::sin(phi), mz};
+                     const double c = dot(v, m);
+                     if (c > 0 && u4 < c) return m;
                    }
                    return std::nullopt;
                  }},

@@ -37,14 +37,27 @@ struct GgxNdf {
 struct VonMisesFisherNdf {
   double kappa = 0.0;
 };
-using Ndf = std::variant<BeckmannNdf, GgxNdf, VonMisesFisherNdf>;
+// Any isotropic NDF given as a table D(cos θm), piecewise linear in cos θm on [−1, 1] (values
+// outside the table are 0), e.g. a measured distribution; normalised here by Eq. 17. The general
+// path: σ(ω) by numeric quadrature into a table, visible normals by exact sampling of the
+// piecewise-linear density in cos θm and rejection with ⟨v, m⟩.
+struct TabulatedNdf {
+  std::vector<double> cosTheta;  // strictly increasing, in [−1, 1]
+  std::vector<double> value;     // D >= 0 (any scale)
+};
+using Ndf = std::variant<BeckmannNdf, GgxNdf, VonMisesFisherNdf, TabulatedNdf>;
+
+// Checks a table (throws std::invalid_argument) and scales it so that ∫ D ⟨m,z⟩ dm = 1 (Eq. 17).
+void normaliseNdfTable(TabulatedNdf& t);
 
 class MicroflakeDistribution {
  public:
   explicit MicroflakeDistribution(Ndf ndf);
 
   const Ndf& ndf() const { return ndf_; }
-  bool isHeightfield() const { return !std::holds_alternative<VonMisesFisherNdf>(ndf_); }
+  bool isHeightfield() const {
+    return std::holds_alternative<BeckmannNdf>(ndf_) || std::holds_alternative<GgxNdf>(ndf_);
+  }
   std::string describe() const;
 
   // D(m) for a unit normal m (1/sr).
@@ -63,10 +76,12 @@ class MicroflakeDistribution {
 
  private:
   double sigmaUpHeightfield(const Vec3& d) const;  // Λ(d) d_z for d_z >= 0
-  double sigmaVmfTable(double mu) const;
+  double sigmaTable(double mu) const;
+  double tabulatedD(double mz) const;
   Ndf ndf_;
-  double vmfNorm_ = 0;             // C in D = C exp(κ (m_z − 1))
-  std::vector<double> vmfSigma_;   // σ(μ) on a uniform grid of μ = d_z in [−1, 1]
+  double vmfNorm_ = 0;              // C in D = C exp(κ (m_z − 1))
+  std::vector<double> sigmaTable_;  // σ(μ) on a uniform grid of μ = d_z in [−1, 1] (vMF, tabulated)
+  std::vector<double> tabCdf_;      // tabulated: CDF of 2π D(m_z) over the table's intervals
 };
 
 // Standard normal variates from two uniforms (Box–Muller).

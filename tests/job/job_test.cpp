@@ -141,3 +141,28 @@ TEST(Job, StatisticalSurface) {
   EXPECT_NE(errorOf("[geometry]\nkind = \"statistical\"\nradius_um = 2.0\n").find("geometry.radius_um"),
             std::string::npos);
 }
+
+TEST(Job, TabulatedNdfFile) {
+  auto dir = std::filesystem::temp_directory_path() / "microbsdf_ndf_test";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "good.csv") << "# theta_deg, D\n0, 2.0\n45, 1.0\n90, 0.0\n";
+  std::ofstream(dir / "bad.csv") << "0, 1.0\n10, -3\n";
+  std::ofstream(dir / "order.csv") << "0, 1.0\n20 1.0\n10 1.0\n";
+  Job j = loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"tabulated\"\nndf_file = \"good.csv\"\n", "t.toml",
+                            dir.string());
+  const auto& t = std::get<TabulatedNdf>(j.statistical->ndf);
+  ASSERT_EQ(t.cosTheta.size(), 3u);
+  EXPECT_NEAR(t.cosTheta.back(), 1.0, 1e-15);
+  auto err = [&](const std::string& file) {
+    try {
+      loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"tabulated\"\nndf_file = \"" + file + "\"\n", "t.toml",
+                        dir.string());
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(err("bad.csv").find("bad.csv:2"), std::string::npos) << err("bad.csv");
+  EXPECT_NE(err("order.csv").find("order.csv:3"), std::string::npos) << err("order.csv");
+  EXPECT_NE(err("missing.csv").find("geometry.ndf_file"), std::string::npos) << err("missing.csv");
+}
