@@ -65,6 +65,7 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
       SliceStats st = f.stats(i);
       s["samples"] = st.samples;
       s["seconds"] = st.seconds;
+      s["sampling_stop"] = st.samplingStop == 1 ? "target" : st.samplingStop == 2 ? "budget" : "fixed";
       s["truncated"] = st.truncated;
       s["leaked"] = st.leaked;
       s["missed"] = st.missed;
@@ -100,6 +101,7 @@ void printInfo(const nlohmann::json& j) {
   std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  reflected  transmitted  truncated  rel.error\n"
             << "(albedo: the components the file holds, without the lost diagnostic; rel.error: the largest\n"
             << " estimated relative standard error of a slice over its components but lost, and wavelengths)\n";
+  int reached = 0, budget = 0;
   for (const auto& s : j["slices"]) {
     if (!s["done"].get<bool>()) continue;
     auto mean = [](const nlohmann::json& a) {
@@ -121,7 +123,12 @@ void printInfo(const nlohmann::json& j) {
                 s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
                 (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(), refl + trans, refl, trans,
                 mean(s["truncated"]), rel);
+    if (s["sampling_stop"] == "target") ++reached;
+    if (s["sampling_stop"] == "budget") ++budget;
   }
+  if (reached + budget > 0)
+    std::printf("progressive sampling: %d slices reached target_rel_error, %d stopped at max_paths_per_slice first\n",
+                reached, budget);
 }
 
 }  // namespace

@@ -96,6 +96,29 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     };
     auto ts = Clock::now();
     TileResult r = transport.run(t, t, inc.bin, exact, cb);
+    if (job.targetRelError > 0) {
+      // Progressive sampling: more rounds of fresh paths (the next path indices, so the result is
+      // the same estimator as one run of all of them) until the geometric components reach the
+      // target relative error or the budget is spent.
+      auto relError = [&](const TileResult& x) {
+        double e = 0;
+        for (Component c : {Component::Coherent, Component::Multiple})
+          if (job.components.has(c) && x.has(c))
+            for (double v : sliceRelativeError(x, c, grid)) e = std::max(e, v);
+        return e;
+      };
+      while (true) {
+        if (relError(r) <= job.targetRelError) {
+          r.samplingStop = TileResult::SamplingStop::TargetReached;
+          break;
+        }
+        if (r.samples + job.pathsPerSlice > job.maxPathsPerSlice) {
+          r.samplingStop = TileResult::SamplingStop::BudgetExhausted;
+          break;
+        }
+        r.poolPaths(transport.run(t, t, inc.bin, exact, cb, r.samples));
+      }
+    }
     pathSecondsSum += since(ts);
     if (wave) {
       auto tw = Clock::now();

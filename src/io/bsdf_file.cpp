@@ -127,7 +127,7 @@ std::vector<std::string> rowDatasets(const Job& job) {
       v.push_back(g + n);
   }
   for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/seconds",
-                        "/bsdf/done"})
+                        "/stats/sampling_stop", "/bsdf/done"})
     v.push_back(n);
   return v;
 }
@@ -302,6 +302,8 @@ void BsdfFileWriter::create(const std::string& filename) {
     }
     write1D(s, "samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1", "paths per wavelength");
     write1D(s, "seconds", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "s", "wall time of the tile");
+    write1D(s, "sampling_stop", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
+            "0: fixed budget; 1: target_rel_error reached; 2: max_paths_per_slice spent first");
     for (const char* n : {"truncated", "leaked", "missed"}) {
       H5Dataset d = create3D(s, n, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
       describe(d, "1", std::string("fraction of incident power ") + n);
@@ -352,6 +354,7 @@ void BsdfFileWriter::writeTile(const TileResult& r) {
   writeRow(f, "/stats/missed", i, r.missed, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/samples", i, {double(r.samples)}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/seconds", i, {r.seconds}, H5T_NATIVE_DOUBLE);
+  writeRow(f, "/stats/sampling_stop", i, {double(int(r.samplingStop))}, H5T_NATIVE_DOUBLE);
   // Mark done last, then flush: a slice marked done is complete on disk.
   writeRow(f, "/bsdf/done", i, {1.0}, H5T_NATIVE_DOUBLE);
   h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
@@ -408,6 +411,8 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   SliceStats s;
   s.samples = uint64_t(readRow("/stats/samples", incidence)[0]);
   s.seconds = readRow("/stats/seconds", incidence)[0];
+  if (H5Lexists(file_, "/stats/sampling_stop", H5P_DEFAULT) > 0)
+    s.samplingStop = int(readRow("/stats/sampling_stop", incidence)[0]);
   s.truncated = readRow("/stats/truncated", incidence);
   s.leaked = readRow("/stats/leaked", incidence);
   s.missed = readRow("/stats/missed", incidence);

@@ -8,7 +8,8 @@
 //                           > 4 MiB), shuffle + deflate, fill value NaN (unwritten = visible)
 //   /bsdf_stderr/<component> the standard error of each value, same layout
 //   /bsdf/done              uint8 (nInc), 1 when that slice is complete
-//   /stats/...              per slice: samples, seconds, truncated/leaked/missed (nInc, nλ),
+//   /stats/...              per slice: samples, seconds, sampling_stop (0 fixed budget, 1 target
+//                           relative error reached, 2 budget spent), truncated/leaked/missed (nInc, nλ),
 //                           energy_reflected/<c>, energy_transmitted/<c> (nInc, nλ) = Σ f·Ω⊥,
 //                           rel_error/<c> (nInc, nλ): estimated relative standard error
 // The writer writes each tile as it arrives and flushes; it writes to `<path>.partial` and renames
@@ -63,6 +64,7 @@ class BsdfFileWriter {
 struct SliceStats {
   uint64_t samples = 0;
   double seconds = 0;
+  int samplingStop = 0;  // TileResult::SamplingStop
   std::vector<double> truncated, leaked, missed;
   std::map<std::string, std::vector<double>> energyReflected, energyTransmitted;
   std::map<std::string, std::vector<double>> relError;  // per component, per wavelength

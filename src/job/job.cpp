@@ -240,6 +240,15 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
 
   ParamDict samp = root.table("sampling");
   job.pathsPerSlice = uint64_t(samp.positiveInt("paths_per_slice", 1000000));
+  job.targetRelError = samp.nonNegative("target_rel_error", 0.0);
+  if (!(job.targetRelError < 1)) samp.fail("target_rel_error", "must be a fraction in (0, 1), or 0 for a fixed budget");
+  {
+    const int64_t maxPaths = samp.positiveInt("max_paths_per_slice", int64_t(std::min<uint64_t>(job.pathsPerSlice * 16, uint64_t(1) << 50)));
+    if (uint64_t(maxPaths) < job.pathsPerSlice) samp.fail("max_paths_per_slice", "must be >= paths_per_slice");
+    if (job.targetRelError == 0 && samp.has("max_paths_per_slice"))
+      samp.fail("max_paths_per_slice", "is the budget of progressive sampling: set target_rel_error too");
+    job.maxPathsPerSlice = uint64_t(maxPaths);
+  }
   auto bounded = [&](const std::string& key, int64_t def, int64_t max) {
     int64_t v = samp.positiveInt(key, def);
     if (v > max) samp.fail(key, "must be at most " + std::to_string(max));

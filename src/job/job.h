@@ -50,6 +50,10 @@ struct Job {
   std::vector<std::string> requestedComponents;
   SceneNeeds scene;
   uint64_t pathsPerSlice = 1000000;
+  // Progressive sampling: rounds of pathsPerSlice paths until the slice's estimated relative error
+  // (geometric components) is at most targetRelError (0: off) or maxPathsPerSlice is spent.
+  double targetRelError = 0;
+  uint64_t maxPathsPerSlice = 0;
   int maxDepth = 100;
   uint64_t seed = 1;
   std::string waveEstimator = "auto";  // resolved by resolvedWaveEstimator()

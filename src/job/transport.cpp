@@ -26,9 +26,9 @@ GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid
 }
 
 TileResult GeometricTransport::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                                   const std::function<void(uint64_t)>& progress) const {
-  if (walk_) return walk_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress);
-  return tracer_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress);
+                                   const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
+  if (walk_) return walk_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath);
+  return tracer_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath);
 }
 
 std::string GeometricTransport::describe() const {

@@ -130,7 +130,7 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
 }
 
 TileResult MicroflakeWalk::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                               const std::function<void(uint64_t)>& progress) const {
+                               const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
   if (exactDirection) exactDirection = normalize(*exactDirection);
   const auto t0 = std::chrono::steady_clock::now();
   PathTallyPlan plan;
@@ -138,6 +138,7 @@ TileResult MicroflakeWalk::run(int tile, int incidenceIndex, int incidenceBin, s
   plan.nLambda = int(lambda_um_.size());
   plan.groups = groups_;
   plan.paths = settings_.paths;
+  plan.firstPath = firstPath;
   plan.components = {Component::Coherent, Component::Multiple};
   TileResult r = runPaths(
       plan, [&](uint64_t p, int g, PathChunk& c) { walk(tile, incidenceBin, exactDirection, p, g, c, nullptr); },

@@ -47,7 +47,7 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
         PathChunk& c = chunks[ci];
         const uint64_t p0 = (b0 + ci) * kChunk, p1 = std::min(N, p0 + kChunk);
         c.events.reserve(p1 - p0);
-        for (uint64_t p = p0; p < p1; ++p) trace(p, g, c);
+        for (uint64_t p = p0; p < p1; ++p) trace(plan.firstPath + p, g, c);
       });
       // Merge in chunk order: identical sums for any number of threads.
       for (const PathChunk& c : chunks) {

@@ -37,6 +37,7 @@ struct PathTallyPlan {
   int nLambda = 0;
   std::vector<std::vector<int>> groups;  // wavelengths that share one path
   uint64_t paths = 0;                    // per group
+  uint64_t firstPath = 0;                // path indices firstPath … firstPath + paths − 1 (RNG keys)
   std::vector<Component> components;     // tallied components
 };
 

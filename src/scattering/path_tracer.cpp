@@ -134,7 +134,7 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
 }
 
 TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                           const std::function<void(uint64_t)>& progress) const {
+                           const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
   if (exactDirection) exactDirection = normalize(*exactDirection);
   auto t0 = std::chrono::steady_clock::now();
   PathTallyPlan plan;
@@ -142,6 +142,7 @@ TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin, std::
   plan.nLambda = int(lambda_um_.size());
   plan.groups = groups_;
   plan.paths = settings_.paths;
+  plan.firstPath = firstPath;
   plan.components = {Component::Coherent, Component::Multiple};
   if (settings_.tallyGeoMasked) plan.components.push_back(Component::GeoMasked);
   TileResult r = runPaths(

@@ -47,7 +47,7 @@ class PathTracer {
   // `exactDirection`: trace a collimated beam from exactly this direction (pointing away from the
   // surface) instead of averaging over the incidence bin.
   TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection = std::nullopt,
-                 const std::function<void(uint64_t)>& progress = {}) const;
+                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0) const;
 
   // Replays a single path (for debugging a failing sample): returns its exit bin (or -1) and depth.
   struct PathRecord {

@@ -1,5 +1,7 @@
 #include "scattering/tile_result.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 
@@ -19,6 +21,8 @@ std::vector<double> TileResult::serialize() const {
   std::memcpy(&s, &rays, sizeof s);
   b.push_back(s);
   b.push_back(seconds);
+  b.push_back(rounds);
+  b.push_back(double(int(samplingStop)));
   for (int c = 0; c < kComponentCount; ++c) {
     b.push_back(double(value[c].size()));
     b.insert(b.end(), value[c].begin(), value[c].end());
@@ -48,6 +52,8 @@ TileResult TileResult::deserialize(const std::vector<double>& b) {
   s = next();
   std::memcpy(&r.rays, &s, sizeof s);
   r.seconds = next();
+  r.rounds = int(next());
+  r.samplingStop = SamplingStop(int(next()));
   auto take = [&](std::vector<double>& v, size_t n) {
     if (i + n > b.size()) throw std::runtime_error("truncated TileResult message");
     v.assign(b.begin() + i, b.begin() + i + n);
@@ -60,6 +66,38 @@ TileResult TileResult::deserialize(const std::vector<double>& b) {
   }
   for (auto* v : {&r.truncated, &r.leaked, &r.missed}) take(*v, size_t(next()));
   return r;
+}
+
+void TileResult::poolPaths(const TileResult& more) {
+  if (more.nLambda != nLambda || more.nBins != nBins) throw std::logic_error("poolPaths: different tables");
+  const double na = double(samples), nb = double(more.samples), n = na + nb;
+  for (int c = 0; c < kComponentCount; ++c) {
+    if (more.value[c].empty()) continue;
+    auto& v = value[c];
+    auto& e = stdError[c];
+    for (size_t i = 0; i < v.size(); ++i) {
+      // Per-path sums recovered from mean and standard error: s1 = N m, s2 = N var + s1²/N with the
+      // (N−1) normalisation of the single-run estimator (PathTally).
+      auto sums = [](double N, double m, double se, double* s1, double* s2) {
+        const double var = se * se * N;  // per-path variance (in units of f)
+        *s1 = N * m;
+        *s2 = var * (N - 1) + *s1 * *s1 / N;
+      };
+      double a1, a2, b1, b2;
+      sums(na, v[i], e[i], &a1, &a2);
+      sums(nb, more.value[c][i], more.stdError[c][i], &b1, &b2);
+      const double s1 = a1 + b1, s2 = a2 + b2;
+      v[i] = s1 / n;
+      e[i] = std::sqrt(std::max(0.0, (s2 - s1 * s1 / n) / (n - 1)) / n);
+    }
+  }
+  for (auto [mine, theirs] : {std::pair{&truncated, &more.truncated}, std::pair{&leaked, &more.leaked},
+                              std::pair{&missed, &more.missed}})
+    for (size_t l = 0; l < mine->size() && l < theirs->size(); ++l) (*mine)[l] = ((*mine)[l] * na + (*theirs)[l] * nb) / n;
+  samples += more.samples;
+  rays += more.rays;
+  seconds += more.seconds;
+  rounds += more.rounds;
 }
 
 }  // namespace mbsdf

@@ -23,12 +23,21 @@ struct TileResult {
   std::vector<double> leaked;     // paths that crossed the surface where it has holes or wrong winding
   std::vector<double> missed;     // primary rays that met no geometry (finite patches, holes)
   uint64_t samples = 0;           // paths per wavelength
+  // Progressive sampling ([sampling] target_rel_error): rounds of paths run, and why it stopped.
+  enum class SamplingStop : int { FixedBudget = 0, TargetReached = 1, BudgetExhausted = 2 };
+  int rounds = 1;
+  SamplingStop samplingStop = SamplingStop::FixedBudget;
   uint64_t rays = 0;              // ray casts through the scene (for speed figures)
   double seconds = 0;
 
   double& at(Component c, int lambda, int bin) { return value[int(c)][size_t(lambda) * nBins + bin]; }
   double at(Component c, int lambda, int bin) const { return value[int(c)][size_t(lambda) * nBins + bin]; }
   bool has(Component c) const { return !value[int(c)].empty(); }
+
+  // Pools another run of the same Monte Carlo estimator over disjoint paths (the path tracer or the
+  // microflake walk) into this one: the result is the estimator over all samples (means weighted by
+  // sample counts, per-path variances recombined), for the components `more` has.
+  void poolPaths(const TileResult& more);
 
   std::vector<double> serialize() const;
   static TileResult deserialize(const std::vector<double>& buf);

@@ -136,6 +136,33 @@ def test_statistical_job():
                                np.array(s["energy"]["reflected"]["multiple"]))), 4) for s in info["slices"]])
 
 
+def test_progressive():
+    """[sampling] target_rel_error: rounds of paths until the slice's relative error reaches the target
+    or max_paths_per_slice is spent; recorded per slice; identical for 1 and 2 ranks."""
+    job = small_job(os.path.join(TMP, "prog.toml"))
+    text = open(job).read().replace("paths_per_slice = 20000",
+                                    "paths_per_slice = 4000\ntarget_rel_error = 0.03\nmax_paths_per_slice = 40000")
+    open(job, "w").write(text)
+    run(["run", job, "-o", "p1.h5", "--threads", "1"])
+    run(["run", job, "-o", "p2.h5"], mpi=2)
+    assert datasets(os.path.join(TMP, "p1.h5")) == datasets(os.path.join(TMP, "p2.h5")), "1 vs 2 ranks differ"
+    info = json.loads(run(["info", "p2.h5", "--json"]).stdout)
+    stops = {}
+    for s in info["slices"]:
+        rel = max(max(v) for c, v in s["rel_error"].items() if c in ("coherent", "multiple"))
+        assert s["samples"] % 4000 == 0 and 4000 <= s["samples"] <= 40000, s["samples"]
+        if s["sampling_stop"] == "target":
+            assert rel <= 0.03, (rel, s)
+            assert s["samples"] == 4000 or rel > 0.03 * 0.5, "stopped late"  # one round more would not be needed
+        else:
+            assert s["sampling_stop"] == "budget" and s["samples"] == 40000 and rel > 0.03, s
+        stops[s["index"]] = (s["sampling_stop"], s["samples"], round(rel, 4))
+    assert any(v[1] > 4000 for v in stops.values()), stops  # at least one slice needed more rounds
+    text_info = run(["info", "p2.h5"]).stdout
+    assert "progressive sampling:" in text_info, text_info
+    print("progressive sampling (target 3 %, rounds of 4000 paths, budget 40000):", stops)
+
+
 def many_tiles_job(path, n_theta, output, paths=20000):
     """A job with n_theta x 4 incidence directions on a small patch (each tile a fraction of a second)."""
     inc = ", ".join(f"[{t:.2f}, {p:.1f}]" for t in np.linspace(0, 80, n_theta) for p in (0, 45, 90, 135))

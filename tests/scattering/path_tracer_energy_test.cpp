@@ -122,3 +122,27 @@ TEST(Determinism, ReplayMatchesBatch) {
   Component c = rec.depth == 1 ? Component::Coherent : Component::Multiple;
   EXPECT_GT(r.at(c, 0, rec.exitBin), 0.0);
 }
+
+// Progressive sampling pools rounds of fresh paths: two rounds of N equal one run of 2N paths.
+TEST(ProgressiveSampling, PooledRoundsEqualOneLongRun) {
+  Microgeometry g = makeGaussian(10, 10, 0.4, 1.0, 64, 64, 3);
+  PeriodicScene scene(g);
+  Material al = test::material("Al");
+  DirectionGrid grid(ThetaPhiGrid{6, 12});
+  PathTracerSettings s;
+  s.paths = 3000;
+  PathTracer half(scene, al, {0.45, 0.65}, grid, s);
+  s.paths = 6000;
+  PathTracer full(scene, al, {0.45, 0.65}, grid, s);
+  const int bin = grid.binOfAngles(50, 0);
+  TileResult a = half.run(2, 0, bin), b = half.run(2, 0, bin, std::nullopt, {}, 3000), f = full.run(2, 0, bin);
+  a.poolPaths(b);
+  EXPECT_EQ(a.samples, 6000u);
+  EXPECT_EQ(a.rounds, 2);
+  for (Component c : {Component::Coherent, Component::Multiple})
+    for (size_t i = 0; i < f.value[int(c)].size(); ++i) {
+      EXPECT_NEAR(a.value[int(c)][i], f.value[int(c)][i], 1e-12 * (1 + f.value[int(c)][i]));
+      EXPECT_NEAR(a.stdError[int(c)][i], f.stdError[int(c)][i], 1e-9 * (1 + f.stdError[int(c)][i]));
+    }
+  for (int l = 0; l < 2; ++l) EXPECT_NEAR(a.truncated[l], f.truncated[l], 1e-15);
+}
