@@ -64,6 +64,8 @@ class MicroflakeDistribution {
   double D(const Vec3& m) const;
   // Smith Λ for a direction above the horizon (heightfield NDFs only).
   double lambda(const Vec3& w) const;
+  // Smith masking G1 = 1 / (1 + Λ(w)) (seed Eq. 20).
+  double G1(const Vec3& w) const { return 1.0 / (1.0 + lambda(w)); }
   // Height-correlated masking–shadowing G2 = 1 / (1 + Λ(wi) + Λ(wo)) (heightfield NDFs).
   double G2(const Vec3& wi, const Vec3& wo) const { return 1.0 / (1.0 + lambda(wi) + lambda(wo)); }
   // Extinction coefficient σ(d) for travel direction d (unit).
