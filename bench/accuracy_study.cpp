@@ -8,16 +8,28 @@
 //    Λ = 5 µm, h = 0.05 µm, λ = 0.5 µm, normal incidence, 90 x 72 bins);
 //  - vgroove_20: the one-bounce fraction of a 90° mirror V-groove at 20° vs tan 20° (path tracer);
 //  - glass_reflectance: the reflectance of flat BK7 at 60° vs Fresnel (path tracer, Russian
-//    roulette).
+//    roulette);
+//  - chandrasekhar_albedo / chandrasekhar_lobe: the microflake walk in Chandrasekhar's isotropic
+//    medium (constant NDF, mirror flakes of albedo 0.9, θi = 30°): albedo vs 1 − H(μi)√(1 − a), and
+//    the table's relative L1 distance Σ|f − f_ref|Ω⊥ / Σ f_ref Ω⊥ vs seed Eq. 30;
+//  - hemispheres_gm (and its coherent / multiple components) / hemispheres_ws: the paper's HEMISPHERES (Al, 550 nm, θi = 30°, 30 x 60 bins):
+//    relative L1 distance of the GM table (path tracer) and of the WS table (area estimator, δc =
+//    50 µm) to a reference at 16x the largest budget (so the curves flatten at the reference's
+//    own noise).
+// Lines "#cost,<aspect>,<setting>,<seconds>" give the cost of each model (GS/GM/WS/WM, + lost), of
+// the angular resolution and of the number of wavelengths at a fixed budget.
 // scripts/accuracy-vs-time runs it and turns the CSV into a table and a log-log plot.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <tuple>
 #include <string>
 #include <vector>
 
 #include "geometry/generators.h"
+#include "microflake/chandrasekhar.h"
+#include "microflake/microflake_walk.h"
 #include "scattering/path_tracer.h"
 #include "scattering/wave_estimator.h"
 
@@ -42,6 +54,25 @@ struct Timer {
   std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
   double seconds() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); }
 };
+
+// Relative L1 distance of two tables over the upper hemisphere.
+double relativeL1(const DirectionGrid& g, const std::vector<double>& f, const std::vector<double>& ref) {
+  double d = 0, n = 0;
+  for (int b = 0; b < g.binsPerHemisphere(); ++b) {
+    d += std::abs(f[b] - ref[b]) * g.projectedSolidAngle(b);
+    n += std::abs(ref[b]) * g.projectedSolidAngle(b);
+  }
+  return d / n;
+}
+std::vector<double> sum(const std::vector<double>& a, const std::vector<double>& b) {
+  std::vector<double> s(a);
+  for (size_t i = 0; i < s.size(); ++i) s[i] += b[i];
+  return s;
+}
+void cost(const char* aspect, const std::string& setting, double seconds) {
+  std::printf("#cost,%s,%s,%.6g\n", aspect, setting.c_str(), seconds);
+  std::fflush(stdout);
+}
 
 void row(const char* c, const std::string& est, long budget, int seed, double sec, double err) {
   std::printf("%s,%s,%ld,%d,%.6g,%.6g\n", c, est.c_str(), budget, seed, sec, err);
@@ -149,6 +180,137 @@ int main(int argc, char** argv) {
               std::abs(hemisphere(grid, r.value[int(Component::Coherent)], true) - R60) / R60);
         }
       }
+  }
+  // Chandrasekhar's medium through the microflake walk.
+  {
+    const double a = 0.9;
+    MicroflakeDistribution sphere(VonMisesFisherNdf{0.0});
+    Material mirror = named("mirror");
+    DirectionGrid grid(ThetaPhiGrid{15, 30});
+    const Vec3 wi = sphericalDirection(radians(30), 0);
+    const double Hi = chandrasekharH(wi.z, a), albedoRef = 1 - Hi * std::sqrt(1 - a);
+    std::vector<double> ref(grid.binCount(), 0.0);
+    for (int b = 0; b < grid.binsPerHemisphere(); ++b) {
+      const int n = 16;
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+          const Vec3 wo = grid.sampleCosine(b, (i + 0.5) / n, (j + 0.5) / n).w;
+          ref[b] += isotropicMediumBRDF(wi.z, wo.z, a) / (n * n);
+        }
+    }
+    for (long budget : {1000L, 10000L, 100000L, 1000000L, 4000000L})
+      for (int s = 0; s < seeds; ++s) {
+        MicroflakeSettings ms;
+        ms.paths = uint64_t(budget);
+        ms.seed = uint64_t(s + 1);
+        ms.maxDepth = 100000;
+        ms.flakeAlbedo = a;
+        MicroflakeWalk walk(sphere, mirror, {0.55}, grid, ms);
+        Timer t;
+        TileResult r = walk.run(s, 0, grid.binOf(wi), wi);
+        const double sec = t.seconds();
+        std::vector<double> f = sum(r.value[int(Component::Coherent)], r.value[int(Component::Multiple)]);
+        row("chandrasekhar_albedo", "walk", budget, s, sec, std::abs(hemisphere(grid, f, true) - albedoRef) / albedoRef);
+        row("chandrasekhar_lobe", "walk", budget, s, sec, relativeL1(grid, f, ref));
+      }
+  }
+  // HEMISPHERES (the paper's surface) against high-budget references.
+  {
+    Microgeometry g = makeDomeLattice(20, 20, 5, 5, 2, 2, 2, 2.0 / 16);
+    PeriodicScene scene(g);
+    Material al = named("Al");
+    DirectionGrid grid(ThetaPhiGrid{30, 60});
+    const Vec3 wi = sphericalDirection(radians(30), radians(10));
+    const int bin = grid.binOf(wi);
+    auto gm = [&](long paths, int seed) {
+      PathTracerSettings ps;
+      ps.paths = uint64_t(paths);
+      ps.seed = uint64_t(seed + 1);
+      PathTracer tr(scene, al, {0.55}, grid, ps);
+      Timer t;
+      TileResult r = tr.run(seed, 0, bin, wi);
+      return std::tuple{sum(r.value[int(Component::Coherent)], r.value[int(Component::Multiple)]), t.seconds(),
+                        r.value[int(Component::Coherent)], r.value[int(Component::Multiple)]};
+    };
+    auto ws = [&](long samples, int seed, bool masked = false) {
+      WaveSettings w;
+      w.estimator = "area";
+      w.samplesPerBin = int(samples);
+      w.pointsPerDirection = 16;
+      w.seed = uint64_t(seed + 1);
+      w.computeMasked = masked;
+      auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, grid, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
+      Timer t;
+      WaveTileResult r = e->run(seed, bin, wi);
+      return std::pair{r.fws, t.seconds()};
+    };
+    const auto [refGm, refSec, refCoh, refMul] = gm(16000000, 1000);
+    const std::vector<double> refWs = ws(16384, 1000).first;
+    for (long budget : {1000L, 10000L, 100000L, 1000000L})
+      for (int s = 0; s < seeds; ++s) {
+        auto [f, sec, coh, mul] = gm(budget, s);
+        row("hemispheres_gm", "path", budget, s, sec, relativeL1(grid, f, refGm));
+        row("hemispheres_coherent", "path", budget, s, sec, relativeL1(grid, coh, refCoh));
+        row("hemispheres_multiple", "path", budget, s, sec, relativeL1(grid, mul, refMul));
+      }
+    for (long budget : {64L, 256L, 1024L, 4096L})
+      for (int s = 0; s < seeds; ++s) {
+        auto [f, sec] = ws(budget, s);
+        row("hemispheres_ws", "area", budget, s, sec, relativeL1(grid, f, refWs));
+      }
+
+    // Cost at a fixed budget (1e6 paths, 256 wave samples per bin): models, resolution, wavelengths.
+    const double tGm = std::get<1>(gm(1000000, 7)), tWs = ws(256, 7).second, tLost = ws(256, 7, true).second;
+    cost("model", "GS (path tracer; depth 1 needs the same paths)", tGm);
+    cost("model", "GM", tGm);
+    cost("model", "WS (GS paths + area estimator)", tGm + tWs);
+    cost("model", "WM", tGm + tWs);
+    cost("model", "WM + lost", tGm + tLost);
+    for (auto [nt, np] : {std::pair{15, 30}, std::pair{30, 60}, std::pair{75, 300}}) {
+      DirectionGrid gr(ThetaPhiGrid{nt, np});
+      PathTracerSettings ps;
+      ps.paths = 1000000;
+      PathTracer tr(scene, al, {0.55}, gr, ps);
+      Timer t;
+      tr.run(0, 0, gr.binOf(wi), wi);
+      const double tp = t.seconds();
+      WaveSettings w;
+      w.estimator = "area";
+      w.samplesPerBin = 256;
+      w.pointsPerDirection = 16;
+      auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, gr, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
+      Timer t2;
+      e->run(0, gr.binOf(wi), wi);
+      cost("resolution", std::to_string(nt) + " x " + std::to_string(np) + " GM", tp);
+      cost("resolution", std::to_string(nt) + " x " + std::to_string(np) + " WS (256 samples/bin)", t2.seconds());
+    }
+    Material bk7 = named("BK7");
+    for (int nl : {1, 8, 32}) {
+      std::vector<double> lambdas;
+      for (int i = 0; i < nl; ++i) lambdas.push_back(0.4 + (i + 0.5) * 0.3 / nl);
+      PathTracerSettings ps;
+      ps.paths = 1000000;
+      {
+        PathTracer tr(scene, al, lambdas, grid, ps);
+        Timer t;
+        tr.run(0, 0, bin, wi);
+        cost("wavelengths", std::to_string(nl) + " λ, Al GM (one path, per-λ Fresnel weights)", t.seconds());
+      }
+      if (nl <= 8) {
+        PathTracer tr(scene, bk7, lambdas, grid, ps);
+        Timer t;
+        tr.run(0, 0, bin, wi);
+        cost("wavelengths", std::to_string(nl) + " λ, BK7 GM (dispersion: paths per λ)", t.seconds());
+      }
+      WaveSettings w;
+      w.estimator = "area";
+      w.samplesPerBin = 256;
+      w.pointsPerDirection = 16;
+      auto e = makeWaveEstimator(WaveContext{g, scene, al, lambdas, grid, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
+      Timer t;
+      e->run(0, bin, wi);
+      cost("wavelengths", std::to_string(nl) + " λ, Al WS (shared rays, per-λ phases)", t.seconds());
+    }
   }
   return 0;
 }

@@ -119,6 +119,11 @@ def test_statistical_job():
         gm = np.array(refl["coherent"]) + np.array(refl["multiple"])
         assert np.all(gm > 0.3) and np.all(gm < 1.0), gm  # gold at 450 and 650 nm
         assert np.all(np.array(refl["multiple"]) > 0), refl
+    # Lobe and albedo plots from the file (scripts/plot_lobes.py).
+    png = os.path.join(TMP, "lobes.png")
+    subprocess.run([sys.executable, os.path.join(SRC, "scripts", "plot_lobes.py"), os.path.join(TMP, "s2.h5"), "-o", png,
+                    "--theta-i", "0", "45", "85"], check=True, timeout=120)
+    assert open(png, "rb").read(8) == b"\x89PNG\r\n\x1a\n"
     # The shipped examples parse.
     for name in ("rough-gold.toml", "chandrasekhar.toml"):
         run(["check", os.path.join(SRC, "jobs", "statistical", name)])
