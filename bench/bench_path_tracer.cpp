@@ -173,17 +173,24 @@ SmithFixture& smithFixture() {
   return f;
 }
 
+// Paths per second of a geometric estimator (PathTracer or MicroflakeWalk) at θi = 30°.
+template <typename Estimator>
+double pathsPerSecond(benchmark::State& state, const Estimator& est, uint64_t paths, const DirectionGrid& grid) {
+  const Vec3 wi = sphericalDirection(radians(30.0), 0);
+  double seconds = 0;
+  int tile = 0;
+  for (auto _ : state) seconds += est.run(tile++, 0, grid.binOf(wi), wi).seconds;
+  const double rate = double(paths) * state.iterations() / seconds;
+  state.counters["paths_per_s"] = rate;
+  return rate;
+}
+
 void BM_MicroflakeWalkPaths(benchmark::State& state) {
   SmithFixture& f = smithFixture();
   MicroflakeSettings s;
   s.paths = uint64_t(state.range(0));
   MicroflakeWalk walk(f.dist, f.al, {0.55}, f.grid, s);
-  const Vec3 wi = sphericalDirection(radians(30.0), 0);
-  double seconds = 0;
-  int tile = 0;
-  for (auto _ : state) seconds += walk.run(tile++, 0, f.grid.binOf(wi), wi).seconds;
-  gWalkPaths = double(s.paths) * state.iterations() / seconds;
-  state.counters["paths_per_s"] = gWalkPaths;
+  gWalkPaths = pathsPerSecond(state, walk, s.paths, f.grid);
 }
 BENCHMARK(BM_MicroflakeWalkPaths)->Arg(1 << 20)->Unit(benchmark::kMillisecond)->UseRealTime();
 
@@ -192,12 +199,7 @@ void BM_ExplicitHeightfieldPaths(benchmark::State& state) {
   PathTracerSettings s;
   s.paths = uint64_t(state.range(0));
   PathTracer tracer(*f.scene, f.al, {0.55}, f.grid, s);
-  const Vec3 wi = sphericalDirection(radians(30.0), 0);
-  double seconds = 0;
-  int tile = 0;
-  for (auto _ : state) seconds += tracer.run(tile++, 0, f.grid.binOf(wi), wi).seconds;
-  gExplicitPaths = double(s.paths) * state.iterations() / seconds;
-  state.counters["paths_per_s"] = gExplicitPaths;
+  gExplicitPaths = pathsPerSecond(state, tracer, s.paths, f.grid);
 }
 BENCHMARK(BM_ExplicitHeightfieldPaths)->Arg(1 << 20)->Unit(benchmark::kMillisecond)->UseRealTime();
 

@@ -1,6 +1,5 @@
 #include "microflake/microflake_walk.h"
 
-#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -132,22 +131,11 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
 TileResult MicroflakeWalk::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
                                const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
   if (exactDirection) exactDirection = normalize(*exactDirection);
-  const auto t0 = std::chrono::steady_clock::now();
-  PathTallyPlan plan;
-  plan.grid = &grid_;
-  plan.nLambda = int(lambda_um_.size());
-  plan.groups = groups_;
-  plan.paths = settings_.paths;
-  plan.firstPath = firstPath;
-  plan.components = {Component::Coherent, Component::Multiple};
-  TileResult r = runPaths(
+  const PathTallyPlan plan{tile,     incidenceIndex, incidenceBin,    &grid_, int(lambda_um_.size()),
+                           groups_,  settings_.paths, firstPath, {Component::Coherent, Component::Multiple}};
+  return runPaths(
       plan, [&](uint64_t p, int g, PathChunk& c) { walk(tile, incidenceBin, exactDirection, p, g, c, nullptr); },
       progress);
-  r.tile = tile;
-  r.incidenceIndex = incidenceIndex;
-  r.incidenceBin = incidenceBin;
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return r;
 }
 
 MicroflakeWalk::PathRecord MicroflakeWalk::replay(int tile, int incidenceBin, uint64_t path, int group,

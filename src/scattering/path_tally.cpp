@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <chrono>
 #include <cmath>
 
 namespace mbsdf {
@@ -20,10 +21,14 @@ std::vector<std::vector<int>> wavelengthGroups(int nLambda, bool shared) {
 
 TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
                     const std::function<void(uint64_t)>& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = *plan.grid;
   const int nL = plan.nLambda, nB = grid.binCount();
   const uint64_t N = plan.paths;
   TileResult r;
+  r.tile = plan.tile;
+  r.incidenceIndex = plan.incidenceIndex;
+  r.incidenceBin = plan.incidenceBin;
   r.nLambda = nL;
   r.nBins = nB;
   r.samples = N;
@@ -93,6 +98,7 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
     r.leaked[l] /= dN;
     r.missed[l] /= dN;
   }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
 

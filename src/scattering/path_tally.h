@@ -33,6 +33,8 @@ class PathChunk {
 };
 
 struct PathTallyPlan {
+  // The tile these paths belong to (copied into the result).
+  int tile = 0, incidenceIndex = 0, incidenceBin = 0;
   const DirectionGrid* grid = nullptr;
   int nLambda = 0;
   std::vector<std::vector<int>> groups;  // wavelengths that share one path
@@ -41,7 +43,8 @@ struct PathTallyPlan {
   std::vector<Component> components;     // tallied components
 };
 
-// Runs `trace(path, group, chunk)` for every path of every group and reduces. `progress(done)` is
+// Runs `trace(path, group, chunk)` for every path of every group and reduces; the result carries
+// the plan's tile identity and the wall time. `progress(done)` is
 // called from the calling thread between batches with the number of paths done over all groups
 // (it may throw to abandon the tile).
 using PathFunction = std::function<void(uint64_t path, int group, PathChunk& out)>;

@@ -1,6 +1,5 @@
 #include "scattering/path_tracer.h"
 
-#include <chrono>
 #include <cmath>
 
 #include "core/rng.h"
@@ -136,24 +135,13 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
 TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
                            const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
   if (exactDirection) exactDirection = normalize(*exactDirection);
-  auto t0 = std::chrono::steady_clock::now();
-  PathTallyPlan plan;
-  plan.grid = &grid_;
-  plan.nLambda = int(lambda_um_.size());
-  plan.groups = groups_;
-  plan.paths = settings_.paths;
-  plan.firstPath = firstPath;
-  plan.components = {Component::Coherent, Component::Multiple};
+  PathTallyPlan plan{tile,    incidenceIndex,  incidenceBin, &grid_, int(lambda_um_.size()),
+                     groups_, settings_.paths, firstPath,    {Component::Coherent, Component::Multiple}};
   if (settings_.tallyGeoMasked) plan.components.push_back(Component::GeoMasked);
-  TileResult r = runPaths(
+  return runPaths(
       plan,
       [&](uint64_t p, int g, PathChunk& c) { tracePath(tile, incidenceBin, exactDirection, p, g, c, nullptr); },
       progress);
-  r.tile = tile;
-  r.incidenceIndex = incidenceIndex;
-  r.incidenceBin = incidenceBin;
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return r;
 }
 
 PathTracer::PathRecord PathTracer::replay(int tile, int incidenceBin, uint64_t path, int group,

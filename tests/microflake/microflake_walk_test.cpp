@@ -65,6 +65,24 @@ void expectBinsMatch(const TileResult& r, const DirectionGrid& g, Component c,
   EXPECT_GE(within3, 0.95 * compared) << what << ": " << within3 << " of " << compared << " bins within 3 SE";
 }
 
+// All orders (coherent + multiple, errors combined) against Chandrasekhar's Eq. 30 for albedo a.
+void expectChandrasekharEq30(const WalkCase& c, const TileResult& r, const Vec3& wi, double a, const std::string& what) {
+  TileResult sum = r;
+  for (int b = 0; b < r.nBins; ++b) {
+    sum.at(Component::Coherent, 0, b) += r.at(Component::Multiple, 0, b);
+    sum.stdError[0][b] = std::hypot(r.stdError[0][b], r.stdError[int(Component::Multiple)][b]);
+  }
+  const double Hi = chandrasekharH(wi.z, a);
+  auto H = hTable(a);
+  expectBinsMatch(sum, c.grid, Component::Coherent,
+                  [&](int b) {
+                    return c.grid.isUpper(b) ? test::binAverage(c.grid, b, [&](const Vec3& wo) {
+                      return a / (4 * kPi) * Hi * H(wo.z) / (wi.z + wo.z);
+                    }) : 0.0;
+                  },
+                  20, what);
+}
+
 // Depth 1 = F D G2 / (4 cos θi cos θo) with the height-correlated G2 (Heitz 2014 Eq. 99).
 TEST(MicroflakeWalk, SingleScatteringEqualsMicrofacetBRDF) {
   const std::vector<std::pair<std::string, Ndf>> cases = {{"beckmann", BeckmannNdf{0.5, 0.5}},
@@ -220,21 +238,7 @@ TEST(MicroflakeWalk, ConstantNdfIsChandrasekharsMedium) {
                       }) : 0.0;
                     },
                     20, "Eq. 25");
-    // All orders: coherent + multiple.
-    TileResult sum = r;
-    for (int b = 0; b < r.nBins; ++b) {
-      sum.at(Component::Coherent, 0, b) += r.at(Component::Multiple, 0, b);
-      sum.stdError[0][b] = std::hypot(r.stdError[0][b], r.stdError[int(Component::Multiple)][b]);
-    }
-    const double Hi = chandrasekharH(wi.z, a);
-    auto H = hTable(a);
-    expectBinsMatch(sum, c.grid, Component::Coherent,
-                    [&](int b) {
-                      return c.grid.isUpper(b) ? test::binAverage(c.grid, b, [&](const Vec3& wo) {
-                        return a / (4 * kPi) * Hi * H(wo.z) / (wi.z + wo.z);
-                      }) : 0.0;
-                    },
-                    20, "Eq. 30");
+    expectChandrasekharEq30(c, r, wi, a, "Eq. 30");
   }
 }
 
@@ -258,20 +262,7 @@ TEST(MicroflakeWalk, VonMisesFisherLimits) {
   const double a = 0.8;
   WalkCase c(VonMisesFisherNdf{1e-3}, test::material("mirror"), ThetaPhiGrid{6, 4}, settings(400000, 5000, a));
   const Vec3 wi = sphericalDirection(radians(30.0), 0);
-  TileResult r = c.walk.run(0, 0, c.grid.binOf(wi), wi);
-  for (int b = 0; b < r.nBins; ++b) {
-    r.at(Component::Coherent, 0, b) += r.at(Component::Multiple, 0, b);
-    r.stdError[0][b] = std::hypot(r.stdError[0][b], r.stdError[int(Component::Multiple)][b]);
-  }
-  const double Hi = chandrasekharH(wi.z, a);
-  auto H = hTable(a);
-  expectBinsMatch(r, c.grid, Component::Coherent,
-                  [&](int b) {
-                    return c.grid.isUpper(b) ? test::binAverage(c.grid, b, [&](const Vec3& wo) {
-                      return a / (4 * kPi) * Hi * H(wo.z) / (wi.z + wo.z);
-                    }) : 0.0;
-                  },
-                  20, "vMF κ=1e-3 vs Eq. 30");
+  expectChandrasekharEq30(c, c.walk.run(0, 0, c.grid.binOf(wi), wi), wi, a, "vMF κ=1e-3 vs Eq. 30");
 }
 
 // The general path (tabulated NDF: numeric σ table, rejection sampling) reproduces the closed-form

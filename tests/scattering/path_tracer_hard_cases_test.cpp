@@ -11,18 +11,7 @@ using namespace mbsdf;
 using namespace mbsdf::test;
 
 namespace {
-void expectFinite(const TileResult& r) {
-  for (int c = 0; c < kComponentCount; ++c) {
-    for (double v : r.value[c]) ASSERT_TRUE(std::isfinite(v) && v >= 0);
-    for (double v : r.stdError[c]) ASSERT_TRUE(std::isfinite(v) && v >= 0);
-  }
-}
-double total(const TileResult& r, const DirectionGrid& g, int l) {
-  double e = 0;
-  for (bool up : {true, false})
-    for (Component c : {Component::Coherent, Component::Multiple}) e += energy(r, g, c, l, up);
-  return e + r.truncated[l] + r.leaked[l] + r.missed[l];
-}
+double total(const TileResult& r, const DirectionGrid& g, int l) { return pathTotal(r, g, l); }
 }  // namespace
 
 TEST(HardCases, GrazingIncidenceOnFlatAndRoughSurfaces) {

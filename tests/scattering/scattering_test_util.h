@@ -56,4 +56,21 @@ inline double energyStdError(const TileResult& r, const DirectionGrid& g, Compon
   return std::sqrt(v);
 }
 
+// No NaN, Inf or negative value in any table, error or energy fraction of a tile.
+inline void expectFinite(const TileResult& r) {
+  for (int c = 0; c < kComponentCount; ++c) {
+    for (double v : r.value[c]) ASSERT_TRUE(std::isfinite(v) && v >= 0);
+    for (double v : r.stdError[c]) ASSERT_TRUE(std::isfinite(v) && v >= 0);
+  }
+  for (const auto* v : {&r.truncated, &r.leaked, &r.missed})
+    for (double x : *v) ASSERT_TRUE(std::isfinite(x) && x >= 0 && x <= 1);
+}
+// Every fate of the paths of wavelength l: tallied (both hemispheres), truncated, leaked, missed.
+inline double pathTotal(const TileResult& r, const DirectionGrid& g, int l) {
+  double e = r.truncated[l] + r.leaked[l] + r.missed[l];
+  for (bool up : {true, false})
+    for (Component c : {Component::Coherent, Component::Multiple}) e += energy(r, g, c, l, up);
+  return e;
+}
+
 }  // namespace mbsdf::test
