@@ -78,6 +78,12 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
                 {"path_seconds_per_wavelength_group", pr.seconds / groups},
                 {"scene_build_seconds", sceneSeconds},
                 {"cores", cores}};
+  if (job.targetRelError > 0) {
+    // Progressive sampling: the estimate above is the first round; the budget bounds the rest.
+    p["progressive"] = {{"target_rel_error", job.targetRelError},
+                        {"max_paths_per_slice", job.maxPathsPerSlice},
+                        {"path_seconds_per_tile_max", pathSeconds * double(job.maxPathsPerSlice) / double(job.pathsPerSlice)}};
+  }
   p["estimate"] = {{"seconds_per_tile", tileSeconds},
                    {"path_seconds_per_tile", pathSeconds},
                    {"wave_seconds_per_tile", waveSeconds},
@@ -121,8 +127,10 @@ std::string formatPlan(const nlohmann::json& p) {
     return s.str();
   };
   o << "job:            " << p["job"].get<std::string>() << "\n"
-    << "geometry:       " << p["geometry"]["kind"].get<std::string>() << ", " << p["geometry"]["triangles"]
-    << " triangles\n"
+    << "geometry:       " << p["geometry"]["kind"].get<std::string>() << ", "
+    << (p["geometry"].contains("model") ? p["geometry"]["model"].get<std::string>()
+                                        : p["geometry"]["triangles"].dump() + " triangles")
+    << "\n"
     << "material:       " << p["material"].get<std::string>() << "\n"
     << "components:     " << p["components"].dump() << (p.contains("wave_estimator") ? " (wave estimator " + p["wave_estimator"].get<std::string>() + ")" : "") << "\n"
     << "grid:           " << p["grid"]["kind"].get<std::string>() << ", " << p["grid"]["bins"] << " bins; "
@@ -135,6 +143,11 @@ std::string formatPlan(const nlohmann::json& p) {
     << " s, wave " << n(p["estimate"]["wave_seconds_per_tile"]) << " s) on these cores\n"
     << "total:          " << n(p["estimate"]["core_hours"]) << " core-hours; "
     << n(p["estimate"]["wall_seconds_on_these_cores"]) << " s on these cores\n"
+    << (p.contains("progressive")
+            ? "progressive:    target " + n(p["progressive"]["target_rel_error"]) + " relative error; at most " +
+                  n(p["progressive"]["path_seconds_per_tile_max"]) + " s of paths per tile (" +
+                  p["progressive"]["max_paths_per_slice"].dump() + " paths)\n"
+            : std::string())
     << "output:         " << gb(p["output_bytes_uncompressed"].get<double>()) << " uncompressed (upper bound)\n"
     << "memory / rank:  " << gb(p["memory_bytes_per_rank"].get<double>()) << "\n"
     << "suggested Slurm header:\n"
