@@ -30,6 +30,7 @@
 #include "microflake/ndf.h"
 #include "io/bsdf_file.h"
 #include "io/slice_export.h"
+#include "io/contact_sheet.h"
 #include "job/job.h"
 #include "job/plan.h"
 
@@ -175,6 +176,22 @@ int main(int argc, char** argv) {
   slice->add_option("--log2-max", log2Max, "false colour: upper end of the log2 scale")->capture_default_str();
   slice->add_option("-o,--output", outPath, "x.exr, x.png or x.csv")->required();
 
+  SheetRequest sheetReq;
+  std::string sheetModels, sheetThetas;
+  auto* sheet = app.add_subcommand("sheet", "contact sheet PNG: slices over incidence angles (columns) and models (rows)");
+  sheet->add_option("file", h5Path, "output HDF5 file")->required();
+  sheet->add_option("--models", sheetModels, "comma separated (default: the GS, GM, WS, WM the file can form)");
+  sheet->add_option("--theta-i", sheetThetas, "incidence angles in degrees, comma separated (default: every slice)");
+  sheet->add_option("--phi-i", sheetReq.phi_deg, "incidence azimuth (degrees)")->capture_default_str();
+  sheet->add_option("--size", sheetReq.cell.size, "cell height in pixels")->capture_default_str();
+  sheet->add_flag("--both", sheetReq.cell.both, "reflection and transmission side by side in each cell");
+  sheet->add_option("--style", sheetReq.cell.style, "true (CIE 1931 -> sRGB) or false (log2 false colour)")
+      ->check(CLI::IsMember({"true", "false"}))->capture_default_str();
+  sheet->add_option("--exposure", sheetReq.cell.exposure, "true colour: scale of the linear sRGB values")->capture_default_str();
+  sheet->add_option("--log2-min", sheetReq.cell.log2Min, "false colour: lower end of the log2 scale")->capture_default_str();
+  sheet->add_option("--log2-max", sheetReq.cell.log2Max, "false colour: upper end of the log2 scale")->capture_default_str();
+  sheet->add_option("-o,--output", outPath, "sheet.png")->required();
+
   auto* geometry = app.add_subcommand("geometry", "write the job's microgeometry patch as PLY");
   geometry->add_option("job", jobPath, "job file (TOML)")->required();
   geometry->add_option("-o,--output", outPath, "patch.ply")->required();
@@ -275,6 +292,30 @@ int main(int argc, char** argv) {
       int inc = exportSlice(f, req, outPath);
       std::cerr << "wrote " << outPath << " (incidence theta " << f.incidenceTheta(inc) << ", phi "
                 << f.incidencePhi(inc) << ")\n";
+      return 0;
+    }
+    if (sheet->parsed()) {
+      auto split = [](const std::string& s) {
+        std::vector<std::string> v;
+        std::stringstream ss(s);
+        for (std::string item; std::getline(ss, item, ',');)
+          if (!item.empty()) v.push_back(item);
+        return v;
+      };
+      sheetReq.models = split(sheetModels);
+      for (const auto& m : sheetReq.models)
+        if (!modelComponents(m)) throw InputError("--models: unknown model '" + m + "' (GS, GM, WS, WM or a component)");
+      for (const auto& t : split(sheetThetas)) {
+        size_t used = 0;
+        double v = std::stod(t, &used);
+        if (used != t.size() || !(v >= 0 && v <= 180)) throw InputError("--theta-i: '" + t + "' is not an angle in [0, 180]");
+        sheetReq.theta_deg.push_back(v);
+      }
+      if (!(sheetReq.cell.size >= 16 && sheetReq.cell.size <= 4096)) throw InputError("--size must be in [16, 4096]");
+      BsdfFileReader f(h5Path);
+      RgbImage img = renderContactSheet(f, sheetReq);
+      writePng(outPath, img);
+      std::cerr << "wrote " << outPath << " (" << img.width << " x " << img.height << ")\n";
       return 0;
     }
     if (geometry->parsed()) {

@@ -56,6 +56,64 @@ std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& mo
   return sum;
 }
 
+namespace {
+// Per pixel of the disk projection (W x S, W = 2S with `both`): the spectrum of the bin it falls in
+// (NaN outside the disk).
+std::vector<double> diskSpectra(const BsdfFileReader& file, const std::vector<double>& f, const SliceRequest& req) {
+  const DirectionGrid& grid = file.grid();
+  const int nL = int(file.wavelengths_nm().size()), nB = grid.binCount();
+  const int S = req.size, W = req.both ? 2 * S : S;
+  std::vector<double> spec(size_t(W) * S * nL, std::nan(""));
+  for (int j = 0; j < S; ++j)
+    for (int i = 0; i < W; ++i) {
+      const bool trans = req.both ? i >= S : req.transmission;
+      const int ii = i % S;
+      double x = -1 + 2.0 * (ii + 0.5) / S, y = 1 - 2.0 * (j + 0.5) / S;
+      double r2 = x * x + y * y;
+      if (r2 > 1) continue;
+      double z = std::sqrt(1 - r2);
+      int b = grid.binOf({x, y, trans ? -z : z});
+      for (int l = 0; l < nL; ++l) spec[(size_t(j) * W + i) * nL + l] = f[size_t(l) * nB + b];
+    }
+  return spec;
+}
+}  // namespace
+
+RgbImage renderSliceImage(const BsdfFileReader& file, const SliceRequest& req, int inc) {
+  const std::vector<double> f = modelSlice(file, req.model, inc);
+  const auto& lambda = file.wavelengths_nm();
+  const int nL = int(lambda.size());
+  const int S = req.size, W = req.both ? 2 * S : S;
+  SpectrumToColour colour(lambda);
+  const std::vector<double> spec = diskSpectra(file, f, req);
+  const int bar = req.style == "false" ? std::max(8, S / 16) : 0;
+  RgbImage img;
+  img.width = W;
+  img.height = S + bar;
+  img.rgb.assign(size_t(img.width) * img.height * 3, 0);
+  auto put = [&](int i, int j, const Colour3& c) {
+    for (int k = 0; k < 3; ++k) img.rgb[(size_t(j) * W + i) * 3 + k] = uint8_t(std::lround(std::clamp(c[k], 0.0, 1.0) * 255));
+  };
+  for (int j = 0; j < S; ++j)
+    for (int i = 0; i < W; ++i) {
+      const double* v = &spec[(size_t(j) * W + i) * nL];
+      if (std::isnan(v[0])) continue;
+      if (req.style == "false") {
+        double mean = 0;
+        for (int l = 0; l < nL; ++l) mean += v[l] / nL;
+        double t = mean > 0 ? (std::log2(mean) - req.log2Min) / (req.log2Max - req.log2Min) : 0.0;
+        put(i, j, falseColour(t));
+      } else {
+        Colour3 rgb = colour.linearSrgb(v);
+        for (double& c : rgb) c = srgbEncode(c * req.exposure);
+        put(i, j, rgb);
+      }
+    }
+  for (int j = S; j < S + bar; ++j)
+    for (int i = 0; i < W; ++i) put(i, j, falseColour((i + 0.5) / W));
+  return img;
+}
+
 int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::string& outPath) {
   int inc = file.nearestIncidence(req.theta_deg, req.phi_deg);
   if (!file.done(inc)) throw std::runtime_error("the slice nearest to the requested incidence is not computed yet");
@@ -68,19 +126,7 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
   if (ext == ".exr" || ext == ".png") {
     const int S = req.size, W = req.both ? 2 * S : S;
     SpectrumToColour colour(lambda);
-    // Per pixel: the spectrum of the bin it falls in (NaN outside the disk).
-    std::vector<double> spec(size_t(W) * S * nL, std::nan(""));
-    for (int j = 0; j < S; ++j)
-      for (int i = 0; i < W; ++i) {
-        const bool trans = req.both ? i >= S : req.transmission;
-        const int ii = i % S;
-        double x = -1 + 2.0 * (ii + 0.5) / S, y = 1 - 2.0 * (j + 0.5) / S;
-        double r2 = x * x + y * y;
-        if (r2 > 1) continue;
-        double z = std::sqrt(1 - r2);
-        int b = grid.binOf({x, y, trans ? -z : z});
-        for (int l = 0; l < nL; ++l) spec[(size_t(j) * W + i) * nL + l] = f[size_t(l) * nB + b];
-      }
+    const std::vector<double> spec = diskSpectra(file, f, req);
     if (ext == ".exr") {
       std::vector<ExrChannel> ch;
       for (int l = 0; l < nL; ++l) {
@@ -104,32 +150,7 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
       }
       writeExr(outPath, W, S, ch);
     } else {
-      const int bar = req.style == "false" ? std::max(8, S / 16) : 0;
-      RgbImage img;
-      img.width = W;
-      img.height = S + bar;
-      img.rgb.assign(size_t(img.width) * img.height * 3, 0);
-      auto put = [&](int i, int j, const Colour3& c) {
-        for (int k = 0; k < 3; ++k) img.rgb[(size_t(j) * W + i) * 3 + k] = uint8_t(std::lround(std::clamp(c[k], 0.0, 1.0) * 255));
-      };
-      for (int j = 0; j < S; ++j)
-        for (int i = 0; i < W; ++i) {
-          const double* v = &spec[(size_t(j) * W + i) * nL];
-          if (std::isnan(v[0])) continue;
-          if (req.style == "false") {
-            double mean = 0;
-            for (int l = 0; l < nL; ++l) mean += v[l] / nL;
-            double t = mean > 0 ? (std::log2(mean) - req.log2Min) / (req.log2Max - req.log2Min) : 0.0;
-            put(i, j, falseColour(t));
-          } else {
-            Colour3 rgb = colour.linearSrgb(v);
-            for (double& c : rgb) c = srgbEncode(c * req.exposure);
-            put(i, j, rgb);
-          }
-        }
-      for (int j = S; j < S + bar; ++j)
-        for (int i = 0; i < W; ++i) put(i, j, falseColour((i + 0.5) / W));
-      writePng(outPath, img);
+      writePng(outPath, renderSliceImage(file, req, inc));
     }
   } else if (ext == ".csv") {
     std::ofstream o(outPath);

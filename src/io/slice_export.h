@@ -6,6 +6,7 @@
 
 #include "core/colour.h"
 #include "io/bsdf_file.h"
+#include "io/png_image.h"
 
 namespace mbsdf {
 
@@ -32,6 +33,9 @@ std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& mo
 //  .csv: one row per exit bin.
 // Returns the incidence index used.
 int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::string& outPath);
+
+// The PNG picture of a slice (the .png branch of exportSlice) for incidence index `inc`.
+RgbImage renderSliceImage(const BsdfFileReader& file, const SliceRequest& req, int inc);
 
 // The false-colour map (viridis) at t in [0, 1], and the sRGB transfer function.
 Colour3 falseColour(double t);

@@ -12,9 +12,13 @@ import os
 import shutil
 import subprocess
 import sys
+import struct
 import tempfile
 
 import h5py
+import matplotlib
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np
 
 BUILD, SRC, NAME = sys.argv[1], sys.argv[2], sys.argv[3]
@@ -332,6 +336,19 @@ def test_slice_export():
     r = run(["slice", "s.h5", "--theta-i", "20", "--model", "lost", "-o", "x.csv"], expect=2)
     assert "lost" in r.stderr, r.stderr
     print("slice: CSV albedo", albedo, "matches info", expected)
+    # Contact sheet: 4 models (rows) x 5 slices (columns) of 64-pixel cells with labelled margins.
+    run(["sheet", "s.h5", "-o", "sheet.png", "--size", "64"])
+    png = open(os.path.join(TMP, "sheet.png"), "rb").read()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    w, h = struct.unpack(">II", png[16:24])
+    assert (w, h) == (24 + 5 * 68, 15 + 4 * 68), (w, h)
+    img = plt.imread(os.path.join(TMP, "sheet.png"))
+    assert img[15:, :20].max() > 0.9, "row labels missing"   # white glyphs in the left margin
+    assert img[:15, 24:].max() > 0.9, "column labels missing"
+    run(["sheet", "s.h5", "-o", "sheet2.png", "--models", "GM,WS", "--theta-i", "0,45", "--style", "false"])
+    r = run(["sheet", "s.h5", "-o", "x.png", "--models", "XX"], expect=2)
+    assert "--models" in r.stderr, r.stderr
+    print("sheet:", (w, h))
 
 
 def test_bad_input():

@@ -1,0 +1,129 @@
+#include "io/contact_sheet.h"
+
+#include <cmath>
+#include <map>
+#include <set>
+#include <stdexcept>
+
+#include "core/vecmath.h"
+#include "scattering/components.h"
+
+namespace mbsdf {
+
+namespace {
+
+// 5 x 7 glyphs, one string per row ('#' = ink).
+const std::map<std::string, std::array<const char*, 7>>& font() {
+  static const std::map<std::string, std::array<const char*, 7>> f = {
+      {"0", {" ### ", "#   #", "#  ##", "# # #", "##  #", "#   #", " ### "}},
+      {"1", {"  #  ", " ##  ", "  #  ", "  #  ", "  #  ", "  #  ", " ### "}},
+      {"2", {" ### ", "#   #", "    #", "   # ", "  #  ", " #   ", "#####"}},
+      {"3", {"#####", "   # ", "  #  ", "   # ", "    #", "#   #", " ### "}},
+      {"4", {"   # ", "  ## ", " # # ", "#  # ", "#####", "   # ", "   # "}},
+      {"5", {"#####", "#    ", "#### ", "    #", "    #", "#   #", " ### "}},
+      {"6", {"  ## ", " #   ", "#    ", "#### ", "#   #", "#   #", " ### "}},
+      {"7", {"#####", "    #", "   # ", "  #  ", " #   ", " #   ", " #   "}},
+      {"8", {" ### ", "#   #", "#   #", " ### ", "#   #", "#   #", " ### "}},
+      {"9", {" ### ", "#   #", "#   #", " ####", "    #", "   # ", " ##  "}},
+      {".", {"     ", "     ", "     ", "     ", "     ", " ##  ", " ##  "}},
+      {"-", {"     ", "     ", "     ", "#####", "     ", "     ", "     "}},
+      {"°", {" ##  ", "#  # ", "#  # ", " ##  ", "     ", "     ", "     "}},
+      {"G", {" ### ", "#   #", "#    ", "# ###", "#   #", "#   #", " ####"}},
+      {"S", {" ####", "#    ", "#    ", " ### ", "    #", "    #", "#### "}},
+      {"M", {"#   #", "## ##", "# # #", "# # #", "#   #", "#   #", "#   #"}},
+      {"W", {"#   #", "#   #", "#   #", "# # #", "# # #", "## ##", "#   #"}},
+      {"C", {" ### ", "#   #", "#    ", "#    ", "#    ", "#   #", " ### "}},
+      {"I", {" ### ", "  #  ", "  #  ", "  #  ", "  #  ", "  #  ", " ### "}},
+      {"L", {"#    ", "#    ", "#    ", "#    ", "#    ", "#    ", "#####"}},
+  };
+  return f;
+}
+
+// Short row labels for single components (the font has no lower case).
+std::string label(const std::string& model) {
+  static const std::map<std::string, std::string> m = {
+      {"coherent", "C"}, {"incoherent", "I"}, {"multiple", "M"}, {"lost", "L"}};
+  auto it = m.find(model);
+  return it == m.end() ? model : it->second;
+}
+
+}  // namespace
+
+void drawText(RgbImage& img, int x, int y, const std::string& text, int scale, uint8_t grey) {
+  int cx = x;
+  for (size_t i = 0; i < text.size();) {
+    // UTF-8 "°" is two bytes.
+    std::string g = (uint8_t(text[i]) == 0xC2 && i + 1 < text.size()) ? text.substr(i, 2) : text.substr(i, 1);
+    i += g.size();
+    auto it = font().find(g);
+    if (it != font().end())
+      for (int r = 0; r < 7; ++r)
+        for (int c = 0; c < 5; ++c)
+          if (it->second[r][c] == '#')
+            for (int dy = 0; dy < scale; ++dy)
+              for (int dx = 0; dx < scale; ++dx) {
+                const int px = cx + c * scale + dx, py = y + r * scale + dy;
+                if (px < 0 || py < 0 || px >= img.width || py >= img.height) continue;
+                for (int k = 0; k < 3; ++k) img.rgb[(size_t(py) * img.width + px) * 3 + k] = grey;
+              }
+    cx += 6 * scale;
+  }
+}
+
+RgbImage renderContactSheet(const BsdfFileReader& file, const SheetRequest& req) {
+  std::vector<std::string> models = req.models;
+  if (models.empty()) {
+    const auto have = file.components();
+    const std::set<std::string> comps(have.begin(), have.end());
+    for (const char* m : {"GS", "GM", "WS", "WM"}) {
+      bool ok = true;
+      const std::vector<Component> need = *modelComponents(m);  // a named copy: no dangling temporary
+      for (Component c : need) ok = ok && comps.count(componentName(c));
+      if (ok) models.push_back(m);
+    }
+  }
+  std::vector<int> columns;
+  if (req.theta_deg.empty()) {
+    for (int i = 0; i < file.incidenceCount(); ++i)
+      if (file.done(i)) columns.push_back(i);
+  } else {
+    for (double t : req.theta_deg) {
+      const int i = file.nearestIncidence(t, req.phi_deg);
+      if (!file.done(i)) throw std::runtime_error("the slice nearest to θi = " + std::to_string(t) + "° is not computed yet");
+      columns.push_back(i);
+    }
+  }
+  if (models.empty() || columns.empty()) throw std::runtime_error("nothing to draw (no model or no computed slice)");
+
+  std::vector<std::vector<RgbImage>> cells(models.size());
+  for (size_t r = 0; r < models.size(); ++r)
+    for (int inc : columns) {
+      SliceRequest c = req.cell;
+      c.model = models[r];
+      cells[r].push_back(renderSliceImage(file, c, inc));
+    }
+  const int cw = cells[0][0].width, ch = cells[0][0].height, gap = 4, scale = std::max(1, req.cell.size / 64);
+  const int left = 4 + 6 * scale * 2 + 8, top = 7 * scale + 8;
+  RgbImage sheet;
+  sheet.width = left + int(columns.size()) * (cw + gap);
+  sheet.height = top + int(models.size()) * (ch + gap);
+  sheet.rgb.assign(size_t(sheet.width) * sheet.height * 3, 40);
+  for (size_t r = 0; r < models.size(); ++r) {
+    const int y0 = top + int(r) * (ch + gap);
+    drawText(sheet, 4, y0 + ch / 2 - 7 * scale / 2, label(models[r]), scale, 235);
+    for (size_t c = 0; c < columns.size(); ++c) {
+      const int x0 = left + int(c) * (cw + gap);
+      const RgbImage& cell = cells[r][c];
+      for (int j = 0; j < ch; ++j)
+        std::copy_n(&cell.rgb[size_t(j) * cw * 3], size_t(cw) * 3, &sheet.rgb[(size_t(y0 + j) * sheet.width + x0) * 3]);
+    }
+  }
+  for (size_t c = 0; c < columns.size(); ++c) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.0f°", file.incidenceTheta(columns[c]));
+    drawText(sheet, left + int(c) * (cw + gap) + 2, 4, buf, scale, 235);
+  }
+  return sheet;
+}
+
+}  // namespace mbsdf
