@@ -1,5 +1,7 @@
 #include "io/slice_export.h"
 
+#include <optional>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -84,7 +86,9 @@ RgbImage renderSliceImage(const BsdfFileReader& file, const SliceRequest& req, i
   const auto& lambda = file.wavelengths_nm();
   const int nL = int(lambda.size());
   const int S = req.size, W = req.both ? 2 * S : S;
-  SpectrumToColour colour(lambda);
+  // True colour needs visible wavelengths; false colour (log2 of the spectral mean) works for any.
+  std::optional<SpectrumToColour> colour;
+  if (req.style != "false") colour.emplace(lambda);
   const std::vector<double> spec = diskSpectra(file, f, req);
   const int bar = req.style == "false" ? std::max(8, S / 16) : 0;
   RgbImage img;
@@ -104,7 +108,7 @@ RgbImage renderSliceImage(const BsdfFileReader& file, const SliceRequest& req, i
         double t = mean > 0 ? (std::log2(mean) - req.log2Min) / (req.log2Max - req.log2Min) : 0.0;
         put(i, j, falseColour(t));
       } else {
-        Colour3 rgb = colour.linearSrgb(v);
+        Colour3 rgb = colour->linearSrgb(v);
         for (double& c : rgb) c = srgbEncode(c * req.exposure);
         put(i, j, rgb);
       }
@@ -125,7 +129,12 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
   std::string ext = std::filesystem::path(outPath).extension().string();
   if (ext == ".exr" || ext == ".png") {
     const int S = req.size, W = req.both ? 2 * S : S;
-    SpectrumToColour colour(lambda);
+    // R, G, B and Y channels only when some wavelength is visible (an 850 nm job has none).
+    std::optional<SpectrumToColour> colour;
+    try {
+      colour.emplace(lambda);
+    } catch (const std::invalid_argument&) {
+    }
     const std::vector<double> spec = diskSpectra(file, f, req);
     if (ext == ".exr") {
       std::vector<ExrChannel> ch;
@@ -134,7 +143,9 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
         std::snprintf(name, sizeof name, "%.1fnm", lambda[l]);
         ch.push_back({name, std::vector<float>(size_t(W) * S, 0.f)});
       }
-      for (const char* n : {"mean", "R", "G", "B", "Y"}) ch.push_back({n, std::vector<float>(size_t(W) * S, 0.f)});
+      ch.push_back({"mean", std::vector<float>(size_t(W) * S, 0.f)});
+      if (colour)
+        for (const char* n : {"R", "G", "B", "Y"}) ch.push_back({n, std::vector<float>(size_t(W) * S, 0.f)});
       for (size_t p = 0; p < size_t(W) * S; ++p) {
         const double* v = &spec[p * nL];
         if (std::isnan(v[0])) continue;
@@ -143,8 +154,9 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
           ch[l].pixels[p] = float(v[l]);
           mean += v[l] / nL;
         }
-        Colour3 rgb = colour.linearSrgb(v), xyz = colour.xyz(v);
         ch[nL].pixels[p] = float(mean);
+        if (!colour) continue;
+        Colour3 rgb = colour->linearSrgb(v), xyz = colour->xyz(v);
         for (int c = 0; c < 3; ++c) ch[nL + 1 + c].pixels[p] = float(rgb[c]);
         ch[nL + 4].pixels[p] = float(xyz[1]);
       }

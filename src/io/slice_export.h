@@ -27,8 +27,9 @@ std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& mo
 
 // Writes by extension, on the paper's disk projection (x = sin θ cos φ, y = sin θ sin φ, +y up):
 //  .exr: float channels "<λ>nm" per wavelength, "mean" (over λ), "R", "G", "B" (linear sRGB of the
-//        spectrum through the CIE 1931 matching functions) and "Y";
-//  .png: true colour (sRGB, gamma-encoded, × exposure) or false colour: log2 of the spectral mean
+//        spectrum through the CIE 1931 matching functions) and "Y" (these four only when a
+//        wavelength is visible);
+//  .png: true colour (sRGB, gamma-encoded, × exposure; visible wavelengths needed) or false colour: log2 of the spectral mean
 //        on [log2Min, log2Max] with a colour bar along the bottom (the paper's Fig. 5 scale);
 //  .csv: one row per exit bin.
 // Returns the incidence index used.
