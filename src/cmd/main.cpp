@@ -31,6 +31,7 @@
 #include "io/bsdf_file.h"
 #include "io/slice_export.h"
 #include "io/contact_sheet.h"
+#include "render/preview.h"
 #include "job/job.h"
 #include "job/plan.h"
 
@@ -192,6 +193,19 @@ int main(int argc, char** argv) {
   sheet->add_option("--log2-max", sheetReq.cell.log2Max, "false colour: upper end of the log2 scale")->capture_default_str();
   sheet->add_option("-o,--output", outPath, "sheet.png")->required();
 
+  RenderRequest renderReq;
+  std::string renderModels;
+  auto* render = app.add_subcommand("render", "preview PNG: a sphere with the tabulated BSDF per model, directional light + environment");
+  render->add_option("file", h5Path, "output HDF5 file")->required();
+  render->add_option("--models", renderModels, "comma separated (default: the GS, GM, WS, WM the file can form)");
+  render->add_option("--size", renderReq.size, "pixels per sphere")->capture_default_str();
+  render->add_option("--light-theta", renderReq.lightTheta_deg, "light direction, polar angle (degrees)")->capture_default_str();
+  render->add_option("--light-phi", renderReq.lightPhi_deg, "light direction, azimuth (degrees)")->capture_default_str();
+  render->add_option("--irradiance", renderReq.lightIrradiance, "light irradiance E")->capture_default_str();
+  render->add_option("--environment", renderReq.environment, "uniform environment radiance (0: light only)")->capture_default_str();
+  render->add_option("--exposure", renderReq.exposure, "scale of the linear sRGB values")->capture_default_str();
+  render->add_option("-o,--output", outPath, "render.png")->required();
+
   auto* geometry = app.add_subcommand("geometry", "write the job's microgeometry patch as PLY");
   geometry->add_option("job", jobPath, "job file (TOML)")->required();
   geometry->add_option("-o,--output", outPath, "patch.ply")->required();
@@ -292,6 +306,23 @@ int main(int argc, char** argv) {
       int inc = exportSlice(f, req, outPath);
       std::cerr << "wrote " << outPath << " (incidence theta " << f.incidenceTheta(inc) << ", phi "
                 << f.incidencePhi(inc) << ")\n";
+      return 0;
+    }
+    if (render->parsed()) {
+      std::stringstream ss(renderModels);
+      for (std::string item; std::getline(ss, item, ',');) {
+        if (item.empty()) continue;
+        if (!modelComponents(item)) throw InputError("--models: unknown model '" + item + "' (GS, GM, WS, WM or a component)");
+        renderReq.models.push_back(item);
+      }
+      if (!(renderReq.size >= 16 && renderReq.size <= 4096)) throw InputError("--size must be in [16, 4096]");
+      if (!(renderReq.lightTheta_deg >= 0 && renderReq.lightTheta_deg <= 180)) throw InputError("--light-theta must be in [0, 180]");
+      if (!(renderReq.environment >= 0) || !(renderReq.lightIrradiance >= 0) || !(renderReq.exposure > 0))
+        throw InputError("--environment and --irradiance must be >= 0, --exposure > 0");
+      BsdfFileReader f(h5Path);
+      RgbImage img = renderPreview(f, renderReq);
+      writePng(outPath, img);
+      std::cerr << "wrote " << outPath << " (" << img.width << " x " << img.height << ")\n";
       return 0;
     }
     if (sheet->parsed()) {

@@ -351,6 +351,58 @@ def test_slice_export():
     print("sheet:", (w, h))
 
 
+def test_render():
+    """`render` of a flat-mirror BSDF under a directional light, no environment: black except the
+    highlight, which sits where the sphere's normal bisects the light and the view (within the
+    table's bin resolution)."""
+    job = os.path.join(TMP, "mirror.toml")
+    open(job, "w").write("""[geometry]
+kind = "flat"
+[material]
+name = "mirror"
+[spectrum]
+wavelengths_nm = [550.0]
+[directions]
+n_theta = 18
+n_phi = 36
+incidence = "all"
+[effects]
+components = ["coherent", "multiple"]
+[sampling]
+paths_per_slice = 2000
+[output]
+path = "mirror.h5"
+""")
+    run(["run", job], timeout=600)
+    size = 128
+    # Light at θ = 45°, φ = 5°: the highlight's local incidence (22.5°, 4.7°) is inside a 5° x 10°
+    # bin. (At θ = 40°, φ = 0 it sits on bin edges, where the mirror of the incidence bin and the
+    # exit bin of ωo never coincide: a tabulated mirror has no highlight there.)
+    run(["render", "mirror.h5", "-o", "render.png", "--size", str(size), "--light-theta", "45", "--light-phi", "5",
+         "--environment", "0", "--models", "GS"])
+    img = plt.imread(os.path.join(TMP, "render.png"))
+    top = img.shape[0] - size
+    sphere = img[top:, :size, :3]
+    lit = np.argwhere(sphere.max(axis=2) > 0)
+    assert len(lit) > 0, "no highlight"
+    h = np.array([np.sin(np.radians(45)) * np.cos(np.radians(5)), np.sin(np.radians(45)) * np.sin(np.radians(5)),
+                  1 + np.cos(np.radians(45))])
+    h /= np.linalg.norm(h)
+    worst = 0.0
+    for j, i in lit:
+        x, y = -1 + 2 * (i + 0.5) / size, 1 - 2 * (j + 0.5) / size
+        n = np.array([x, y, np.sqrt(max(0.0, 1 - x * x - y * y))])
+        worst = max(worst, np.degrees(np.arccos(np.clip(n @ h, -1, 1))))
+    # Bins of 5° x 10°: exit and nearest-incidence quantisation move the reflected direction by up
+    # to ~12°, the normal by half of it.
+    assert worst < 8.0, f"lit pixels up to {worst:.1f}° from the highlight normal"
+    # The exact highlight pixel is lit.
+    ih, jh = int((h[0] + 1) / 2 * size), int((1 - h[1]) / 2 * size)
+    assert sphere[jh, ih].max() > 0, "the exact highlight is dark"
+    print(f"render: {len(lit)} lit pixels of {size * size}, all within {worst:.1f}° of the highlight normal")
+    run(["render", "mirror.h5", "-o", "render_all.png", "--size", "64"])
+
+
 def test_bad_input():
     out = os.path.join(TMP, "keep.h5")
     good = small_job(os.path.join(TMP, "good.toml"), output="keep.h5")

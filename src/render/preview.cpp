@@ -1,0 +1,136 @@
+#include "render/preview.h"
+
+#include <cmath>
+#include <map>
+#include <optional>
+#include <set>
+#include <stdexcept>
+
+#include "core/colour.h"
+#include "geometry/embree_scene.h"
+#include "io/contact_sheet.h"
+#include "io/slice_export.h"
+#include "scattering/components.h"
+
+namespace mbsdf {
+
+namespace {
+
+// A unit sphere as a closed triangle mesh (latitude-longitude, nLat x nLon).
+Microgeometry unitSphere(int nLat, int nLon) {
+  Microgeometry g;
+  g.sizeX = g.sizeY = 2.0;
+  g.periodic = false;
+  for (int i = 0; i <= nLat; ++i)
+    for (int j = 0; j < nLon; ++j) {
+      const double th = kPi * i / nLat, ph = 2 * kPi * j / nLon;
+      g.addVertex(sphericalDirection(th, ph));
+    }
+  auto v = [&](int i, int j) { return uint32_t(i * nLon + (j % nLon)); };
+  for (int i = 0; i < nLat; ++i)
+    for (int j = 0; j < nLon; ++j) {
+      // Counter-clockwise seen from outside (normals outward).
+      if (i > 0) g.triangles.push_back({v(i, j), v(i + 1, j), v(i, j + 1)});
+      if (i + 1 < nLat) g.triangles.push_back({v(i, j + 1), v(i + 1, j), v(i + 1, j + 1)});
+    }
+  return g;
+}
+
+}  // namespace
+
+RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
+  std::vector<std::string> models = req.models;
+  if (models.empty()) {
+    const auto have = file.components();
+    const std::set<std::string> comps(have.begin(), have.end());
+    for (const char* m : {"GS", "GM", "WS", "WM"}) {
+      const std::vector<Component> need = *modelComponents(m);
+      bool ok = true;
+      for (Component c : need) ok = ok && comps.count(componentName(c));
+      if (ok) models.push_back(m);
+    }
+  }
+  if (models.empty()) throw std::runtime_error("the file holds no complete model");
+  const DirectionGrid& grid = file.grid();
+  const auto& lambda = file.wavelengths_nm();
+  const int nL = int(lambda.size()), nB = grid.binCount();
+  std::optional<SpectrumToColour> colour;
+  try {
+    colour.emplace(lambda);
+  } catch (const std::invalid_argument&) {
+  }
+  const Microgeometry sphere = unitSphere(96, 192);
+  const PeriodicScene scene(sphere);
+  const Vec3 light = sphericalDirection(radians(req.lightTheta_deg), radians(req.lightPhi_deg));
+  const Vec3 view{0, 0, 1};
+
+  const int S = req.size, top = 7 * std::max(1, S / 96) + 8;
+  RgbImage img;
+  img.width = S * int(models.size());
+  img.height = S + top;
+  img.rgb.assign(size_t(img.width) * img.height * 3, 0);
+  for (size_t mi = 0; mi < models.size(); ++mi) {
+    std::map<int, std::vector<double>> slices;  // incidence index -> model table (nλ x nBins)
+    auto table = [&](int inc) -> const std::vector<double>& {
+      auto it = slices.find(inc);
+      if (it == slices.end()) it = slices.emplace(inc, modelSlice(file, models[mi], inc)).first;
+      return it->second;
+    };
+    std::map<int, std::vector<double>> albedos;  // incidence index -> a(λ) of the model
+    auto albedo = [&](int inc) -> const std::vector<double>& {
+      auto it = albedos.find(inc);
+      if (it != albedos.end()) return it->second;
+      std::vector<double> a(nL, 0.0);
+      const auto& t = table(inc);
+      for (int l = 0; l < nL; ++l)
+        for (int b = 0; b < grid.binsPerHemisphere(); ++b) a[l] += t[size_t(l) * nB + b] * grid.projectedSolidAngle(b);
+      return albedos.emplace(inc, a).first->second;
+    };
+    auto nearestDone = [&](const Vec3& w) {
+      const int inc = file.nearestIncidence(degrees(sphericalTheta(w)), degrees(sphericalPhi(w)));
+      return file.done(inc) ? inc : -1;
+    };
+    std::vector<double> L(nL);
+    for (int j = 0; j < S; ++j)
+      for (int i = 0; i < S; ++i) {
+        const double x = -1 + 2.0 * (i + 0.5) / S, y = 1 - 2.0 * (j + 0.5) / S;
+        TraceResult hit = scene.trace({x, y, 3.0}, {0, 0, -1});
+        if (hit.kind != TraceResult::Kind::Hit) continue;
+        const Vec3 n = normalize(hit.p);  // the smooth sphere's normal at the hit
+        Vec3 t = cross(Vec3{0, 1, 0}, n);
+        t = length(t) > 1e-9 ? normalize(t) : Vec3{1, 0, 0};
+        const Vec3 b = cross(n, t);
+        auto local = [&](const Vec3& w) { return Vec3{dot(w, t), dot(w, b), dot(w, n)}; };
+        const Vec3 wo = local(view), wi = local(light);
+        std::fill(L.begin(), L.end(), 0.0);
+        if (wo.z <= 0) continue;
+        if (wi.z > 0) {
+          if (int inc = nearestDone(wi); inc >= 0) {
+            const auto& f = table(inc);
+            const int bin = grid.binOf(wo);
+            for (int l = 0; l < nL; ++l) L[l] += f[size_t(l) * nB + bin] * req.lightIrradiance * wi.z;
+          }
+        }
+        if (req.environment > 0)
+          if (int inc = nearestDone(wo); inc >= 0) {
+            const auto& a = albedo(inc);
+            for (int l = 0; l < nL; ++l) L[l] += req.environment * a[l];
+          }
+        Colour3 rgb;
+        if (colour) {
+          rgb = colour->linearSrgb(L.data());
+        } else {
+          double m = 0;
+          for (double v : L) m += v / nL;
+          rgb = {m, m, m};
+        }
+        const size_t p = (size_t(j + top) * img.width + size_t(mi) * S + i) * 3;
+        for (int k = 0; k < 3; ++k)
+          img.rgb[p + k] = uint8_t(std::lround(std::clamp(srgbEncode(std::max(0.0, rgb[k]) * req.exposure), 0.0, 1.0) * 255));
+      }
+    drawText(img, int(mi) * S + 4, 4, models[mi], std::max(1, S / 96), 235);
+  }
+  return img;
+}
+
+}  // namespace mbsdf
