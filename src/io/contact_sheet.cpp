@@ -71,17 +71,7 @@ void drawText(RgbImage& img, int x, int y, const std::string& text, int scale, u
 }
 
 RgbImage renderContactSheet(const BsdfFileReader& file, const SheetRequest& req) {
-  std::vector<std::string> models = req.models;
-  if (models.empty()) {
-    const auto have = file.components();
-    const std::set<std::string> comps(have.begin(), have.end());
-    for (const char* m : {"GS", "GM", "WS", "WM"}) {
-      bool ok = true;
-      const std::vector<Component> need = *modelComponents(m);  // a named copy: no dangling temporary
-      for (Component c : need) ok = ok && comps.count(componentName(c));
-      if (ok) models.push_back(m);
-    }
-  }
+  const std::vector<std::string> models = req.models.empty() ? availableModels(file) : req.models;
   std::vector<int> columns;
   if (req.theta_deg.empty()) {
     for (int i = 0; i < file.incidenceCount(); ++i)

@@ -1,6 +1,7 @@
 #include "io/slice_export.h"
 
 #include <optional>
+#include <set>
 
 #include <algorithm>
 #include <cmath>
@@ -56,6 +57,19 @@ std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& mo
     for (size_t i = 0; i < var.size(); ++i) (*stdError)[i] = std::sqrt(var[i]);
   }
   return sum;
+}
+
+std::vector<std::string> availableModels(const BsdfFileReader& file) {
+  const auto have = file.components();
+  const std::set<std::string> comps(have.begin(), have.end());
+  std::vector<std::string> models;
+  for (const char* m : {"GS", "GM", "WS", "WM"}) {
+    const std::vector<Component> need = *modelComponents(m);  // a named copy: no dangling temporary
+    bool ok = true;
+    for (Component c : need) ok = ok && comps.count(componentName(c));
+    if (ok) models.push_back(m);
+  }
+  return models;
 }
 
 namespace {

@@ -25,6 +25,9 @@ struct SliceRequest {
 std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& model, int incidence,
                                std::vector<double>* stdError = nullptr);
 
+// The models among GS, GM, WS, WM whose components the file holds, in that order.
+std::vector<std::string> availableModels(const BsdfFileReader& file);
+
 // Writes by extension, on the paper's disk projection (x = sin θ cos φ, y = sin θ sin φ, +y up):
 //  .exr: float channels "<λ>nm" per wavelength, "mean" (over λ), "R", "G", "B" (linear sRGB of the
 //        spectrum through the CIE 1931 matching functions) and "Y" (these four only when a

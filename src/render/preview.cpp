@@ -39,17 +39,7 @@ Microgeometry unitSphere(int nLat, int nLon) {
 }  // namespace
 
 RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
-  std::vector<std::string> models = req.models;
-  if (models.empty()) {
-    const auto have = file.components();
-    const std::set<std::string> comps(have.begin(), have.end());
-    for (const char* m : {"GS", "GM", "WS", "WM"}) {
-      const std::vector<Component> need = *modelComponents(m);
-      bool ok = true;
-      for (Component c : need) ok = ok && comps.count(componentName(c));
-      if (ok) models.push_back(m);
-    }
-  }
+  const std::vector<std::string> models = req.models.empty() ? availableModels(file) : req.models;
   if (models.empty()) throw std::runtime_error("the file holds no complete model");
   const DirectionGrid& grid = file.grid();
   const auto& lambda = file.wavelengths_nm();
