@@ -69,6 +69,17 @@ std::vector<double> sum(const std::vector<double>& a, const std::vector<double>&
   for (size_t i = 0; i < s.size(); ++i) s[i] += b[i];
   return s;
 }
+// Wave-estimator settings of the study: 16 points per direction, seed = seedIndex + 1.
+WaveSettings waveSettings(const std::string& estimator, long samplesPerBin, int seedIndex, bool masked = false) {
+  WaveSettings ws;
+  ws.estimator = estimator;
+  ws.samplesPerBin = int(samplesPerBin);
+  ws.pointsPerDirection = 16;
+  ws.seed = uint64_t(seedIndex + 1);
+  ws.computeMasked = masked;
+  return ws;
+}
+
 void cost(const char* aspect, const std::string& setting, double seconds) {
   std::printf("#cost,%s,%s,%.6g\n", aspect, setting.c_str(), seconds);
   std::fflush(stdout);
@@ -97,11 +108,7 @@ int main(int argc, char** argv) {
       for (long budget : {64L, 256L, 1024L, 4096L, 16384L}) {
         if (est != "orders" && budget > 4096) continue;
         for (int s = 0; s < seeds; ++s) {
-          WaveSettings ws;
-          ws.estimator = est;
-          ws.samplesPerBin = int(budget);
-          ws.pointsPerDirection = 16;
-          ws.seed = uint64_t(s + 1);
+          const WaveSettings ws = waveSettings(est, budget, s);
           auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, grid,
                                                  CoherenceWindow::fromCoherenceLength(50, 2, 2, true), ws});
           Timer t;
@@ -121,11 +128,7 @@ int main(int argc, char** argv) {
       for (long budget : {64L, 256L, 1024L, 4096L, 16384L}) {
         if (est != "orders" && budget > 1024) continue;
         for (int s = 0; s < seeds; ++s) {
-          WaveSettings ws;
-          ws.estimator = est;
-          ws.samplesPerBin = int(budget);
-          ws.pointsPerDirection = 16;
-          ws.seed = uint64_t(s + 1);
+          const WaveSettings ws = waveSettings(est, budget, s);
           auto e = makeWaveEstimator(WaveContext{g, scene, mirror, {0.5}, grid,
                                                  CoherenceWindow::fromCoherenceLength(50, 5, 1, true), ws});
           Timer t;
@@ -233,12 +236,7 @@ int main(int argc, char** argv) {
                         r.value[int(Component::Coherent)], r.value[int(Component::Multiple)]};
     };
     auto ws = [&](long samples, int seed, bool masked = false) {
-      WaveSettings w;
-      w.estimator = "area";
-      w.samplesPerBin = int(samples);
-      w.pointsPerDirection = 16;
-      w.seed = uint64_t(seed + 1);
-      w.computeMasked = masked;
+      const WaveSettings w = waveSettings("area", samples, seed, masked);
       auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, grid, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
       Timer t;
       WaveTileResult r = e->run(seed, bin, wi);
@@ -274,10 +272,7 @@ int main(int argc, char** argv) {
       Timer t;
       tr.run(0, 0, gr.binOf(wi), wi);
       const double tp = t.seconds();
-      WaveSettings w;
-      w.estimator = "area";
-      w.samplesPerBin = 256;
-      w.pointsPerDirection = 16;
+      const WaveSettings w = waveSettings("area", 256, 0);
       auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, gr, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
       Timer t2;
       e->run(0, gr.binOf(wi), wi);
@@ -302,10 +297,7 @@ int main(int argc, char** argv) {
         tr.run(0, 0, bin, wi);
         cost("wavelengths", std::to_string(nl) + " λ, BK7 GM (dispersion: paths per λ)", t.seconds());
       }
-      WaveSettings w;
-      w.estimator = "area";
-      w.samplesPerBin = 256;
-      w.pointsPerDirection = 16;
+      const WaveSettings w = waveSettings("area", 256, 0);
       auto e = makeWaveEstimator(WaveContext{g, scene, al, lambdas, grid, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
       Timer t;
       e->run(0, bin, wi);

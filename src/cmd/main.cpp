@@ -39,6 +39,38 @@ using namespace mbsdf;
 
 namespace {
 
+// Comma-separated lists of the command line.
+std::vector<std::string> splitList(const std::string& s, bool skipEmpty) {
+  std::vector<std::string> v;
+  std::stringstream ss(s);
+  for (std::string item; std::getline(ss, item, ',');)
+    if (!(skipEmpty && item.empty())) v.push_back(item);
+  return v;
+}
+// Model names (GS, GM, WS, WM or a component), each checked; empty items are skipped.
+std::vector<std::string> parseModels(const std::string& s) {
+  std::vector<std::string> models = splitList(s, true);
+  for (const auto& m : models)
+    if (!modelComponents(m)) throw InputError("--models: unknown model '" + m + "' (GS, GM, WS, WM or a component)");
+  return models;
+}
+// Angles in degrees, each in [0, hi] (or [0, hi) when !hiInclusive); every item must be a number.
+std::vector<double> parseAngles(const std::string& s, const std::string& option, double hi, bool hiInclusive) {
+  std::vector<double> angles;
+  for (const auto& item : splitList(s, false)) {
+    size_t used = 0;
+    double v = std::nan("");
+    try {
+      v = std::stod(item, &used);
+    } catch (const std::exception&) {
+    }
+    if (used != item.size() || !(v >= 0 && (hiInclusive ? v <= hi : v < hi)))
+      throw InputError(option + ": '" + item + "' is not an angle in [0, " + fmt::format("{}", hi) + (hiInclusive ? "]" : ")"));
+    angles.push_back(v);
+  }
+  return angles;
+}
+
 constexpr int kExitInput = 2, kExitFailure = 1;
 
 nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
@@ -309,12 +341,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (render->parsed()) {
-      std::stringstream ss(renderModels);
-      for (std::string item; std::getline(ss, item, ',');) {
-        if (item.empty()) continue;
-        if (!modelComponents(item)) throw InputError("--models: unknown model '" + item + "' (GS, GM, WS, WM or a component)");
-        renderReq.models.push_back(item);
-      }
+      renderReq.models = parseModels(renderModels);
       if (!(renderReq.size >= 16 && renderReq.size <= 4096)) throw InputError("--size must be in [16, 4096]");
       if (!(renderReq.lightTheta_deg >= 0 && renderReq.lightTheta_deg <= 180)) throw InputError("--light-theta must be in [0, 180]");
       if (!(renderReq.environment >= 0) || !(renderReq.lightIrradiance >= 0) || !(renderReq.exposure > 0))
@@ -326,22 +353,8 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (sheet->parsed()) {
-      auto split = [](const std::string& s) {
-        std::vector<std::string> v;
-        std::stringstream ss(s);
-        for (std::string item; std::getline(ss, item, ',');)
-          if (!item.empty()) v.push_back(item);
-        return v;
-      };
-      sheetReq.models = split(sheetModels);
-      for (const auto& m : sheetReq.models)
-        if (!modelComponents(m)) throw InputError("--models: unknown model '" + m + "' (GS, GM, WS, WM or a component)");
-      for (const auto& t : split(sheetThetas)) {
-        size_t used = 0;
-        double v = std::stod(t, &used);
-        if (used != t.size() || !(v >= 0 && v <= 180)) throw InputError("--theta-i: '" + t + "' is not an angle in [0, 180]");
-        sheetReq.theta_deg.push_back(v);
-      }
+      sheetReq.models = parseModels(sheetModels);
+      sheetReq.theta_deg = parseAngles(sheetThetas, "--theta-i", 180, true);
       if (!(sheetReq.cell.size >= 16 && sheetReq.cell.size <= 4096)) throw InputError("--size must be in [16, 4096]");
       BsdfFileReader f(h5Path);
       RgbImage img = renderContactSheet(f, sheetReq);
@@ -373,16 +386,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (compare->parsed()) {
-      if (!csThetas.empty()) {
-        cs.theta_deg.clear();
-        std::stringstream ss(csThetas);
-        for (std::string item; std::getline(ss, item, ',');) {
-          size_t used = 0;
-          double v = std::stod(item, &used);
-          if (used != item.size() || !(v >= 0 && v < 90)) throw InputError("--theta: '" + item + "' is not an angle in [0, 90)");
-          cs.theta_deg.push_back(v);
-        }
-      }
+      if (!csThetas.empty()) cs.theta_deg = parseAngles(csThetas, "--theta", 90, false);
       std::optional<tbb::global_control> limit;
       if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
       nlohmann::json r = compareSmith(cs);

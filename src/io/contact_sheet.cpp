@@ -2,11 +2,8 @@
 
 #include <cmath>
 #include <map>
-#include <set>
 #include <stdexcept>
 
-#include "core/vecmath.h"
-#include "scattering/components.h"
 
 namespace mbsdf {
 

@@ -93,10 +93,9 @@ std::vector<double> diskSpectra(const BsdfFileReader& file, const std::vector<do
     }
   return spec;
 }
-}  // namespace
 
-RgbImage renderSliceImage(const BsdfFileReader& file, const SliceRequest& req, int inc) {
-  const std::vector<double> f = modelSlice(file, req.model, inc);
+// The PNG picture of a model table f (nλ x nBins) of the file.
+RgbImage sliceImage(const BsdfFileReader& file, const std::vector<double>& f, const SliceRequest& req) {
   const auto& lambda = file.wavelengths_nm();
   const int nL = int(lambda.size());
   const int S = req.size, W = req.both ? 2 * S : S;
@@ -131,6 +130,11 @@ RgbImage renderSliceImage(const BsdfFileReader& file, const SliceRequest& req, i
     for (int i = 0; i < W; ++i) put(i, j, falseColour((i + 0.5) / W));
   return img;
 }
+}  // namespace
+
+RgbImage renderSliceImage(const BsdfFileReader& file, const SliceRequest& req, int inc) {
+  return sliceImage(file, modelSlice(file, req.model, inc), req);
+}
 
 int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::string& outPath) {
   int inc = file.nearestIncidence(req.theta_deg, req.phi_deg);
@@ -141,7 +145,9 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
   const auto& lambda = file.wavelengths_nm();
   const int nL = int(lambda.size()), nB = grid.binCount();
   std::string ext = std::filesystem::path(outPath).extension().string();
-  if (ext == ".exr" || ext == ".png") {
+  if (ext == ".png") {
+    writePng(outPath, sliceImage(file, f, req));
+  } else if (ext == ".exr") {
     const int S = req.size, W = req.both ? 2 * S : S;
     // R, G, B and Y channels only when some wavelength is visible (an 850 nm job has none).
     std::optional<SpectrumToColour> colour;
@@ -150,34 +156,30 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
     } catch (const std::invalid_argument&) {
     }
     const std::vector<double> spec = diskSpectra(file, f, req);
-    if (ext == ".exr") {
-      std::vector<ExrChannel> ch;
-      for (int l = 0; l < nL; ++l) {
-        char name[32];
-        std::snprintf(name, sizeof name, "%.1fnm", lambda[l]);
-        ch.push_back({name, std::vector<float>(size_t(W) * S, 0.f)});
-      }
-      ch.push_back({"mean", std::vector<float>(size_t(W) * S, 0.f)});
-      if (colour)
-        for (const char* n : {"R", "G", "B", "Y"}) ch.push_back({n, std::vector<float>(size_t(W) * S, 0.f)});
-      for (size_t p = 0; p < size_t(W) * S; ++p) {
-        const double* v = &spec[p * nL];
-        if (std::isnan(v[0])) continue;
-        double mean = 0;
-        for (int l = 0; l < nL; ++l) {
-          ch[l].pixels[p] = float(v[l]);
-          mean += v[l] / nL;
-        }
-        ch[nL].pixels[p] = float(mean);
-        if (!colour) continue;
-        Colour3 rgb = colour->linearSrgb(v), xyz = colour->xyz(v);
-        for (int c = 0; c < 3; ++c) ch[nL + 1 + c].pixels[p] = float(rgb[c]);
-        ch[nL + 4].pixels[p] = float(xyz[1]);
-      }
-      writeExr(outPath, W, S, ch);
-    } else {
-      writePng(outPath, renderSliceImage(file, req, inc));
+    std::vector<ExrChannel> ch;
+    for (int l = 0; l < nL; ++l) {
+      char name[32];
+      std::snprintf(name, sizeof name, "%.1fnm", lambda[l]);
+      ch.push_back({name, std::vector<float>(size_t(W) * S, 0.f)});
     }
+    ch.push_back({"mean", std::vector<float>(size_t(W) * S, 0.f)});
+    if (colour)
+      for (const char* n : {"R", "G", "B", "Y"}) ch.push_back({n, std::vector<float>(size_t(W) * S, 0.f)});
+    for (size_t p = 0; p < size_t(W) * S; ++p) {
+      const double* v = &spec[p * nL];
+      if (std::isnan(v[0])) continue;
+      double mean = 0;
+      for (int l = 0; l < nL; ++l) {
+        ch[l].pixels[p] = float(v[l]);
+        mean += v[l] / nL;
+      }
+      ch[nL].pixels[p] = float(mean);
+      if (!colour) continue;
+      Colour3 rgb = colour->linearSrgb(v), xyz = colour->xyz(v);
+      for (int c = 0; c < 3; ++c) ch[nL + 1 + c].pixels[p] = float(rgb[c]);
+      ch[nL + 4].pixels[p] = float(xyz[1]);
+    }
+    writeExr(outPath, W, S, ch);
   } else if (ext == ".csv") {
     std::ofstream o(outPath);
     if (!o) throw std::runtime_error("cannot write " + outPath);

@@ -275,19 +275,18 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     job.geometryKind = "statistical";
     job.statistical = parseStatistical(geo, baseDir);
     if (!job.material.isConductor() && job.statistical->flakes == FlakeKind::Specular &&
-        !std::holds_alternative<BeckmannNdf>(job.statistical->ndf) && !std::holds_alternative<GgxNdf>(job.statistical->ndf))
+        !isHeightfieldNdf(job.statistical->ndf))
       geo.fail("ndf", "dielectric flakes need a heightfield NDF (beckmann or ggx): the walk continues on the "
                       "other side of the surface");
     for (const auto& c : job.requestedComponents)
       if (c == "incoherent" || c == "lost")
         eff.fail("components", "a statistical surface has no explicit geometry for scalar diffraction: use "
                                "coherent (single scattering) and multiple");
-    job.components = ComponentSet{};
-    job.components.add(Component::Coherent);
-    job.components.add(Component::Multiple);
-    if (std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") == job.requestedComponents.end()) {
+    // "auto" is GM here (no explicit geometry for diffraction); explicit requests are already parsed.
+    if (std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") != job.requestedComponents.end()) {
       job.components = ComponentSet{};
-      for (const auto& c : job.requestedComponents) job.components.add(*componentFromName(c));
+      job.components.add(Component::Coherent);
+      job.components.add(Component::Multiple);
     }
   } else {
     job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind);

@@ -57,11 +57,7 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
     // Free flight (seed Eqs. 9–11); escape through z = 0 when travelling upward.
     const double ell = dist_.freePath(d, s.get1D());
     const double zNext = z + ell * d.z;
-    if (d.z > 0 && !(zNext < 0)) {
-      if (depth == 0) {  // cannot happen: the first flight is downward
-        addTo(out.missed);
-        break;
-      }
+    if (d.z > 0 && !(zNext < 0)) {  // depth >= 1: the first flight is downward
       const Vec3 wo = upper ? d : -d;
       const int bin = grid_.binOf(wo);
       out.tally(bin, depth == 1 ? Component::Coherent : Component::Multiple, group, wp, nl);

@@ -47,6 +47,11 @@ struct TabulatedNdf {
 };
 using Ndf = std::variant<BeckmannNdf, GgxNdf, VonMisesFisherNdf, TabulatedNdf>;
 
+// Beckmann and GGX are heightfield NDFs (zero below the horizon, Smith Λ in closed form).
+inline bool isHeightfieldNdf(const Ndf& ndf) {
+  return std::holds_alternative<BeckmannNdf>(ndf) || std::holds_alternative<GgxNdf>(ndf);
+}
+
 // Checks a table (throws std::invalid_argument) and scales it so that ∫ D ⟨m,z⟩ dm = 1 (Eq. 17).
 void normaliseNdfTable(TabulatedNdf& t);
 
@@ -55,9 +60,7 @@ class MicroflakeDistribution {
   explicit MicroflakeDistribution(Ndf ndf);
 
   const Ndf& ndf() const { return ndf_; }
-  bool isHeightfield() const {
-    return std::holds_alternative<BeckmannNdf>(ndf_) || std::holds_alternative<GgxNdf>(ndf_);
-  }
+  bool isHeightfield() const { return isHeightfieldNdf(ndf_); }
   std::string describe() const;
 
   // D(m) for a unit normal m (1/sr).

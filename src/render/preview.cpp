@@ -3,7 +3,6 @@
 #include <cmath>
 #include <map>
 #include <optional>
-#include <set>
 #include <stdexcept>
 
 #include "core/colour.h"
@@ -66,14 +65,19 @@ RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
       if (it == slices.end()) it = slices.emplace(inc, modelSlice(file, models[mi], inc)).first;
       return it->second;
     };
-    std::map<int, std::vector<double>> albedos;  // incidence index -> a(λ) of the model
+    // Directional albedo a(λ) of the model: the file's per-component energy_reflected of the slice
+    // (no need to read the whole table for the environment term).
+    const std::vector<Component> comps = *modelComponents(models[mi]);
+    std::map<int, std::vector<double>> albedos;
     auto albedo = [&](int inc) -> const std::vector<double>& {
       auto it = albedos.find(inc);
       if (it != albedos.end()) return it->second;
+      const SliceStats st = file.stats(inc);
       std::vector<double> a(nL, 0.0);
-      const auto& t = table(inc);
-      for (int l = 0; l < nL; ++l)
-        for (int b = 0; b < grid.binsPerHemisphere(); ++b) a[l] += t[size_t(l) * nB + b] * grid.projectedSolidAngle(b);
+      for (Component c : comps) {
+        const auto& e = st.energyReflected.at(componentName(c));
+        for (int l = 0; l < nL; ++l) a[l] += e[l];
+      }
       return albedos.emplace(inc, a).first->second;
     };
     auto nearestDone = [&](const Vec3& w) {

@@ -10,10 +10,6 @@
 using namespace mbsdf;
 using namespace mbsdf::test;
 
-namespace {
-double total(const TileResult& r, const DirectionGrid& g, int l) { return pathTotal(r, g, l); }
-}  // namespace
-
 TEST(HardCases, GrazingIncidenceOnFlatAndRoughSurfaces) {
   PathTracerSettings s;
   s.paths = 20000;
@@ -26,7 +22,7 @@ TEST(HardCases, GrazingIncidenceOnFlatAndRoughSurfaces) {
   for (double theta : {89.5, 89.9}) {
     TileResult g = rough.run(theta, 33.0, true);
     expectFinite(g);
-    EXPECT_NEAR(total(g, rough.grid, 0), 1.0, 1e-9);
+    EXPECT_NEAR(pathTotal(g, rough.grid, 0), 1.0, 1e-9);
     EXPECT_GE(energy(g, rough.grid, Component::Coherent, 0, true) + energy(g, rough.grid, Component::Multiple, 0, true),
               0.999);
   }
@@ -63,7 +59,7 @@ TEST(HardCases, FinitePatchCountsEveryPath) {
     // sideways and downward), or counted as missed (primary rays that meet no geometry: at oblique
     // incidence some rays aimed at the footprint on the mean plane pass beside the relief at the
     // patch's edge) or truncated. Nothing is silently dropped.
-    EXPECT_NEAR(total(r, sc.grid, 0), 1.0, 1e-9);
+    EXPECT_NEAR(pathTotal(r, sc.grid, 0), 1.0, 1e-9);
     EXPECT_EQ(r.leaked[0], 0.0);
     EXPECT_LT(r.missed[0], 0.2) << theta;
     RecordProperty("missed_theta" + std::to_string(int(theta)), std::to_string(r.missed[0]));
@@ -82,7 +78,7 @@ TEST(HardCases, RoughGlassConservesEnergyWithTotalInternalReflection) {
     TileResult r = sc.run(theta, 10.0);
     expectFinite(r);
     for (int l = 0; l < 2; ++l) {
-      EXPECT_NEAR(total(r, sc.grid, l), 1.0, 1e-9);
+      EXPECT_NEAR(pathTotal(r, sc.grid, l), 1.0, 1e-9);
       EXPECT_LT(r.truncated[l] + r.leaked[l], 1e-3) << theta;
     }
   }
