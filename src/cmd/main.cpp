@@ -85,7 +85,9 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
   j["bins"] = f.grid().binCount();
   j["wavelengths_nm"] = f.wavelengths_nm();
   j["components"] = f.components();
+  if (f.hasAttribute("reciprocity")) j["reciprocity"] = f.attribute("reciprocity");
   int done = 0;
+  uint64_t waveSamples = 0;
   nlohmann::json slices = nlohmann::json::array();
   for (int i = 0; i < f.incidenceCount(); ++i) {
     nlohmann::json s;
@@ -98,6 +100,8 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
       ++done;
       SliceStats st = f.stats(i);
       s["samples"] = st.samples;
+      s["wave_samples"] = st.waveSamples;
+      waveSamples += st.waveSamples;
       s["seconds"] = st.seconds;
       s["sampling_stop"] = st.samplingStop == 1 ? "target" : st.samplingStop == 2 ? "budget" : "fixed";
       s["truncated"] = st.truncated;
@@ -119,6 +123,7 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
   j["incidence_count"] = f.incidenceCount();
   j["done_count"] = done;
   j["complete"] = done == f.incidenceCount();
+  j["wave_samples"] = waveSamples;
   j["slices"] = slices;
   return j;
 }
@@ -131,6 +136,8 @@ void printInfo(const nlohmann::json& j) {
             << "grid:        " << j["grid"].get<std::string>() << ", " << j["bins"] << " bins over the sphere\n"
             << "wavelengths: " << j["wavelengths_nm"].dump() << " nm\n"
             << "components:  " << j["components"].dump() << "\n"
+            << (j.contains("reciprocity") ? "reciprocity: " + j["reciprocity"].get<std::string>() + "\n" : "")
+            << (j["wave_samples"].get<uint64_t>() ? "wave term:   " + j["wave_samples"].dump() + " Kirchhoff samples per wavelength\n" : "")
             << "complete:    " << j["done_count"] << "/" << j["incidence_count"] << " slices\n";
   std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  reflected  transmitted  truncated  rel.error\n"
             << "(albedo: the components the file holds, without the lost diagnostic; rel.error: the largest\n"

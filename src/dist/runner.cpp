@@ -16,6 +16,7 @@
 #include "geometry/embree_scene.h"
 #include "io/bsdf_file.h"
 #include "job/transport.h"
+#include "scattering/reciprocity.h"
 #include "scattering/wave_estimator.h"
 
 namespace mbsdf {
@@ -71,6 +72,18 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   }
 
   const int nTiles = int(job.incidence.size());
+  // Reciprocity (PHYSICS.md §8): each pair of incidence bins gets the wave term once.
+  std::optional<ReciprocalPairs> pairs;
+  if (wave && job.halvesWaveByReciprocity()) {
+    std::vector<int> bins;
+    for (const auto& i : job.incidence) bins.push_back(i.bin);
+    pairs.emplace(std::move(bins), grid.binCount(), grid.binsPerHemisphere());
+  }
+  if (wave && mpi.rank() == 0)
+    spdlog::info("reciprocity: {}", pairs ? fmt::format("the wave term is computed for {:.1f}% of the same-side bin "
+                                                        "pairs, the rest mirrored when every slice is done",
+                                                        100 * pairs->computedFraction())
+                                          : "not used (" + job.reciprocityOffReason() + ")");
   if (mpi.rank() == 0)
     spdlog::info("job {}: {} ({}), {}, {} wavelengths, grid {} ({} bins), {} tiles on {} ranks, {} paths per slice",
                  job.file, job.geometryKind,
@@ -122,10 +135,11 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     pathSecondsSum += since(ts);
     if (wave) {
       auto tw = Clock::now();
-      WaveTileResult w = wave->run(t, inc.bin, exact, cb);
+      WaveTileResult w = wave->run(t, inc.bin, exact, cb, pairs ? pairs->exitMask(t) : std::vector<uint8_t>{});
       waveSecondsSum += since(tw);
       addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
       r.rays += w.rays;
+      r.waveSamples = w.samples;
     }
     r.seconds = since(ts);
     tileSecondsSum += r.seconds;
@@ -207,6 +221,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     ++written;
     progress.update(uint64_t(written));
     for (Component c : job.components.list()) {
+      if (pairs && c == Component::Incoherent) continue;  // complete only after the reciprocity fill
       double e = 0;
       for (int l = 0; l < r.nLambda; ++l)
         for (int b = 0; b < r.nBins; ++b) e += r.at(c, l, b) * grid.projectedSolidAngle(b) / r.nLambda;
@@ -276,6 +291,12 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   MPI_Bcast(&incomplete, 1, MPI_INT, 0, MPI_COMM_WORLD);
   double times[2] = {pathSecondsSum, waveSecondsSum}, total[2] = {0, 0};
   MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  if (!incomplete && pairs) {
+    auto tf = Clock::now();
+    const double e = writer.completeReciprocal(*pairs);
+    energySum[componentName(Component::Incoherent)] = e * std::max(1, summary.computed);
+    spdlog::info("reciprocity: filled the mirrored half of {} slices in {:.2f} s", nTiles, since(tf));
+  }
   {
     std::string energies;
     for (auto& [c, e] : energySum)

@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -50,9 +51,9 @@ H5Dataset write1D(hid_t loc, const std::string& name, hid_t type, const std::vec
 }
 
 // A (nInc, a, b) dataset with chunks of one incidence slice, split along a and then b to stay
-// <= 4 MiB per chunk.
+// <= 4 MiB per chunk (and b into blocks of at most maxC2 when given).
 H5Dataset create3D(hid_t loc, const std::string& name, hid_t type, hsize_t n0, hsize_t n1, hsize_t n2, double fill,
-                   bool compress) {
+                   bool compress, hsize_t maxC2 = 0) {
   hsize_t dims[3] = {n0, n1, n2};
   H5Dataspace s(H5Screate_simple(3, dims, nullptr), "H5Screate_simple");
   H5Plist p(H5Pcreate(H5P_DATASET_CREATE), "H5Pcreate");
@@ -60,6 +61,7 @@ H5Dataset create3D(hid_t loc, const std::string& name, hid_t type, hsize_t n0, h
   hsize_t c1 = n1, c2 = n2;
   while (c1 > 1 && c1 * c2 > maxElems) c1 = (c1 + 1) / 2;
   while (c2 > 1 && c1 * c2 > maxElems) c2 = (c2 + 1) / 2;
+  if (maxC2 > 0) c2 = std::min(c2, maxC2);
   hsize_t chunk[3] = {1, std::max<hsize_t>(1, c1), std::max<hsize_t>(1, c2)};
   h5check(H5Pset_chunk(p, 3, chunk), "H5Pset_chunk");
   if (compress) {
@@ -126,9 +128,33 @@ std::vector<std::string> rowDatasets(const Job& job) {
                           "/stats/rel_error/"})
       v.push_back(g + n);
   }
-  for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/seconds",
+  for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/wave_samples", "/stats/seconds",
                         "/stats/sampling_stop", "/bsdf/done"})
     v.push_back(n);
+  return v;
+}
+
+// Exit-bin block of the reciprocity fill: the fill holds a block of columns of every row for four
+// datasets (incoherent and coherent, value and error) as doubles within this budget. The datasets it
+// reads are chunked by the same block, so each chunk is decompressed once per fill.
+constexpr double kFillBudgetBytes = 256.0 * 1024 * 1024;
+hsize_t fillBlock(int nInc, int nL, int nB) {
+  const double perColumn = double(nInc) * nL * 4 * sizeof(double);
+  return hsize_t(std::clamp(kFillBudgetBytes / perColumn, 1.0, double(nB)));
+}
+
+// Columns [c0, c0 + w) of every row of a (nInc, nλ, nBins) dataset: (nInc, nλ, w), as doubles.
+std::vector<double> readColumns(hid_t file, const std::string& path, hsize_t c0, hsize_t w) {
+  H5Dataset d(H5Dopen2(file, path.c_str(), H5P_DEFAULT), "open " + path);
+  H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
+  hsize_t dims[3] = {0, 0, 0};
+  H5Sget_simple_extent_dims(fs, dims, nullptr);
+  hsize_t start[3] = {0, 0, c0}, count[3] = {dims[0], dims[1], w};
+  h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
+  hsize_t n = count[0] * count[1] * count[2];
+  std::vector<double> v(n);
+  H5Dataspace ms(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
+  h5check(H5Dread(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, v.data()), "read " + path);
   return v;
 }
 
@@ -219,6 +245,11 @@ void BsdfFileWriter::create(const std::string& filename) {
   setScalarAttr<int64_t>(f, "max_depth", H5T_NATIVE_INT64, job.maxDepth);
   setStringAttr(f, "title", "Tabulated BSDF of a surface microgeometry (microbsdf)");
   setStringAttr(f, "incidence_sampling", job.exactIncidence ? "exact" : "bin");
+  const bool halved = job.halvesWaveByReciprocity();
+  setStringAttr(f, "reciprocity",
+                halved ? "wave term computed once per pair of incidence bins on the same side; the other half of "
+                         "/bsdf/incoherent is f_ws(o->i) - coherent(i->o) (PHYSICS.md section 8)"
+                       : "not used: " + job.reciprocityOffReason());
 
   const int nB = grid.binCount(), nL = int(job.lambda_nm.size()), nI = int(job.incidence.size());
   {
@@ -280,7 +311,8 @@ void BsdfFileWriter::create(const std::string& filename) {
       std::string name = componentName(c);
       for (auto [grp, what] : {std::pair<hid_t, const char*>{b, "bin-averaged BSDF component "},
                                std::pair<hid_t, const char*>{e, "standard error of BSDF component "}}) {
-        H5Dataset d = create3D(grp, name, H5T_NATIVE_FLOAT, nI, nL, nB, nan, true);
+        const bool blocked = halved && (c == Component::Incoherent || c == Component::Coherent);
+        H5Dataset d = create3D(grp, name, H5T_NATIVE_FLOAT, nI, nL, nB, nan, true, blocked ? fillBlock(nI, nL, nB) : 0);
         describe(d, "1/sr", what + name);
         h5check(H5DSattach_scale(d, ib, 0), "attach scale");
         h5check(H5DSattach_scale(d, wl, 1), "attach scale");
@@ -301,6 +333,8 @@ void BsdfFileWriter::create(const std::string& filename) {
       write1D(b, "done", H5T_NATIVE_UINT8, zeros, "1", "1 when the incidence slice is complete");
     }
     write1D(s, "samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1", "paths per wavelength");
+    write1D(s, "wave_samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1",
+            "Kirchhoff samples (point x exit direction) per wavelength");
     write1D(s, "seconds", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "s", "wall time of the tile");
     write1D(s, "sampling_stop", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
             "0: fixed budget; 1: target_rel_error reached; 2: max_paths_per_slice spent first");
@@ -339,26 +373,91 @@ void BsdfFileWriter::writeTile(const TileResult& r) {
     if (!r.has(c)) throw std::runtime_error(std::string("tile lacks component ") + name);
     writeRow(f, "/bsdf/" + name, i, r.value[int(c)], H5T_NATIVE_DOUBLE);
     writeRow(f, "/bsdf_stderr/" + name, i, r.stdError[int(c)], H5T_NATIVE_DOUBLE);
-    std::vector<double> refl(r.nLambda, 0.0), trans(r.nLambda, 0.0);
-    for (int l = 0; l < r.nLambda; ++l)
-      for (int b = 0; b < r.nBins; ++b) {
-        double e = r.at(c, l, b) * grid_.projectedSolidAngle(b);
-        (grid_.isUpper(b) ? refl : trans)[l] += e;
-      }
-    writeRow(f, "/stats/energy_reflected/" + name, i, refl, H5T_NATIVE_DOUBLE);
-    writeRow(f, "/stats/energy_transmitted/" + name, i, trans, H5T_NATIVE_DOUBLE);
-    writeRow(f, "/stats/rel_error/" + name, i, sliceRelativeError(r, c, grid_), H5T_NATIVE_DOUBLE);
+    writeSliceStats(r, c);
   }
   writeRow(f, "/stats/truncated", i, r.truncated, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/leaked", i, r.leaked, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/missed", i, r.missed, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/samples", i, {double(r.samples)}, H5T_NATIVE_DOUBLE);
+  writeRow(f, "/stats/wave_samples", i, {double(r.waveSamples)}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/seconds", i, {r.seconds}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/sampling_stop", i, {double(int(r.samplingStop))}, H5T_NATIVE_DOUBLE);
   // Mark done last, then flush: a slice marked done is complete on disk.
   writeRow(f, "/bsdf/done", i, {1.0}, H5T_NATIVE_DOUBLE);
   h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
   appendJournal(i);
+}
+
+void BsdfFileWriter::writeSliceStats(const TileResult& r, Component c) {
+  const std::string name = componentName(c);
+  std::vector<double> refl(r.nLambda, 0.0), trans(r.nLambda, 0.0);
+  for (int l = 0; l < r.nLambda; ++l)
+    for (int b = 0; b < r.nBins; ++b) {
+      double e = r.at(c, l, b) * grid_.projectedSolidAngle(b);
+      (grid_.isUpper(b) ? refl : trans)[l] += e;
+    }
+  writeRow(file_, "/stats/energy_reflected/" + name, r.incidenceIndex, refl, H5T_NATIVE_DOUBLE);
+  writeRow(file_, "/stats/energy_transmitted/" + name, r.incidenceIndex, trans, H5T_NATIVE_DOUBLE);
+  writeRow(file_, "/stats/rel_error/" + name, r.incidenceIndex, sliceRelativeError(r, c, grid_), H5T_NATIVE_DOUBLE);
+}
+
+double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
+  hid_t f = file_.get();
+  const int nI = int(job_.incidence.size()), nL = int(job_.lambda_nm.size()), nB = grid_.binCount();
+  if (pairs.incidenceCount() != nI) throw std::logic_error("completeReciprocal: pairs do not match the job");
+  const std::vector<uint8_t> done = read1D<uint8_t>(f, "/bsdf/done", H5T_NATIVE_UINT8);
+  if (std::count(done.begin(), done.end(), 0) != 0)
+    throw std::logic_error("completeReciprocal: not every slice is done");
+  const std::string inc = "/bsdf/incoherent", incE = "/bsdf_stderr/incoherent", coh = "/bsdf/coherent",
+                    cohE = "/bsdf_stderr/coherent";
+  const int block = int(fillBlock(nI, nL, nB));
+  double energy = 0;
+  for (int a = 0; a < nI;) {
+    // Incidence indices [a, e) whose bins span at most `block` columns.
+    const int c0 = pairs.incidenceBin(a);
+    int e = a + 1;
+    while (e < nI && pairs.incidenceBin(e) - c0 < block) ++e;
+    const hsize_t w = hsize_t(pairs.incidenceBin(e - 1) - c0 + 1);
+    // f_ws(j -> bin(i)) = incoherent + coherent of row j, with its variance se_inc² − se_coh²
+    // (the two were combined in quadrature, PHYSICS.md §3).
+    const std::vector<double> cInc = readColumns(f, inc, hsize_t(c0), w), cIncE = readColumns(f, incE, hsize_t(c0), w),
+                              cCoh = readColumns(f, coh, hsize_t(c0), w), cCohE = readColumns(f, cohE, hsize_t(c0), w);
+    auto col = [&](int j, int l, int bin) { return (size_t(j) * nL + l) * w + size_t(bin - c0); };
+    for (int i = a; i < e; ++i) {
+      TileResult row;
+      row.incidenceIndex = i;
+      row.nLambda = nL;
+      row.nBins = nB;
+      auto& v = row.value[int(Component::Incoherent)];
+      auto& se = row.stdError[int(Component::Incoherent)];
+      v = readRowImpl(f, inc, i);
+      se = readRowImpl(f, incE, i);
+      const std::vector<double> ch = readRowImpl(f, coh, i), chE = readRowImpl(f, cohE, i);
+      const int bi = pairs.incidenceBin(i);
+      for (int o = 0; o < nB; ++o) {
+        if (pairs.computes(i, o)) continue;
+        const int j = pairs.incidenceOf(o);
+        for (int l = 0; l < nL; ++l) {
+          const size_t k = col(j, l, bi), x = size_t(l) * nB + o;
+          const double fws = cInc[k] + cCoh[k];
+          const double varWs = std::max(0.0, cIncE[k] * cIncE[k] - cCohE[k] * cCohE[k]);
+          v[x] = fws - ch[x];  // reflection: f(i -> o) = f(o -> i), PHYSICS.md §8
+          se[x] = std::sqrt(varWs + chE[x] * chE[x]);
+          if (!std::isfinite(v[x]) || !std::isfinite(se[x]))
+            throw std::runtime_error("reciprocity fill: slice " + std::to_string(j) + " has no finite value at bin " +
+                                     std::to_string(bi));
+        }
+      }
+      writeRow(f, inc, i, v, H5T_NATIVE_DOUBLE);
+      writeRow(f, incE, i, se, H5T_NATIVE_DOUBLE);
+      writeSliceStats(row, Component::Incoherent);
+      for (int l = 0; l < nL; ++l)
+        for (int b = 0; b < nB; ++b) energy += v[size_t(l) * nB + b] * grid_.projectedSolidAngle(b);
+    }
+    h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+    a = e;
+  }
+  return energy / std::max(1, nI * nL);
 }
 
 void BsdfFileWriter::finish() {
@@ -411,6 +510,8 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   SliceStats s;
   s.samples = uint64_t(readRow("/stats/samples", incidence)[0]);
   s.seconds = readRow("/stats/seconds", incidence)[0];
+  if (H5Lexists(file_, "/stats/wave_samples", H5P_DEFAULT) > 0)
+    s.waveSamples = uint64_t(readRow("/stats/wave_samples", incidence)[0]);
   if (H5Lexists(file_, "/stats/sampling_stop", H5P_DEFAULT) > 0)
     s.samplingStop = int(readRow("/stats/sampling_stop", incidence)[0]);
   s.truncated = readRow("/stats/truncated", incidence);
@@ -435,6 +536,8 @@ std::string BsdfFileReader::attribute(const std::string& name) const {
   while (!s.empty() && s.back() == '\0') s.pop_back();
   return s;
 }
+
+bool BsdfFileReader::hasAttribute(const std::string& name) const { return H5Aexists(file_, name.c_str()) > 0; }
 
 int64_t BsdfFileReader::intAttribute(const std::string& name) const {
   int64_t v = 0;

@@ -8,7 +8,7 @@
 //                           > 4 MiB), shuffle + deflate, fill value NaN (unwritten = visible)
 //   /bsdf_stderr/<component> the standard error of each value, same layout
 //   /bsdf/done              uint8 (nInc), 1 when that slice is complete
-//   /stats/...              per slice: samples, seconds, sampling_stop (0 fixed budget, 1 target
+//   /stats/...              per slice: samples, wave_samples, seconds, sampling_stop (0 fixed budget, 1 target
 //                           relative error reached, 2 budget spent), truncated/leaked/missed (nInc, nλ),
 //                           energy_reflected/<c>, energy_transmitted/<c> (nInc, nλ) = Σ f·Ω⊥,
 //                           rel_error/<c> (nInc, nλ): estimated relative standard error
@@ -21,6 +21,14 @@
 // `<path>.journal` and fsync'ed. `--resume` opens the old partial file as a SWMR reader, keeps the
 // slices that are both marked done in the file and listed in the journal, copies them into a fresh
 // partial file and goes on with the rest. A SIGKILL therefore loses at most the tiles in flight.
+//
+// Reciprocity (PHYSICS.md §8, scattering/reciprocity.h): when the job halves the wave term, each
+// tile leaves the reflection bins it did not compute as NaN in /bsdf/incoherent, and completeReciprocal()
+// fills them from the reciprocal tiles once every slice is done, before the file gets its final
+// name. The stored slices are complete (every reader reads one row), the root attribute
+// `reciprocity` says what was computed. The datasets involved are chunked by blocks of exit bins
+// so that the fill reads a block of columns of every row once; it only writes entries a tile did
+// not compute, so it is idempotent (a kill during the fill is resumed by running it again).
 #pragma once
 #include <map>
 #include <memory>
@@ -30,6 +38,7 @@
 #include "core/direction_grid.h"
 #include "io/hdf5_handle.h"
 #include "job/job.h"
+#include "scattering/reciprocity.h"
 #include "scattering/tile_result.h"
 
 namespace mbsdf {
@@ -43,6 +52,9 @@ class BsdfFileWriter {
   BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid, bool resume = false);
   ~BsdfFileWriter();
   void writeTile(const TileResult& r);
+  // Fills the reciprocal half of /bsdf/incoherent (see above); every slice must be done. Returns
+  // the mean over slices and wavelengths of the incoherent Σ f·Ω⊥.
+  double completeReciprocal(const ReciprocalPairs& pairs);
   // Closes the file and renames it to its final path; removes the journal.
   void finish();
   // Closes the partial file cleanly without finishing (clean stop); it stays resumable.
@@ -53,6 +65,8 @@ class BsdfFileWriter {
  private:
   void create(const std::string& file);
   void appendJournal(int tile);
+  // /stats/energy_reflected, energy_transmitted and rel_error of component c for r's slice.
+  void writeSliceStats(const TileResult& r, Component c);
   std::string path_, partial_, journal_;
   const Job& job_;
   const DirectionGrid& grid_;
@@ -63,6 +77,7 @@ class BsdfFileWriter {
 
 struct SliceStats {
   uint64_t samples = 0;
+  uint64_t waveSamples = 0;  // Kirchhoff samples per wavelength (0 in files without the dataset)
   double seconds = 0;
   int samplingStop = 0;  // TileResult::SamplingStop
   std::vector<double> truncated, leaked, missed;
@@ -91,6 +106,7 @@ class BsdfFileReader {
   std::vector<double> sliceStdError(const std::string& component, int incidence) const;
   SliceStats stats(int incidence) const;
   std::string attribute(const std::string& name) const;
+  bool hasAttribute(const std::string& name) const;
   int64_t intAttribute(const std::string& name) const;
   // Incidence index closest (in angle) to the given direction.
   int nearestIncidence(double theta_deg, double phi_deg) const;

@@ -188,6 +188,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   const toml::node* inc = dirs.node("incidence");
   const bool dielectric = !job.material.isConductor();
   if (!inc || (inc->is_string() && *inc->value<std::string>() == "all")) {
+    job.incidenceAll = true;
     int nb = dielectric ? grid.binCount() : grid.binsPerHemisphere();
     for (int b = 0; b < nb; ++b) {
       if (grid.projectedSolidAngle(b) <= 0) continue;
@@ -237,6 +238,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       eff.fail("components", "unknown component '" + c + "' (auto, coherent, incoherent, multiple, lost)");
     job.components.add(*comp);
   }
+
+  job.reciprocity = eff.getBool("reciprocity", true);
 
   ParamDict samp = root.table("sampling");
   job.pathsPerSlice = uint64_t(samp.positiveInt("paths_per_slice", 1000000));
@@ -305,6 +308,17 @@ std::string Job::resolvedWaveEstimator() const {
   const double L = std::max(geometry.sizeX, geometry.sizeY);
   if (geometry.periodic && sigma > 0 && 2 * kPi * sigma / L >= 4.0) return "orders";
   return "area";
+}
+
+std::string Job::reciprocityOffReason() const {
+  if (!components.has(Component::Incoherent)) return "no wave term";
+  if (!reciprocity) return "[effects] reciprocity = false";
+  if (!incidenceAll) return "incidence is a list of directions, not \"all\"";
+  if (exactIncidence) return "incidence_sampling = \"exact\" (bin-centre beams are not reciprocal bin to bin)";
+  if (components.has(Component::Lost)) return "the lost component needs the masked power of every exit bin";
+  if (std::string e = resolvedWaveEstimator(); e != "area" && e != "paper")
+    return "the " + e + " estimator's cost is per incidence sample, not per exit bin";
+  return "";
 }
 
 Job loadJob(const std::string& path) {

@@ -46,8 +46,10 @@ struct Job {
   DirectionGrid::Layout gridLayout;
   std::vector<IncidenceDirection> incidence;
   bool exactIncidence = false;  // [directions] incidence_sampling = "exact": collimated beams
+  bool incidenceAll = false;    // [directions] incidence = "all": every bin on the incident side(s)
   ComponentSet components;
   std::vector<std::string> requestedComponents;
+  bool reciprocity = true;  // [effects] reciprocity: halve the wave term when the job allows it
   SceneNeeds scene;
   uint64_t pathsPerSlice = 1000000;
   // Progressive sampling: rounds of pathsPerSlice paths until the slice's estimated relative error
@@ -67,6 +69,12 @@ struct Job {
   // "auto": `orders` for a periodic patch under a coherence window wider than about one period
   // (2πσ/L >= 4: neighbouring order lobes are >= 5.7 standard deviations apart), otherwise `area`.
   std::string resolvedWaveEstimator() const;
+  // Why the wave term of this job is not halved by reciprocity (PHYSICS.md §8), or "" when it is:
+  // it needs incidence = "all" with bin-averaged incidence (the bin-to-bin table is then exactly
+  // reciprocal), the incoherent component without `lost` (the masked power is not reciprocal) and
+  // an estimator whose cost is per exit bin (area, paper).
+  std::string reciprocityOffReason() const;
+  bool halvesWaveByReciprocity() const { return reciprocityOffReason().empty(); }
   std::vector<double> lambda_um() const {
     std::vector<double> v;
     for (double l : lambda_nm) v.push_back(l * 1e-3);

@@ -11,6 +11,7 @@
 #include "geometry/embree_scene.h"
 #include "job/transport.h"
 #include "scattering/path_tracer.h"
+#include "scattering/reciprocity.h"
 #include "scattering/wave_estimator.h"
 
 namespace mbsdf {
@@ -68,6 +69,22 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
                                              ws});
     WaveTileResult wr = est->run(pilot, inc.bin, exact);
     waveSeconds = wr.seconds * double(job.waveSamplesPerBin) / double(ws.samplesPerBin);
+  }
+  // Reciprocity (PHYSICS.md §8): the wave term of each pair of incidence bins once. The pilot ran
+  // the whole slice; on average a tile computes the pairs' fraction of it.
+  if (job.components.has(Component::Incoherent)) {
+    if (job.halvesWaveByReciprocity()) {
+      std::vector<int> bins;
+      for (const auto& i : job.incidence) bins.push_back(i.bin);
+      const double fraction = ReciprocalPairs(bins, nB, grid.binsPerHemisphere()).computedFraction();
+      p["reciprocity"] = {{"used", true},
+                          {"computed_fraction", fraction},
+                          {"wave_seconds_per_tile_without", waveSeconds},
+                          {"core_hours_saved", waveSeconds * (1 - fraction) * nTiles * cores / 3600.0}};
+      waveSeconds *= fraction;
+    } else {
+      p["reciprocity"] = {{"used", false}, {"reason", job.reciprocityOffReason()}};
+    }
   }
   const double tileSeconds = pathSeconds + waveSeconds;
   const double coreHours = tileSeconds * nTiles * cores / 3600.0;
@@ -147,6 +164,13 @@ std::string formatPlan(const nlohmann::json& p) {
             ? "progressive:    target " + n(p["progressive"]["target_rel_error"]) + " relative error; at most " +
                   n(p["progressive"]["path_seconds_per_tile_max"]) + " s of paths per tile (" +
                   p["progressive"]["max_paths_per_slice"].dump() + " paths)\n"
+            : std::string())
+    << (p.contains("reciprocity")
+            ? std::string("reciprocity:    ") + (p["reciprocity"]["used"].get<bool>()
+                                        ? "wave term for " + n(p["reciprocity"]["computed_fraction"].get<double>() * 100) +
+                                              "% of the same-side bin pairs, the rest mirrored (saves " +
+                                              n(p["reciprocity"]["core_hours_saved"]) + " core-hours)\n"
+                                        : "not used: " + p["reciprocity"]["reason"].get<std::string>() + "\n")
             : std::string())
     << "output:         " << gb(p["output_bytes_uncompressed"].get<double>()) << " uncompressed (upper bound)\n"
     << "memory / rank:  " << gb(p["memory_bytes_per_rank"].get<double>()) << "\n"

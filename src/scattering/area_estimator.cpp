@@ -125,7 +125,8 @@ class ExitDirectionSampler {
 AreaWaveEstimator::AreaWaveEstimator(const WaveContext& ctx) : ctx_(ctx), sampler_(ctx.geometry) {}
 
 WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                                      const std::function<void(uint64_t)>& progress) const {
+                                      const std::function<void(uint64_t)>& progress,
+                                      const std::vector<uint8_t>& exitMask) const {
   auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = ctx_.grid;
   const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();
@@ -136,10 +137,11 @@ WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<
   const bool masked = ctx_.settings.computeMasked;
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   const wave::Media media(ctx_);
-  const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor(), masked);
+  const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor(), masked, exitMask);
   const double area = sampler_.totalArea();
 
   WaveTileResult r(nL, nB, masked);
+  r.computed = exitMask;
   std::atomic<uint64_t> rays{0};
 
   auto doBin = [&](int b) {

@@ -83,7 +83,11 @@ OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx) : ctx_(ctx), sa
 }
 
 WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                                        const std::function<void(uint64_t)>& progress) const {
+                                        const std::function<void(uint64_t)>& progress,
+                                        const std::vector<uint8_t>& exitMask) const {
+  // The cost is per incidence sample and order, not per exit bin: every bin is computed and
+  // `computed` stays empty (the mask is a permission to skip, not an obligation).
+  (void)exitMask;
   auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = ctx_.grid;
   const PeriodicScene& scene = ctx_.scene;

@@ -27,7 +27,8 @@ class OrdersWaveEstimator : public WaveEstimator {
   explicit OrdersWaveEstimator(const WaveContext& ctx);
   std::string name() const override { return "orders"; }
   WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                     const std::function<void(uint64_t)>& progress) const override;
+                     const std::function<void(uint64_t)>& progress = {},
+                     const std::vector<uint8_t>& exitMask = {}) const override;
 
  private:
   WaveContext ctx_;

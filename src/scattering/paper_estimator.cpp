@@ -18,7 +18,8 @@ constexpr uint32_t kPaperStream = 0x9A9E5;
 }
 
 WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                                       const std::function<void(uint64_t)>& progress) const {
+                                       const std::function<void(uint64_t)>& progress,
+                                       const std::vector<uint8_t>& exitMask) const {
   auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = ctx_.grid;
   const PeriodicScene& scene = ctx_.scene;
@@ -32,10 +33,11 @@ WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional
   const bool fromAbove = wi.z >= 0;
   const double cosI = std::abs(wi.z);
   const wave::Media media(ctx_);
-  const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor(), masked);
+  const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor(), masked, exitMask);
   const double Lx = scene.sizeX(), Ly = scene.sizeY(), sigma = window.sigma();
 
   WaveTileResult r(nL, nB, masked);
+  r.computed = exitMask;
   std::atomic<uint64_t> rays{0};
 
   auto doBin = [&](int b) {

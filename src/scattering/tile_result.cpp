@@ -20,6 +20,8 @@ std::vector<double> TileResult::serialize() const {
   b.push_back(s);
   std::memcpy(&s, &rays, sizeof s);
   b.push_back(s);
+  std::memcpy(&s, &waveSamples, sizeof s);
+  b.push_back(s);
   b.push_back(seconds);
   b.push_back(rounds);
   b.push_back(double(int(samplingStop)));
@@ -51,6 +53,8 @@ TileResult TileResult::deserialize(const std::vector<double>& b) {
   std::memcpy(&r.samples, &s, sizeof s);
   s = next();
   std::memcpy(&r.rays, &s, sizeof s);
+  s = next();
+  std::memcpy(&r.waveSamples, &s, sizeof s);
   r.seconds = next();
   r.rounds = int(next());
   r.samplingStop = SamplingStop(int(next()));

@@ -27,6 +27,7 @@ struct TileResult {
   enum class SamplingStop : int { FixedBudget = 0, TargetReached = 1, BudgetExhausted = 2 };
   int rounds = 1;
   SamplingStop samplingStop = SamplingStop::FixedBudget;
+  uint64_t waveSamples = 0;       // Kirchhoff samples (point x direction) per wavelength, 0 without a wave term
   uint64_t rays = 0;              // ray casts through the scene (for speed figures)
   double seconds = 0;
 

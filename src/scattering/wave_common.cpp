@@ -22,10 +22,11 @@ bool escapes(const PeriodicScene& scene, const Vec3& x, const Vec3& side, const 
   return up ? r.kind == TraceResult::Kind::EscapedUp : r.kind == TraceResult::Kind::EscapedDown;
 }
 
-std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielectric, bool masked) {
+std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielectric, bool masked,
+                          const std::vector<uint8_t>& mask) {
   std::vector<int> bins;
   for (int b = 0; b < grid.binCount(); ++b) {
-    if (grid.projectedSolidAngle(b) <= 0) continue;
+    if (grid.projectedSolidAngle(b) <= 0 || (!mask.empty() && !mask[size_t(b)])) continue;
     bool reflection = grid.isUpper(b) == fromAbove;
     if (reflection || dielectric || masked) bins.push_back(b);
   }

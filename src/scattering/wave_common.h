@@ -52,7 +52,9 @@ inline ExitVisibility visibleExit(const PeriodicScene& scene, const Vec3& x, con
 // dielectrics (transmission) or when the masked field is wanted (a conductor's facets can face
 // below the horizon: their masked field points into the other hemisphere, where the geometric
 // geo_masked tally of the same light lands too).
-std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielectric, bool masked);
+// Bins with mask[b] == 0 are left out (an empty mask keeps all).
+std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielectric, bool masked,
+                          const std::vector<uint8_t>& mask = {});
 
 // Whether an exit direction is transmitted (the Kirchhoff transmission integrand) or reflected:
 // only a dielectric transmits; a conductor's directions on the other side are reflected (masked).

@@ -1,6 +1,7 @@
 #include "scattering/wave_estimator.h"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "scattering/tile_result.h"
@@ -29,6 +30,10 @@ void addWaveComponents(TileResult& tile, const WaveTileResult& wave, bool incohe
     v.resize(n);
     e.resize(n);
     for (size_t i = 0; i < n; ++i) {
+      if (!wave.computed.empty() && !wave.computed[i % size_t(tile.nBins)]) {
+        v[i] = e[i] = std::numeric_limits<double>::quiet_NaN();
+        continue;
+      }
       v[i] = a[i] - b[i];
       e[i] = std::sqrt(ae[i] * ae[i] + be[i] * be[i]);
     }

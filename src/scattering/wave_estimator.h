@@ -40,6 +40,9 @@ struct WaveTileResult {
   // Per (λ, bin), λ-major, 1/sr. Bins that were not computed (the other hemisphere of a
   // conductor) hold 0.
   std::vector<double> fws, fwsErr, pmsk, pmskErr;
+  // Exit bins the estimator skipped (reciprocity, see reciprocity.h) hold 0 and computed[b] = 0;
+  // empty when every bin was computed.
+  std::vector<uint8_t> computed;
   uint64_t samples = 0;  // Kirchhoff samples (point x direction) per wavelength
   uint64_t rays = 0;
   double seconds = 0;
@@ -60,9 +63,12 @@ class WaveEstimator {
   virtual ~WaveEstimator() = default;
   virtual std::string name() const = 0;
   // exactDirection: a collimated beam (as in PathTracer::run); otherwise the incidence direction is
-  // drawn cosine-weighted inside the incidence bin.
+  // drawn cosine-weighted inside the incidence bin. exitMask (one entry per sphere bin, empty = all):
+  // only the bins with a non-zero entry are estimated (estimators whose cost is not per exit bin
+  // may compute more and say so in `computed`). A bin's estimate does not depend on the mask.
   virtual WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                             const std::function<void(uint64_t)>& progress = {}) const = 0;
+                             const std::function<void(uint64_t)>& progress = {},
+                             const std::vector<uint8_t>& exitMask = {}) const = 0;
 };
 
 // "area", "orders" or "paper"; throws std::invalid_argument.
@@ -71,6 +77,7 @@ std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx);
 // Adds the wave components to a path-traced tile (PHYSICS.md §3, §6):
 //   incoherent = f_ws − coherent,   lost = P_msk / Ω⊥ − geo_masked,
 // with standard errors combined in quadrature. `tile` must hold coherent (and geo_masked for lost).
+// Bins the wave estimator skipped get NaN (filled later from the reciprocal tile).
 struct TileResult;
 void addWaveComponents(TileResult& tile, const WaveTileResult& wave, bool incoherent, bool lost);
 

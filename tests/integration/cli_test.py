@@ -172,6 +172,106 @@ def test_progressive():
     print("progressive sampling (target 3 %, rounds of 4000 paths, budget 40000):", stops)
 
 
+def reciprocity_job(path, material, output, extra=""):
+    """A full-sphere WS job (incidence = "all") on a rough gaussian patch: the wave term is halved."""
+    n_theta, n_phi = (4, 8) if "conductor" in material else (3, 6)
+    with open(path, "w") as f:
+        f.write(f"""[geometry]
+kind = "gaussian"
+size_um = [10.0, 10.0]
+rms_um = 0.3
+correlation_um = 1.0
+[material]
+{material}
+[spectrum]
+wavelengths_nm = [450.0, 650.0]
+[directions]
+n_theta = {n_theta}
+n_phi = {n_phi}
+incidence = "all"
+[effects]
+components = ["coherent", "incoherent"]
+{extra}
+[sampling]
+paths_per_slice = 5000
+wave_estimator = "area"
+wave_samples_per_bin = 256
+seed = 3
+[output]
+path = "{output}"
+""")
+    return path
+
+
+def test_reciprocity():
+    """[effects] reciprocity (default on) for a full-sphere job: the wave term is computed once per pair
+    of same-side incidence bins and the mirrored half filled at the end; every other entry is the same
+    bytes as a run that computes both halves, the mirrored ones are f_ws(o->i) - coherent(i->o) of that
+    run, nothing is NaN, the per-slice energies match the rows, and the wave samples fall to the
+    computed fraction of the pairs."""
+    for name, material in (("al", 'kind = "conductor"\nname = "Al"'), ("glass", 'kind = "dielectric"\nior = 1.5')):
+        on = reciprocity_job(os.path.join(TMP, f"{name}-on.toml"), material, f"{name}-on.h5")
+        off = reciprocity_job(os.path.join(TMP, f"{name}-off.toml"), material, f"{name}-off.h5", "reciprocity = false")
+        r_on = run(["run", on], mpi=2)
+        run(["run", off], mpi=2)
+        run(["run", on, "-o", f"{name}-on1.h5", "--threads", "1"])
+        assert datasets(os.path.join(TMP, f"{name}-on.h5")) == datasets(os.path.join(TMP, f"{name}-on1.h5")), \
+            "1 rank and 2 ranks differ with reciprocity"
+        assert "mirrored when every slice is done" in r_on.stderr + r_on.stdout
+        with h5py.File(os.path.join(TMP, f"{name}-on.h5"), "r") as a, h5py.File(os.path.join(TMP, f"{name}-off.h5"), "r") as b:
+            text = lambda v: v.decode() if isinstance(v, bytes) else str(v)  # noqa: E731
+            assert text(a.attrs["reciprocity"]).startswith("wave term computed once"), a.attrs["reciprocity"]
+            assert text(b.attrs["reciprocity"]).startswith("not used: [effects] reciprocity = false"), b.attrs["reciprocity"]
+            inc = a["/incidence/bin"][:]
+            nh = a["/grid/theta_deg"].shape[0] // 2
+            op = a["/grid/projected_solid_angle"][:]
+            ia, ea, ib = a["/bsdf/incoherent"][:], a["/bsdf_stderr/incoherent"][:], b["/bsdf/incoherent"][:]
+            eb = b["/bsdf_stderr/incoherent"][:]
+            cb, ecb = b["/bsdf/coherent"][:], b["/bsdf_stderr/coherent"][:]
+            assert np.array_equal(a["/bsdf/coherent"][:], cb)
+            assert np.all(np.isfinite(ia)) and np.all(np.isfinite(ea)), "NaN left in the filled table"
+            index_of = {int(bn): k for k, bn in enumerate(inc)}
+            up = lambda bn: bn < nh  # noqa: E731
+            side = {True: [k for k, bn in enumerate(inc) if up(bn)], False: [k for k, bn in enumerate(inc) if not up(bn)]}
+            own = mirrored = 0
+            for i, bi in enumerate(inc):
+                group = side[up(bi)]
+                for o in range(ia.shape[2]):
+                    j = index_of.get(o)
+                    if j is None or j == i or up(o) != up(bi):
+                        mine = True
+                    else:
+                        n = len(group)
+                        d = (group.index(j) - group.index(i)) % n
+                        mine = 2 * d < n or (2 * d == n and i < j)
+                    if mine:
+                        assert np.array_equal(ia[i, :, o], ib[i, :, o]) and np.array_equal(ea[i, :, o], eb[i, :, o]), (i, o)
+                        own += 1
+                    else:
+                        # The other run's f_ws(j -> bin i) = incoherent + coherent of row j.
+                        fws = ib[j, :, bi].astype(float) + cb[j, :, bi]
+                        expect = fws - cb[i, :, o]
+                        assert np.allclose(ia[i, :, o], expect, rtol=1e-5, atol=1e-6), (i, o, ia[i, :, o], expect)
+                        var_ws = np.maximum(eb[j, :, bi].astype(float) ** 2 - ecb[j, :, bi].astype(float) ** 2, 0)
+                        assert np.allclose(ea[i, :, o], np.sqrt(var_ws + ecb[i, :, o].astype(float) ** 2), rtol=1e-4, atol=1e-6)
+                        mirrored += 1
+            # The per-slice energies are those of the filled rows.
+            refl = (ia * np.where(np.arange(len(op)) < nh, op, 0)).sum(axis=2)
+            assert np.allclose(a["/stats/energy_reflected/incoherent"][:, :, 0], refl, rtol=1e-5, atol=1e-6)
+            ws_on, ws_off = a["/stats/wave_samples"][:].sum(), b["/stats/wave_samples"][:].sum()
+            n_up, n_down = len(side[True]), len(side[False])
+            pairs = sum(n + n * (n - 1) // 2 for n in (n_up, n_down))
+            exits = (n_up + n_down) * (2 * nh if n_down else nh)  # a dielectric's tiles estimate both hemispheres
+            expected = (exits - sum(n * n for n in (n_up, n_down)) + pairs) / exits
+            assert abs(ws_on / ws_off - expected) < 1e-12, (ws_on, ws_off, expected)
+        info = json.loads(run(["info", f"{name}-on.h5", "--json"]).stdout)
+        assert info["complete"] and info["reciprocity"].startswith("wave term computed once")
+        plan = run(["plan", on]).stdout
+        assert "reciprocity:    wave term for" in plan, plan
+        print(f"{name}: {own} entries identical to the full run, {mirrored} mirrored (f_ws(o->i) - coherent(i->o)); "
+              f"wave samples {ws_on} vs {ws_off} ({ws_on / ws_off:.3f} = expected {expected:.3f}); 1 and 2 ranks identical")
+
+
 def many_tiles_job(path, n_theta, output, paths=20000):
     """A job with n_theta x 4 incidence directions on a small patch (each tile a fraction of a second)."""
     inc = ", ".join(f"[{t:.2f}, {p:.1f}]" for t in np.linspace(0, 80, n_theta) for p in (0, 45, 90, 135))
