@@ -33,6 +33,7 @@
 #include "io/contact_sheet.h"
 #include "render/preview.h"
 #include "job/job.h"
+#include "job/effects_planner.h"
 #include "job/plan.h"
 
 using namespace mbsdf;
@@ -303,6 +304,18 @@ int main(int argc, char** argv) {
     if (logDir.empty()) logDir = out + ".logs";
     setupLogging(mpi.rank(), logDir, std::filesystem::path(out).stem().string(), verbose);
     try {
+      if (job->autoComponents) {
+        // components = "auto": rank 0 runs the pilots, every rank applies the same plan.
+        std::string planText;
+        if (mpi.rank() == 0) {
+          std::optional<tbb::global_control> limit;
+          if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
+          nlohmann::json p = planEffects(*job);
+          for (std::istringstream lines(formatEffects(p)); std::getline(lines, planText);) spdlog::info("{}", planText);
+          planText = p.dump();
+        }
+        applyEffectsPlan(*job, nlohmann::json::parse(mpi.broadcast(planText)));
+      }
       RunOptions opt;
       opt.outputPath = out;
       opt.threads = threads;

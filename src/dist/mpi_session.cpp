@@ -28,4 +28,12 @@ bool MpiSession::anyRank(bool flag) const {
   return out != 0;
 }
 
+std::string MpiSession::broadcast(const std::string& s) const {
+  unsigned long long n = s.size();
+  MPI_Bcast(&n, 1, MPI_UNSIGNED_LONG_LONG, 0, MPI_COMM_WORLD);
+  std::string out = rank_ == 0 ? s : std::string(size_t(n), '\0');
+  if (n) MPI_Bcast(out.data(), int(n), MPI_CHAR, 0, MPI_COMM_WORLD);
+  return out;
+}
+
 }  // namespace mbsdf

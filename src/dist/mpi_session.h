@@ -2,6 +2,7 @@
 #pragma once
 #include <mpi.h>
 
+#include <string>
 #include <vector>
 
 namespace mbsdf {
@@ -16,6 +17,8 @@ class MpiSession {
   int size() const { return size_; }
   // True on every rank if `flag` is true on any rank (used to fail together, never hang).
   bool anyRank(bool flag) const;
+  // Rank 0's `s` on every rank.
+  std::string broadcast(const std::string& s) const;
 
  private:
   int rank_ = 0, size_ = 1;

@@ -15,6 +15,7 @@
 #include "core/log.h"
 #include "geometry/embree_scene.h"
 #include "io/bsdf_file.h"
+#include "job/symmetry.h"
 #include "job/transport.h"
 #include "scattering/reciprocity.h"
 #include "scattering/wave_estimator.h"
@@ -188,9 +189,20 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   std::set<int> finished(writer.resumedTiles().begin(), writer.resumedTiles().end());
   summary.resumed = int(finished.size());
   if (summary.resumed) spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary.resumed, nTiles, outPath);
+  // Symmetry (symmetry.h): one tile per ring of an isotropic surface; queued if any slice of its
+  // ring is missing (a kill may fall between a ring's slices).
+  std::optional<AzimuthalSymmetry> symmetry;
+  if (job.isotropic) symmetry.emplace(job, grid);
   std::vector<int> queue;
-  for (int t = 0; t < nTiles; ++t)
-    if (!finished.count(t)) queue.push_back(t);
+  for (int t = 0; t < nTiles; ++t) {
+    if (symmetry && symmetry->representative(t) != t) continue;
+    bool missing = !finished.count(t);
+    if (symmetry)
+      for (int m : symmetry->members(t)) missing = missing || !finished.count(m);
+    if (missing) queue.push_back(t);
+  }
+  if (symmetry)
+    spdlog::info("symmetry: {}; {} tiles for {} slices", job.symmetryReason, symmetry->representativeCount(), nTiles);
   // Most expensive first: grazing incidence bounces and wraps more.
   auto cost = [&](int t) { return 1.0 / (std::abs(std::cos(radians(job.incidence[size_t(t)].theta_deg))) + 0.05); };
   std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) { return cost(a) > cost(b); });
@@ -216,10 +228,18 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   };
   // Mean over the slices written now of each component's Σ f Ω⊥ (averaged over wavelengths).
   std::map<std::string, double> energySum;
-  auto writeResult = [&](const TileResult& r) {
+  auto writeOne = [&](const TileResult& r) {
+    if (finished.count(r.incidenceIndex)) return;
     writer.writeTile(r);
+    finished.insert(r.incidenceIndex);
     ++written;
     progress.update(uint64_t(written));
+  };
+  auto writeResult = [&](const TileResult& r) {
+    writeOne(r);
+    if (symmetry)
+      for (int m : symmetry->members(r.incidenceIndex))
+        if (m != r.incidenceIndex) writeOne(symmetry->rotate(r, m, job.incidence[size_t(m)].bin));
     for (Component c : job.components.list()) {
       if (pairs && c == Component::Incoherent) continue;  // complete only after the reciprocity fill
       double e = 0;
@@ -291,16 +311,18 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   MPI_Bcast(&incomplete, 1, MPI_INT, 0, MPI_COMM_WORLD);
   double times[2] = {pathSecondsSum, waveSecondsSum}, total[2] = {0, 0};
   MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  std::optional<double> filledIncoherent;  // mean over all slices, after the reciprocity fill
   if (!incomplete && pairs) {
     auto tf = Clock::now();
     const double e = writer.completeReciprocal(*pairs);
-    energySum[componentName(Component::Incoherent)] = e * std::max(1, summary.computed);
+    filledIncoherent = e;
     spdlog::info("reciprocity: filled the mirrored half of {} slices in {:.2f} s", nTiles, since(tf));
   }
   {
     std::string energies;
     for (auto& [c, e] : energySum)
       energies += fmt::format("{}{} {:.4f}", energies.empty() ? "" : ", ", c, e / std::max(1, summary.computed));
+    if (filledIncoherent) energies += fmt::format(", incoherent {:.4f} (all slices, after the fill)", *filledIncoherent);
     spdlog::info("summary: {} slices computed now, {} resumed; {:.1f} s wall; tile time summed over ranks: "
                  "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
                  summary.computed, summary.resumed, since(t0), total[0], total[1], summary.paths, energies);

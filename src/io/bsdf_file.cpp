@@ -245,6 +245,10 @@ void BsdfFileWriter::create(const std::string& filename) {
   setScalarAttr<int64_t>(f, "max_depth", H5T_NATIVE_INT64, job.maxDepth);
   setStringAttr(f, "title", "Tabulated BSDF of a surface microgeometry (microbsdf)");
   setStringAttr(f, "incidence_sampling", job.exactIncidence ? "exact" : "bin");
+  if (!job.effectsPlan.empty()) setStringAttr(f, "effects_plan", job.effectsPlan);
+  setStringAttr(f, "symmetry", job.isotropic ? "isotropic: one incidence azimuth per theta ring computed, the other "
+                                               "slices of the ring rotated from it (" + job.symmetryReason + ")"
+                                             : job.symmetryReason);
   const bool halved = job.halvesWaveByReciprocity();
   setStringAttr(f, "reciprocity",
                 halved ? "wave term computed once per pair of incidence bins on the same side; the other half of "

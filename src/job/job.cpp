@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "job/geometry_factory.h"
 #include "job/params.h"
+#include "scattering/coherence_window.h"
 
 namespace mbsdf {
 namespace {
@@ -215,9 +216,34 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   std::string incSampling = dirs.getString("incidence_sampling", "bin");
   if (incSampling != "bin" && incSampling != "exact") dirs.fail("incidence_sampling", "must be \"bin\" or \"exact\"");
   job.exactIncidence = incSampling == "exact";
+  const std::string symmetry = dirs.getString("symmetry", "auto");
+  if (symmetry != "auto" && symmetry != "none" && symmetry != "isotropic")
+    dirs.fail("symmetry", "must be \"auto\", \"none\" or \"isotropic\"");
 
   ParamDict scene = root.table("scene");
   job.scene.coherenceLength_um = scene.nonNegative("coherence_length_um", 50.0);
+  if (scene.has("light") || scene.has("source_angular_diameter_deg")) {
+    // A disk source -> coherence length at the mean wavelength (van Cittert–Zernike, coherence_window.h).
+    for (const char* k : {"coherence_length_um", "source_angular_diameter_deg"})
+      if (scene.has("light") && scene.has(k)) scene.fail(k, "give the light source or its coherence, not both");
+    if (scene.has("coherence_length_um"))
+      scene.fail("coherence_length_um", "give either coherence_length_um or source_angular_diameter_deg");
+    double diameter = 0;
+    if (scene.has("light")) {
+      const std::string light = scene.getString("light", "");
+      if (light != "sun") scene.fail("light", "unknown light '" + light + "' (built in: \"sun\"; or give source_angular_diameter_deg)");
+      diameter = kSunAngularDiameter_deg;
+      job.scene.coherenceSource = "light = \"sun\"";
+    } else {
+      diameter = scene.positive("source_angular_diameter_deg", 1.0);
+      if (!(diameter < 180)) scene.fail("source_angular_diameter_deg", "must be below 180");
+      job.scene.coherenceSource = "source_angular_diameter_deg";
+    }
+    double meanLambda_um = 0;
+    for (double l : job.lambda_nm) meanLambda_um += l * 1e-3 / double(job.lambda_nm.size());
+    job.scene.sourceAngularDiameter_deg = diameter;
+    job.scene.coherenceLength_um = coherenceLengthOfDiskSource(radians(diameter), meanLambda_um);
+  }
   job.scene.needs = scene.getStrings("needs", {"brdf", "btdf"});
   for (auto& n : job.scene.needs)
     if (n != "brdf" && n != "btdf") scene.fail("needs", "entries must be \"brdf\" or \"btdf\"");
@@ -227,7 +253,9 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.requestedComponents = eff.getStrings("components", {"auto"});
   for (const auto& c : job.requestedComponents) {
     if (c == "auto") {
-      // Until the effects planner decides per scene: the paper's full model WM.
+      // The effects planner decides before the run (effects_planner.h); until then the candidates
+      // are the paper's full model WM.
+      job.autoComponents = true;
       job.components.add(Component::Coherent);
       job.components.add(Component::Incoherent);
       job.components.add(Component::Multiple);
@@ -295,6 +323,30 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind);
   }
 
+  // Azimuthal symmetry (symmetry.h): declared, or detected for a statistical surface whose NDF is
+  // isotropic; it needs a theta-phi grid and incidence = "all" to have rings to reduce.
+  {
+    const bool isotropicNdf = job.statistical && std::visit(
+        [](const auto& n) {
+          using T = std::decay_t<decltype(n)>;
+          if constexpr (std::is_same_v<T, BeckmannNdf> || std::is_same_v<T, GgxNdf>) return n.alphaX == n.alphaY;
+          else return true;  // von Mises–Fisher and tabulated D(cos θm) are isotropic
+        },
+        job.statistical->ndf);
+    const bool wanted = symmetry == "isotropic" || (symmetry == "auto" && isotropicNdf);
+    if (symmetry == "isotropic" && job.statistical && !isotropicNdf)
+      dirs.fail("symmetry", "the surface's NDF is anisotropic (alpha_x != alpha_y)");
+    if (wanted && !std::holds_alternative<ThetaPhiGrid>(job.gridLayout))
+      job.symmetryReason = "not used: needs a theta-phi grid (its rings map onto themselves under rotation)";
+    else if (wanted && !job.incidenceAll)
+      job.symmetryReason = "not used: needs incidence = \"all\"";
+    else if (wanted)
+      job.isotropic = true, job.symmetryReason = symmetry == "isotropic" ? "declared isotropic ([directions] symmetry)"
+                                                                          : "detected: the surface's NDF is isotropic";
+    else
+      job.symmetryReason = symmetry == "none" ? "none ([directions] symmetry = \"none\")" : "none declared or detected";
+  }
+
   if (job.waveEstimator == "orders" && !job.statistical && !(job.geometry.periodic && job.scene.coherenceLength_um > 0))
     samp.fail("wave_estimator", "\"orders\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
 
@@ -313,6 +365,7 @@ std::string Job::resolvedWaveEstimator() const {
 std::string Job::reciprocityOffReason() const {
   if (!components.has(Component::Incoherent)) return "no wave term";
   if (!reciprocity) return "[effects] reciprocity = false";
+  if (isotropic) return "symmetry reduction: one incidence azimuth per ring is computed, the others are rotations";
   if (!incidenceAll) return "incidence is a list of directions, not \"all\"";
   if (exactIncidence) return "incidence_sampling = \"exact\" (bin-centre beams are not reciprocal bin to bin)";
   if (components.has(Component::Lost)) return "the lost component needs the masked power of every exit bin";

@@ -22,6 +22,10 @@ struct IncidenceDirection {
 
 struct SceneNeeds {
   double coherenceLength_um = 50.0;
+  // Where δc came from: "coherence_length_um", or a disk source (`light = "sun"` or
+  // `source_angular_diameter_deg`) through van Cittert–Zernike (coherence_window.h).
+  std::string coherenceSource = "coherence_length_um";
+  double sourceAngularDiameter_deg = 0;
   std::vector<std::string> needs{"brdf", "btdf"};
   double tolerance = 0.01;
 };
@@ -47,9 +51,17 @@ struct Job {
   std::vector<IncidenceDirection> incidence;
   bool exactIncidence = false;  // [directions] incidence_sampling = "exact": collimated beams
   bool incidenceAll = false;    // [directions] incidence = "all": every bin on the incident side(s)
+  // [directions] symmetry: an isotropic surface has one incidence azimuth per θ ring computed and
+  // the other slices of the ring rotated from it (symmetry.h); symmetryReason says why or why not.
+  bool isotropic = false;
+  std::string symmetryReason;
   ComponentSet components;
   std::vector<std::string> requestedComponents;
   bool reciprocity = true;  // [effects] reciprocity: halve the wave term when the job allows it
+  // components = "auto": the effects planner (effects_planner.h) chooses `components` from pilots
+  // before the run; effectsPlan is its decisions as JSON (recorded in the output file).
+  bool autoComponents = false;
+  std::string effectsPlan;
   SceneNeeds scene;
   uint64_t pathsPerSlice = 1000000;
   // Progressive sampling: rounds of pathsPerSlice paths until the slice's estimated relative error

@@ -3,12 +3,18 @@
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
+#include <algorithm>
 #include <chrono>
+#include <filesystem>
+#include <unistd.h>
 #include <cmath>
 #include <optional>
 #include <sstream>
 
 #include "geometry/embree_scene.h"
+#include "io/bsdf_file.h"
+#include "job/effects_planner.h"
+#include "job/symmetry.h"
 #include "job/transport.h"
 #include "scattering/path_tracer.h"
 #include "scattering/reciprocity.h"
@@ -16,9 +22,16 @@
 
 namespace mbsdf {
 
-nlohmann::json planJob(const Job& job, const PlanOptions& options) {
+nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   std::optional<tbb::global_control> threads;
   if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
+  // components = "auto": the effects planner's pilots decide first (the run does the same).
+  Job job = requested;
+  nlohmann::json effects;
+  if (job.autoComponents) {
+    effects = planEffects(job);
+    applyEffectsPlan(job, effects);
+  }
   const int cores = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
   DirectionGrid grid(job.gridLayout);
   const int nTiles = int(job.incidence.size()), nL = int(job.lambda_nm.size()), nB = grid.binCount();
@@ -31,27 +44,39 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
   p["wavelengths"] = nL;
   p["grid"] = {{"kind", grid.kind()}, {"bins", nB}};
   p["tiles"] = nTiles;
+  // Symmetry: one computed tile per θ ring of an isotropic surface (symmetry.h).
+  const int computedTiles = job.isotropic ? AzimuthalSymmetry(job, grid).representativeCount() : nTiles;
+  p["symmetry"] = {{"isotropic", job.isotropic}, {"reason", job.symmetryReason}, {"tiles_computed", computedTiles}};
+  if (!effects.is_null()) p["effects"] = effects;
   std::vector<std::string> comps;
   for (Component c : job.components.list()) comps.push_back(componentName(c));
   p["components"] = comps;
   if (job.needsWave()) p["wave_estimator"] = job.resolvedWaveEstimator();
 
-  // Pilot: the most expensive tile (the most grazing incidence) at a reduced budget.
-  int pilot = 0;
-  for (int t = 1; t < nTiles; ++t)
-    if (std::abs(std::cos(radians(job.incidence[t].theta_deg))) <
-        std::abs(std::cos(radians(job.incidence[pilot].theta_deg))))
-      pilot = t;
+  // Pilots at a reduced budget: the incidence closest to normal, the median and the most grazing
+  // (the cost depends on θi differently for explicit geometry, which bounces more at grazing
+  // incidence, and for the microflake walk, which goes deeper at normal incidence); a tile's cost is
+  // their mean.
+  const std::vector<int> pilots = pilotIncidences(job);
+  const int pilot = *std::min_element(pilots.begin(), pilots.end(), [&](int a, int b) {
+    return std::abs(std::cos(radians(job.incidence[size_t(a)].theta_deg))) <
+           std::abs(std::cos(radians(job.incidence[size_t(b)].theta_deg)));
+  });  // the most grazing, reported
   const auto& inc = job.incidence[size_t(pilot)];
-  std::optional<Vec3> exact;
-  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  auto exactOf = [&](int t) {
+    std::optional<Vec3> exact;
+    const auto& i = job.incidence[size_t(t)];
+    if (job.exactIncidence) exact = sphericalDirection(radians(i.theta_deg), radians(i.phi_deg));
+    return exact;
+  };
   auto ts = std::chrono::steady_clock::now();
   const uint64_t pilotPaths = std::min<uint64_t>(job.pathsPerSlice, options.pilotPaths);
   GeometricTransport transport(job, grid, pilotPaths);
   const double sceneSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
-  TileResult pr = transport.run(pilot, pilot, inc.bin, exact);
+  double pilotSeconds = 0;
+  for (int t : pilots) pilotSeconds += transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t)).seconds / pilots.size();
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
-  const double pathSeconds = pr.seconds * double(job.pathsPerSlice) / double(pilotPaths);
+  const double pathSeconds = pilotSeconds * double(job.pathsPerSlice) / double(pilotPaths);
   double waveSeconds = 0;
   if (job.needsWave()) {
     WaveSettings ws;
@@ -67,8 +92,9 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
                                                                                   job.geometry.sizeX, job.geometry.sizeY,
                                                                                   job.geometry.periodic),
                                              ws});
-    WaveTileResult wr = est->run(pilot, inc.bin, exact);
-    waveSeconds = wr.seconds * double(job.waveSamplesPerBin) / double(ws.samplesPerBin);
+    for (int t : pilots)
+      waveSeconds += est->run(t, job.incidence[size_t(t)].bin, exactOf(t)).seconds *
+                     double(job.waveSamplesPerBin) / double(ws.samplesPerBin) / pilots.size();
   }
   // Reciprocity (PHYSICS.md §8): the wave term of each pair of incidence bins once. The pilot ran
   // the whole slice; on average a tile computes the pairs' fraction of it.
@@ -80,19 +106,46 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
       p["reciprocity"] = {{"used", true},
                           {"computed_fraction", fraction},
                           {"wave_seconds_per_tile_without", waveSeconds},
-                          {"core_hours_saved", waveSeconds * (1 - fraction) * nTiles * cores / 3600.0}};
+                          {"core_hours_saved", waveSeconds * (1 - fraction) * computedTiles * cores / 3600.0}};
       waveSeconds *= fraction;
     } else {
       p["reciprocity"] = {{"used", false}, {"reason", job.reciprocityOffReason()}};
     }
   }
   const double tileSeconds = pathSeconds + waveSeconds;
-  const double coreHours = tileSeconds * nTiles * cores / 3600.0;
+  // Rank 0 writes every slice (rotated ones too) with a flush and a journal fsync: measured by
+  // writing up to 3 slices of this job's layout to a scratch file.
+  double writeSeconds = 0;
+  {
+    const std::string scratch =
+        (std::filesystem::temp_directory_path() / ("microbsdf-plan-" + std::to_string(::getpid()) + ".h5")).string();
+    TileResult dummy;
+    dummy.nLambda = nL;
+    dummy.nBins = nB;
+    for (Component c : job.components.list()) {
+      dummy.value[int(c)].assign(size_t(nL) * nB, 0.0);
+      dummy.stdError[int(c)].assign(size_t(nL) * nB, 0.0);
+    }
+    dummy.truncated = dummy.leaked = dummy.missed = std::vector<double>(size_t(nL), 0.0);
+    const int n = std::min(3, nTiles);
+    {
+      BsdfFileWriter w(scratch, job, grid);
+      auto tw = std::chrono::steady_clock::now();
+      for (int t = 0; t < n; ++t) {
+        dummy.tile = dummy.incidenceIndex = t;
+        w.writeTile(dummy);
+      }
+      writeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count() / n;
+    }
+    for (const char* ext : {"", ".partial", ".journal"}) std::filesystem::remove(scratch + ext);
+  }
+  const double coreHours = tileSeconds * computedTiles * cores / 3600.0;
   p["pilot"] = {{"tile", pilot},
+                {"tiles", pilots},
                 {"theta_deg", inc.theta_deg},
                 {"paths", pilotPaths},
-                {"path_seconds", pr.seconds},
-                {"path_seconds_per_wavelength_group", pr.seconds / groups},
+                {"path_seconds", pilotSeconds},
+                {"path_seconds_per_wavelength_group", pilotSeconds / groups},
                 {"scene_build_seconds", sceneSeconds},
                 {"cores", cores}};
   if (job.targetRelError > 0) {
@@ -104,7 +157,9 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
   p["estimate"] = {{"seconds_per_tile", tileSeconds},
                    {"path_seconds_per_tile", pathSeconds},
                    {"wave_seconds_per_tile", waveSeconds},
-                   {"wall_seconds_on_these_cores", tileSeconds * nTiles + sceneSeconds},
+                   {"write_seconds_per_slice", writeSeconds},
+                   {"wall_seconds_on_these_cores",
+                    tileSeconds * computedTiles + writeSeconds * nTiles + sceneSeconds + (effects.is_null() ? 0.0 : effects["pilot_seconds"].get<double>())},
                    {"core_hours", coreHours}};
   // Output: float32 value + standard error per component, uncompressed upper bound.
   const double outBytes = double(nTiles) * nL * nB * 4.0 * 2.0 * double(comps.size());
@@ -117,8 +172,8 @@ nlohmann::json planJob(const Job& job, const PlanOptions& options) {
   p["memory_bytes_per_rank"] = sceneBytes + tileBytes + batchBytes;
   // Suggested Slurm resources: ranks of 8 cores, enough to finish in about 12 hours.
   const int cpusPerTask = 8;
-  int ntasks = std::max(1, std::min(nTiles, int(std::ceil(coreHours / (12.0 * cpusPerTask)))));
-  double wallHours = tileSeconds * cores / cpusPerTask * std::ceil(double(nTiles) / ntasks) / 3600.0;
+  int ntasks = std::max(1, std::min(computedTiles, int(std::ceil(coreHours / (12.0 * cpusPerTask)))));
+  double wallHours = tileSeconds * cores / cpusPerTask * std::ceil(double(computedTiles) / ntasks) / 3600.0;
   int minutes = int(std::ceil(wallHours * 60 * 1.3)) + 10;
   std::ostringstream sb;
   sb << "#SBATCH --ntasks=" << ntasks << "\n#SBATCH --cpus-per-task=" << cpusPerTask << "\n#SBATCH --time="
@@ -152,12 +207,19 @@ std::string formatPlan(const nlohmann::json& p) {
     << "components:     " << p["components"].dump() << (p.contains("wave_estimator") ? " (wave estimator " + p["wave_estimator"].get<std::string>() + ")" : "") << "\n"
     << "grid:           " << p["grid"]["kind"].get<std::string>() << ", " << p["grid"]["bins"] << " bins; "
     << p["wavelengths"] << " wavelengths\n"
-    << "tiles:          " << p["tiles"] << " (one per incidence direction, all wavelengths)\n"
+    << (p.contains("effects") ? formatEffects(p["effects"]) : std::string())
+    << "tiles:          " << p["tiles"] << " (one per incidence direction, all wavelengths)"
+    << (p["symmetry"]["isotropic"].get<bool>()
+            ? "; " + p["symmetry"]["tiles_computed"].dump() + " computed, the rest rotated (" +
+                  p["symmetry"]["reason"].get<std::string>() + ")"
+            : std::string())
+    << "\n"
     << "pilot:          tile " << p["pilot"]["tile"] << " (theta " << n(p["pilot"]["theta_deg"]) << "°), "
     << p["pilot"]["paths"] << " paths in " << n(p["pilot"]["path_seconds"]) << " s on " << p["pilot"]["cores"]
     << " cores\n"
     << "per tile:       " << n(p["estimate"]["seconds_per_tile"]) << " s (paths " << n(p["estimate"]["path_seconds_per_tile"])
-    << " s, wave " << n(p["estimate"]["wave_seconds_per_tile"]) << " s) on these cores\n"
+    << " s, wave " << n(p["estimate"]["wave_seconds_per_tile"]) << " s) on these cores; writing "
+    << n(p["estimate"]["write_seconds_per_slice"]) << " s per slice\n"
     << "total:          " << n(p["estimate"]["core_hours"]) << " core-hours; "
     << n(p["estimate"]["wall_seconds_on_these_cores"]) << " s on these cores\n"
     << (p.contains("progressive")

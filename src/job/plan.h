@@ -15,6 +15,7 @@ struct PlanOptions {
   int threads = 0;            // 0: all cores
 };
 
+// With components = "auto" the effects planner runs first and its decisions are in "effects".
 nlohmann::json planJob(const Job& job, const PlanOptions& options);
 std::string formatPlan(const nlohmann::json& plan);
 

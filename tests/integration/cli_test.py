@@ -272,6 +272,164 @@ def test_reciprocity():
               f"wave samples {ws_on} vs {ws_off} ({ws_on / ws_off:.3f} = expected {expected:.3f}); 1 and 2 ranks identical")
 
 
+def effects_job(path, geometry, material, scene, components=None):
+    with open(path, "w") as f:
+        f.write(f"""[geometry]
+{geometry}
+[material]
+{material}
+[spectrum]
+wavelengths_nm = [500.0, 600.0]
+[directions]
+n_theta = 8
+n_phi = 16
+incidence = [[0.0, 0.0], [40.0, 0.0], [70.0, 30.0]]
+[scene]
+{scene}
+tolerance = 0.02
+[effects]
+components = {json.dumps(components or ["auto"])}
+[sampling]
+paths_per_slice = 50000
+wave_samples_per_bin = 1024
+seed = 5
+[output]
+path = "out.h5"
+""")
+    return path
+
+
+def test_effects_auto():
+    """components = "auto": the effects planner's decisions (with reasons) for scenes with known
+    physics, and the auto table against the full WM table of the same seeds: per slice
+    sum|f_WM - f_auto| * proj. solid angle, less its expected noise L1 and 3 standard deviations,
+    stays below the tolerance. Wall times are printed (not asserted)."""
+    scenes = {
+        "flat Al": ('kind = "flat"\nsize_um = [10.0, 10.0]', 'name = "Al"', "coherence_length_um = 50.0",
+                    {"coherent"}),
+        "sine grating, period 2 um = 4 lambda, amplitude 30 nm": (
+            'kind = "sine-grating"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.03', 'name = "Al"',
+            "coherence_length_um = 50.0", {"coherent", "incoherent"}),
+        "mirror hemispheres under the sun": (
+            'kind = "hemispheres"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\nspacing_um = 5.0\nresolution_um = 0.25',
+            'name = "mirror"', 'light = "sun"', {"coherent", "incoherent", "multiple"}),
+        "gentle large-scale noise (rms 0.5 um, correlation 5 um), delta_c = 20 um": (
+            'kind = "gaussian"\nsize_um = [20.0, 20.0]\nrms_um = 0.5\ncorrelation_um = 5.0', 'name = "Al"',
+            "coherence_length_um = 20.0", {"coherent", "multiple"}),
+    }
+    for k, (name, (geo, mat, scene, expected)) in enumerate(scenes.items()):
+        auto = effects_job(os.path.join(TMP, f"auto{k}.toml"), geo, mat, scene)
+        full = effects_job(os.path.join(TMP, f"full{k}.toml"), geo, mat, scene, ["coherent", "incoherent", "multiple"])
+        plan = run(["plan", auto, "--json", f"plan{k}.json"]).stdout
+        decisions = {d["effect"]: d for d in json.load(open(os.path.join(TMP, f"plan{k}.json")))["effects"]["decisions"]}
+        t0 = time.time()
+        run(["run", auto, "-o", f"auto{k}.h5"], mpi=2)
+        t_auto = time.time() - t0
+        t0 = time.time()
+        run(["run", full, "-o", f"full{k}.h5"], mpi=2)
+        t_full = time.time() - t0
+        with h5py.File(os.path.join(TMP, f"auto{k}.h5"), "r") as a, h5py.File(os.path.join(TMP, f"full{k}.h5"), "r") as b:
+            got = set(a["bsdf"].keys()) - {"done"}
+            assert got == expected, f"{name}: auto chose {sorted(got)}, expected {sorted(expected)}\n{plan}"
+            recorded = json.loads(a.attrs["effects_plan"])
+            assert set(recorded["components"]) == expected, recorded
+            assert not decisions["btdf"]["on"] and "conductor transmits nothing" in decisions["btdf"]["reason"]
+            op = a["/grid/projected_solid_angle"][:]
+            worst = -1e9
+            for i in range(a["/bsdf/coherent"].shape[0]):
+                for l in range(a["/bsdf/coherent"].shape[1]):
+                    diff = np.zeros(len(op))
+                    var = np.zeros(len(op))
+                    for c in ("coherent", "incoherent", "multiple"):
+                        full_c = b[f"/bsdf/{c}"][i, l].astype(float)
+                        auto_c = a[f"/bsdf/{c}"][i, l].astype(float) if c in a["bsdf"] else 0 * full_c
+                        diff += full_c - auto_c
+                        if c not in a["bsdf"]:
+                            var += b[f"/bsdf_stderr/{c}"][i, l].astype(float) ** 2
+                    l1 = np.sum(np.abs(diff) * op)
+                    sd = np.sqrt(var) * op
+                    excess = l1 - np.sqrt(2 / np.pi) * sd.sum() - 3 * np.sqrt(np.sum(sd ** 2))
+                    worst = max(worst, excess)
+            tol = 0.02
+            assert worst < tol, f"{name}: auto differs from WM by {worst} beyond noise (tolerance {tol})"
+        reasons = "; ".join(f"{e} {'on' if d['on'] else 'off'}" for e, d in decisions.items())
+        print(f"{name}: auto = {sorted(expected)}; |auto - WM| beyond noise {max(worst, 0):.4f} < {tol}; "
+              f"wall time auto {t_auto:.1f} s vs WM {t_full:.1f} s (speed-up {t_full / t_auto:.2f}x, pilots included)")
+        for e in ("multiple", "incoherent", "btdf"):
+            print(f"    {e}: {decisions[e]['reason'][:200]}")
+
+
+def test_symmetry():
+    """[directions] symmetry: an isotropic Gaussian surface (statistical, Beckmann alpha = 0.4: the
+    isotropy is detected from the NDF) computes one incidence azimuth per theta ring and rotates it;
+    against the full computation (symmetry = "none", same seeds) the computed slices are the same
+    bytes and the rotated ones agree within their standard errors."""
+    def job(name, symmetry):
+        with open(os.path.join(TMP, name), "w") as f:
+            f.write(f"""[geometry]
+kind = "statistical"
+ndf = "beckmann"
+alpha = 0.4
+[material]
+name = "Au"
+[spectrum]
+wavelengths_nm = [450.0, 650.0]
+[directions]
+n_theta = 4
+n_phi = 8
+incidence = "all"
+symmetry = "{symmetry}"
+[effects]
+components = ["coherent", "multiple"]
+[sampling]
+paths_per_slice = 40000
+seed = 11
+[output]
+path = "{name}.h5"
+""")
+        return os.path.join(TMP, name)
+    t0 = time.time()
+    r = run(["run", job("sym.toml", "auto"), "-o", "sym.h5"], mpi=2)
+    t_sym = time.time() - t0
+    t0 = time.time()
+    run(["run", job("full.toml", "none"), "-o", "full.h5"], mpi=2)
+    t_full = time.time() - t0
+    assert "symmetry: detected: the surface's NDF is isotropic; 4 tiles for 32 slices" in r.stdout + r.stderr, r.stderr
+    plan = run(["plan", job("sym.toml", "auto")]).stdout
+    assert "4 computed, the rest rotated" in plan, plan
+    with h5py.File(os.path.join(TMP, "sym.h5"), "r") as a, h5py.File(os.path.join(TMP, "full.h5"), "r") as b:
+        text = lambda v: v.decode() if isinstance(v, bytes) else str(v)  # noqa: E731
+        assert text(a.attrs["symmetry"]).startswith("isotropic"), a.attrs["symmetry"]
+        inc = a["/incidence/bin"][:]
+        fa = a["/bsdf/coherent"][:].astype(float) + a["/bsdf/multiple"][:]
+        fb = b["/bsdf/coherent"][:].astype(float) + b["/bsdf/multiple"][:]
+        ea = np.hypot(a["/bsdf_stderr/coherent"][:].astype(float), a["/bsdf_stderr/multiple"][:])
+        eb = np.hypot(b["/bsdf_stderr/coherent"][:].astype(float), b["/bsdf_stderr/multiple"][:])
+        op = a["/grid/projected_solid_angle"][:]
+        zs, albedo_z = [], []
+        for i, bin_ in enumerate(inc):
+            if bin_ % 8 == 0:  # a computed (representative) slice
+                assert np.array_equal(a["/bsdf/coherent"][i], b["/bsdf/coherent"][i])
+                assert np.array_equal(a["/bsdf/multiple"][i], b["/bsdf/multiple"][i])
+                continue
+            ok = (ea[i] > 0) & (eb[i] > 0)
+            zs.extend(((fa[i] - fb[i])[ok] / np.hypot(ea[i], eb[i])[ok]).ravel())
+            for l in range(fa.shape[1]):
+                da = np.sum(fa[i, l] * op) - np.sum(fb[i, l] * op)
+                se = np.sqrt(np.sum((ea[i, l] * op) ** 2) + np.sum((eb[i, l] * op) ** 2))
+                albedo_z.append(da / se)
+        zs, albedo_z = np.array(zs), np.array(albedo_z)
+        beyond = np.mean(np.abs(zs) > 3)
+        # 0.27 % of normal z-scores exceed 3; the albedo sums the bins (their errors are negatively
+        # correlated within a slice, so its z is conservative).
+        assert beyond < 0.01 and 0.7 < np.mean(zs ** 2) < 1.3, (beyond, np.mean(zs ** 2))
+        assert np.all(np.abs(albedo_z) < 3), albedo_z
+    print(f"isotropic Beckmann 0.4, Au: 4 tiles for 32 slices; computed slices identical to the full run; rotated "
+          f"slices vs full: {zs.size} bins, mean z^2 {np.mean(zs ** 2):.3f}, {100 * beyond:.2f}% beyond 3 SE, "
+          f"albedo |z| <= {np.max(np.abs(albedo_z)):.2f}; wall time {t_sym:.1f} s vs {t_full:.1f} s "
+          f"({t_full / t_sym:.1f}x)")
+
+
 def many_tiles_job(path, n_theta, output, paths=20000):
     """A job with n_theta x 4 incidence directions on a small patch (each tile a fraction of a second)."""
     inc = ", ".join(f"[{t:.2f}, {p:.1f}]" for t in np.linspace(0, 80, n_theta) for p in (0, 45, 90, 135))

@@ -166,3 +166,40 @@ TEST(Job, TabulatedNdfFile) {
   EXPECT_NE(err("order.csv").find("order.csv:3"), std::string::npos) << err("order.csv");
   EXPECT_NE(err("missing.csv").find("geometry.ndf_file"), std::string::npos) << err("missing.csv");
 }
+
+// [scene] light source -> coherence length; conflicting or unknown sources name the key.
+TEST(Job, SceneLightSource) {
+  Job sun = loadJobFromString("[spectrum]\nwavelengths_nm = [550.0]\n[scene]\nlight = \"sun\"\n", "t.toml", "");
+  EXPECT_NEAR(sun.scene.coherenceLength_um, 159.7, 0.1);
+  EXPECT_EQ(sun.scene.coherenceSource, "light = \"sun\"");
+  Job disk = loadJobFromString("[spectrum]\nwavelengths_nm = [500.0, 600.0]\n[scene]\nsource_angular_diameter_deg = 1.066\n",
+                               "t.toml", "");
+  EXPECT_NEAR(disk.scene.coherenceLength_um, 159.7 / 2, 0.1);  // twice the sun's diameter, same mean λ
+  EXPECT_NE(errorOf("[scene]\nlight = \"moon\"\n").find("scene.light"), std::string::npos);
+  EXPECT_NE(errorOf("[scene]\nlight = \"sun\"\ncoherence_length_um = 50.0\n").find("scene.coherence_length_um"),
+            std::string::npos);
+  EXPECT_NE(errorOf("[scene]\nsource_angular_diameter_deg = -1.0\n").find("scene.source_angular_diameter_deg"),
+            std::string::npos);
+  EXPECT_TRUE(loadJobFromString("[directions]\nincidence = [[0.0, 0.0]]\n", "t.toml", "").autoComponents);
+  EXPECT_FALSE(loadJobFromString("[effects]\ncomponents = [\"coherent\"]\n", "t.toml", "").autoComponents);
+}
+
+// [directions] symmetry: detected for isotropic NDFs, refused for anisotropic ones, unused (with the
+// reason) without rings to reduce.
+TEST(Job, SymmetryDetectedOrDeclared) {
+  const std::string stat = "[geometry]\nkind = \"statistical\"\nndf = \"ggx\"\n";
+  Job iso = loadJobFromString(stat + "alpha = 0.3\n[directions]\nn_theta = 3\nn_phi = 4\n", "t.toml", "");
+  EXPECT_TRUE(iso.isotropic) << iso.symmetryReason;
+  Job aniso = loadJobFromString(stat + "alpha = [0.3, 0.5]\n[directions]\nn_theta = 3\nn_phi = 4\n", "t.toml", "");
+  EXPECT_FALSE(aniso.isotropic);
+  EXPECT_NE(errorOf(stat + "alpha = [0.3, 0.5]\n[directions]\nsymmetry = \"isotropic\"\n").find("directions.symmetry"),
+            std::string::npos);
+  Job list = loadJobFromString(stat + "alpha = 0.3\n[directions]\nincidence = [[10.0, 0.0]]\n", "t.toml", "");
+  EXPECT_FALSE(list.isotropic);
+  EXPECT_NE(list.symmetryReason.find("incidence"), std::string::npos);
+  Job declared = loadJobFromString("[geometry]\nkind = \"gaussian\"\n[directions]\nn_theta = 3\nn_phi = 4\nsymmetry = \"isotropic\"\n",
+                                   "t.toml", "");
+  EXPECT_TRUE(declared.isotropic);
+  EXPECT_FALSE(loadJobFromString("[geometry]\nkind = \"gaussian\"\n[directions]\nn_theta = 3\nn_phi = 4\n", "t.toml", "").isotropic);
+  EXPECT_NE(errorOf("[directions]\nsymmetry = \"mirror\"\n").find("directions.symmetry"), std::string::npos);
+}

@@ -1,0 +1,40 @@
+// Azimuthal symmetry of an isotropic surface (issue "simulate only the effects a scene calls for",
+// item symmetry). Rotating an isotropic surface about z by any angle leaves its BSDF unchanged, so on
+// a theta-phi grid (rings of nPhi equal bins at every θ, in both hemispheres) the slice of the
+// incidence bin (t, p) is the slice of (t, 0) with every exit bin's φ index shifted by p:
+//   f((t, p) → (t', p')) = f((t, 0) → (t', p' − p mod nPhi)).
+// This is exact for bin-averaged values (a rotation by whole bins maps bins onto bins, with their
+// solid angles) and for collimated beams through bin centres. A job with incidence = "all" then
+// computes one tile per ring (the representative, φ index 0) and writes the ring's other slices as
+// rotations of it: nPhi times fewer tiles.
+#pragma once
+#include <vector>
+
+#include "core/direction_grid.h"
+#include "job/job.h"
+#include "scattering/tile_result.h"
+
+namespace mbsdf {
+
+class AzimuthalSymmetry {
+ public:
+  // Requires job.isotropic (a theta-phi grid and incidence = "all").
+  AzimuthalSymmetry(const Job& job, const DirectionGrid& grid);
+  // The incidence index whose tile is computed for incidence index i, and the φ steps from it.
+  int representative(int i) const { return rep_[size_t(i)]; }
+  int shift(int i) const { return shift_[size_t(i)]; }
+  // Incidence indices whose slices are rotations of representative r's (r included).
+  const std::vector<int>& members(int r) const { return members_[size_t(r)]; }
+  int representativeCount() const { return count_; }
+  // The slice of incidence index `target` from its representative's tile.
+  TileResult rotate(const TileResult& representativeTile, int target, int targetBin) const;
+
+ private:
+  const DirectionGrid& grid_;
+  int nPhi_ = 1;
+  std::vector<int> rep_, shift_;
+  std::vector<std::vector<int>> members_;
+  int count_ = 0;
+};
+
+}  // namespace mbsdf
