@@ -189,10 +189,10 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   std::set<int> finished(writer.resumedTiles().begin(), writer.resumedTiles().end());
   summary.resumed = int(finished.size());
   if (summary.resumed) spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary.resumed, nTiles, outPath);
-  // Symmetry (symmetry.h): one tile per ring of an isotropic surface; queued if any slice of its
+  // Symmetry (symmetry.h): one tile per ring (or per n-th of a ring) of a symmetric surface; queued if any slice of its
   // ring is missing (a kill may fall between a ring's slices).
   std::optional<AzimuthalSymmetry> symmetry;
-  if (job.isotropic) symmetry.emplace(job, grid);
+  if (job.symmetryReduced()) symmetry.emplace(job, grid);
   std::vector<int> queue;
   for (int t = 0; t < nTiles; ++t) {
     if (symmetry && symmetry->representative(t) != t) continue;

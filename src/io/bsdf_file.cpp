@@ -246,9 +246,14 @@ void BsdfFileWriter::create(const std::string& filename) {
   setStringAttr(f, "title", "Tabulated BSDF of a surface microgeometry (microbsdf)");
   setStringAttr(f, "incidence_sampling", job.exactIncidence ? "exact" : "bin");
   if (!job.effectsPlan.empty()) setStringAttr(f, "effects_plan", job.effectsPlan);
-  setStringAttr(f, "symmetry", job.isotropic ? "isotropic: one incidence azimuth per theta ring computed, the other "
-                                               "slices of the ring rotated from it (" + job.symmetryReason + ")"
-                                             : job.symmetryReason);
+  setStringAttr(f, "symmetry",
+                job.isotropic ? "isotropic: one incidence azimuth per theta ring computed, the other slices of the ring "
+                                "rotated from it (" + job.symmetryReason + ")"
+                : job.rotationOrder > 1
+                    ? "rotation by 360/" + std::to_string(job.rotationOrder) + " degrees: one " +
+                          std::to_string(job.rotationOrder) + "th of each theta ring computed, the rest rotated (" +
+                          job.symmetryReason + ")"
+                    : job.symmetryReason);
   const bool halved = job.halvesWaveByReciprocity();
   setStringAttr(f, "reciprocity",
                 halved ? "wave term computed once per pair of incidence bins on the same side; the other half of "

@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "job/geometry_factory.h"
 #include "job/params.h"
+#include "job/symmetry.h"
 #include "scattering/coherence_window.h"
 
 namespace mbsdf {
@@ -336,13 +337,22 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     const bool wanted = symmetry == "isotropic" || (symmetry == "auto" && isotropicNdf);
     if (symmetry == "isotropic" && job.statistical && !isotropicNdf)
       dirs.fail("symmetry", "the surface's NDF is anisotropic (alpha_x != alpha_y)");
-    if (wanted && !std::holds_alternative<ThetaPhiGrid>(job.gridLayout))
+    // Explicit geometry: detect a 4- or 2-fold rotation symmetry of the patch (symmetry.h).
+    const int order = symmetry == "auto" && !job.statistical ? rotationOrderOf(job.geometry) : 1;
+    const auto* tp = std::get_if<ThetaPhiGrid>(&job.gridLayout);
+    if ((wanted || order > 1) && !tp)
       job.symmetryReason = "not used: needs a theta-phi grid (its rings map onto themselves under rotation)";
-    else if (wanted && !job.incidenceAll)
+    else if ((wanted || order > 1) && !job.incidenceAll)
       job.symmetryReason = "not used: needs incidence = \"all\"";
     else if (wanted)
       job.isotropic = true, job.symmetryReason = symmetry == "isotropic" ? "declared isotropic ([directions] symmetry)"
                                                                           : "detected: the surface's NDF is isotropic";
+    else if (order > 1 && tp->nPhi % order != 0)
+      job.symmetryReason = "not used: the patch has " + std::to_string(order) + "-fold rotation symmetry but n_phi = " +
+                           std::to_string(tp->nPhi) + " is not a multiple of " + std::to_string(order);
+    else if (order > 1)
+      job.rotationOrder = order, job.symmetryReason = "detected: the patch is invariant under rotation by " +
+                                                      std::to_string(360 / order) + " degrees";
     else
       job.symmetryReason = symmetry == "none" ? "none ([directions] symmetry = \"none\")" : "none declared or detected";
   }
@@ -365,7 +375,7 @@ std::string Job::resolvedWaveEstimator() const {
 std::string Job::reciprocityOffReason() const {
   if (!components.has(Component::Incoherent)) return "no wave term";
   if (!reciprocity) return "[effects] reciprocity = false";
-  if (isotropic) return "symmetry reduction: one incidence azimuth per ring is computed, the others are rotations";
+  if (symmetryReduced()) return "symmetry reduction: part of each ring is computed, the other slices are rotations";
   if (!incidenceAll) return "incidence is a list of directions, not \"all\"";
   if (exactIncidence) return "incidence_sampling = \"exact\" (bin-centre beams are not reciprocal bin to bin)";
   if (components.has(Component::Lost)) return "the lost component needs the masked power of every exit bin";

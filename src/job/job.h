@@ -52,8 +52,12 @@ struct Job {
   bool exactIncidence = false;  // [directions] incidence_sampling = "exact": collimated beams
   bool incidenceAll = false;    // [directions] incidence = "all": every bin on the incident side(s)
   // [directions] symmetry: an isotropic surface has one incidence azimuth per θ ring computed and
-  // the other slices of the ring rotated from it (symmetry.h); symmetryReason says why or why not.
+  // the other slices of the ring rotated from it; a surface invariant under rotation by 2π/n
+  // (rotationOrder = n >= 2, e.g. a square lattice: 4) one n-th of each ring (symmetry.h).
+  // symmetryReason says why or why not.
   bool isotropic = false;
+  int rotationOrder = 1;
+  bool symmetryReduced() const { return isotropic || rotationOrder > 1; }
   std::string symmetryReason;
   ComponentSet components;
   std::vector<std::string> requestedComponents;

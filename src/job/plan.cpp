@@ -45,8 +45,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   p["grid"] = {{"kind", grid.kind()}, {"bins", nB}};
   p["tiles"] = nTiles;
   // Symmetry: one computed tile per θ ring of an isotropic surface (symmetry.h).
-  const int computedTiles = job.isotropic ? AzimuthalSymmetry(job, grid).representativeCount() : nTiles;
-  p["symmetry"] = {{"isotropic", job.isotropic}, {"reason", job.symmetryReason}, {"tiles_computed", computedTiles}};
+  const int computedTiles = job.symmetryReduced() ? AzimuthalSymmetry(job, grid).representativeCount() : nTiles;
+  p["symmetry"] = {{"reduced", job.symmetryReduced()}, {"isotropic", job.isotropic}, {"rotation_order", job.rotationOrder}, {"reason", job.symmetryReason}, {"tiles_computed", computedTiles}};
   if (!effects.is_null()) p["effects"] = effects;
   std::vector<std::string> comps;
   for (Component c : job.components.list()) comps.push_back(componentName(c));
@@ -209,7 +209,7 @@ std::string formatPlan(const nlohmann::json& p) {
     << p["wavelengths"] << " wavelengths\n"
     << (p.contains("effects") ? formatEffects(p["effects"]) : std::string())
     << "tiles:          " << p["tiles"] << " (one per incidence direction, all wavelengths)"
-    << (p["symmetry"]["isotropic"].get<bool>()
+    << (p["symmetry"]["reduced"].get<bool>()
             ? "; " + p["symmetry"]["tiles_computed"].dump() + " computed, the rest rotated (" +
                   p["symmetry"]["reason"].get<std::string>() + ")"
             : std::string())

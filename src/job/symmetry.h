@@ -6,7 +6,11 @@
 // This is exact for bin-averaged values (a rotation by whole bins maps bins onto bins, with their
 // solid angles) and for collimated beams through bin centres. A job with incidence = "all" then
 // computes one tile per ring (the representative, φ index 0) and writes the ring's other slices as
-// rotations of it: nPhi times fewer tiles.
+// rotations of it: nPhi times fewer tiles. A surface that is only invariant under rotations by
+// 2π/n about the patch centre (a square lattice: n = 4; any periodic patch rotated by 180°: n = 2)
+// gets the same with rotations by multiples of nPhi/n bins: the representatives are the first
+// nPhi/n azimuths of each ring, n times fewer tiles. rotationOrderOf() detects n for explicit
+// geometry by mapping every facet onto a facet of the rotated patch.
 #pragma once
 #include <vector>
 
@@ -16,9 +20,14 @@
 
 namespace mbsdf {
 
+// The largest n in {4, 2} such that the microgeometry is invariant under rotation by 2π/n about the
+// patch centre (facet centroids and normals rotated, wrapped into the periodic cell, matched to
+// within 1e-6 of the patch size); 1 if neither. n = 4 needs a square patch.
+int rotationOrderOf(const Microgeometry& g);
+
 class AzimuthalSymmetry {
  public:
-  // Requires job.isotropic (a theta-phi grid and incidence = "all").
+  // Requires job.symmetryReduced() (a theta-phi grid and incidence = "all").
   AzimuthalSymmetry(const Job& job, const DirectionGrid& grid);
   // The incidence index whose tile is computed for incidence index i, and the φ steps from it.
   int representative(int i) const { return rep_[size_t(i)]; }

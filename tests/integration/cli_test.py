@@ -360,18 +360,24 @@ def test_effects_auto():
 
 
 def test_symmetry():
-    """[directions] symmetry: an isotropic Gaussian surface (statistical, Beckmann alpha = 0.4: the
+    """[directions] symmetry: (1) an isotropic Gaussian surface (statistical, Beckmann alpha = 0.4: the
     isotropy is detected from the NDF) computes one incidence azimuth per theta ring and rotates it;
-    against the full computation (symmetry = "none", same seeds) the computed slices are the same
-    bytes and the rotated ones agree within their standard errors."""
-    def job(name, symmetry):
-        with open(os.path.join(TMP, name), "w") as f:
-            f.write(f"""[geometry]
-kind = "statistical"
-ndf = "beckmann"
-alpha = 0.4
+    (2) a square lattice of hemispheres (4-fold rotation symmetry detected from the mesh) computes a
+    quarter of each ring. Against the full computation (symmetry = "none", same seeds) the computed
+    slices are the same bytes and the rotated ones agree within their standard errors."""
+    cases = [
+        ("isotropic Beckmann 0.4, Au", 'kind = "statistical"\nndf = "beckmann"\nalpha = 0.4', 'name = "Au"',
+         "symmetry: detected: the surface's NDF is isotropic; 4 tiles for 32 slices", 1),
+        ("hemispheres lattice, Al", 'kind = "hemispheres"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\nspacing_um = 5.0',
+         'name = "Al"', "symmetry: detected: the patch is invariant under rotation by 90 degrees; 8 tiles for 32 slices", 2),
+    ]
+    for k, (name, geometry, material, logline, step) in enumerate(cases):
+        def job(fname, symmetry):
+            with open(os.path.join(TMP, fname), "w") as f:
+                f.write(f"""[geometry]
+{geometry}
 [material]
-name = "Au"
+{material}
 [spectrum]
 wavelengths_nm = [450.0, 650.0]
 [directions]
@@ -385,49 +391,48 @@ components = ["coherent", "multiple"]
 paths_per_slice = 40000
 seed = 11
 [output]
-path = "{name}.h5"
+path = "out.h5"
 """)
-        return os.path.join(TMP, name)
-    t0 = time.time()
-    r = run(["run", job("sym.toml", "auto"), "-o", "sym.h5"], mpi=2)
-    t_sym = time.time() - t0
-    t0 = time.time()
-    run(["run", job("full.toml", "none"), "-o", "full.h5"], mpi=2)
-    t_full = time.time() - t0
-    assert "symmetry: detected: the surface's NDF is isotropic; 4 tiles for 32 slices" in r.stdout + r.stderr, r.stderr
-    plan = run(["plan", job("sym.toml", "auto")]).stdout
-    assert "4 computed, the rest rotated" in plan, plan
-    with h5py.File(os.path.join(TMP, "sym.h5"), "r") as a, h5py.File(os.path.join(TMP, "full.h5"), "r") as b:
-        text = lambda v: v.decode() if isinstance(v, bytes) else str(v)  # noqa: E731
-        assert text(a.attrs["symmetry"]).startswith("isotropic"), a.attrs["symmetry"]
-        inc = a["/incidence/bin"][:]
-        fa = a["/bsdf/coherent"][:].astype(float) + a["/bsdf/multiple"][:]
-        fb = b["/bsdf/coherent"][:].astype(float) + b["/bsdf/multiple"][:]
-        ea = np.hypot(a["/bsdf_stderr/coherent"][:].astype(float), a["/bsdf_stderr/multiple"][:])
-        eb = np.hypot(b["/bsdf_stderr/coherent"][:].astype(float), b["/bsdf_stderr/multiple"][:])
-        op = a["/grid/projected_solid_angle"][:]
-        zs, albedo_z = [], []
-        for i, bin_ in enumerate(inc):
-            if bin_ % 8 == 0:  # a computed (representative) slice
-                assert np.array_equal(a["/bsdf/coherent"][i], b["/bsdf/coherent"][i])
-                assert np.array_equal(a["/bsdf/multiple"][i], b["/bsdf/multiple"][i])
-                continue
-            ok = (ea[i] > 0) & (eb[i] > 0)
-            zs.extend(((fa[i] - fb[i])[ok] / np.hypot(ea[i], eb[i])[ok]).ravel())
-            for l in range(fa.shape[1]):
-                da = np.sum(fa[i, l] * op) - np.sum(fb[i, l] * op)
-                se = np.sqrt(np.sum((ea[i, l] * op) ** 2) + np.sum((eb[i, l] * op) ** 2))
-                albedo_z.append(da / se)
-        zs, albedo_z = np.array(zs), np.array(albedo_z)
-        beyond = np.mean(np.abs(zs) > 3)
-        # 0.27 % of normal z-scores exceed 3; the albedo sums the bins (their errors are negatively
-        # correlated within a slice, so its z is conservative).
-        assert beyond < 0.01 and 0.7 < np.mean(zs ** 2) < 1.3, (beyond, np.mean(zs ** 2))
-        assert np.all(np.abs(albedo_z) < 3), albedo_z
-    print(f"isotropic Beckmann 0.4, Au: 4 tiles for 32 slices; computed slices identical to the full run; rotated "
-          f"slices vs full: {zs.size} bins, mean z^2 {np.mean(zs ** 2):.3f}, {100 * beyond:.2f}% beyond 3 SE, "
-          f"albedo |z| <= {np.max(np.abs(albedo_z)):.2f}; wall time {t_sym:.1f} s vs {t_full:.1f} s "
-          f"({t_full / t_sym:.1f}x)")
+            return os.path.join(TMP, fname)
+        t0 = time.time()
+        r = run(["run", job(f"sym{k}.toml", "auto"), "-o", f"sym{k}.h5"], mpi=2)
+        t_sym = time.time() - t0
+        t0 = time.time()
+        run(["run", job(f"full{k}.toml", "none"), "-o", f"full{k}.h5"], mpi=2)
+        t_full = time.time() - t0
+        assert logline in r.stdout + r.stderr, r.stderr
+        plan = run(["plan", job(f"sym{k}.toml", "auto")]).stdout
+        assert f"{32 // (8 // step)} computed, the rest rotated" in plan, plan
+        with h5py.File(os.path.join(TMP, f"sym{k}.h5"), "r") as a, h5py.File(os.path.join(TMP, f"full{k}.h5"), "r") as b:
+            text = lambda v: v.decode() if isinstance(v, bytes) else str(v)  # noqa: E731
+            assert text(a.attrs["symmetry"]).startswith("isotropic" if step == 1 else "rotation by 360/4"), a.attrs["symmetry"]
+            inc = a["/incidence/bin"][:]
+            fa = a["/bsdf/coherent"][:].astype(float) + a["/bsdf/multiple"][:]
+            fb = b["/bsdf/coherent"][:].astype(float) + b["/bsdf/multiple"][:]
+            ea = np.hypot(a["/bsdf_stderr/coherent"][:].astype(float), a["/bsdf_stderr/multiple"][:])
+            eb = np.hypot(b["/bsdf_stderr/coherent"][:].astype(float), b["/bsdf_stderr/multiple"][:])
+            op = a["/grid/projected_solid_angle"][:]
+            zs, albedo_z = [], []
+            for i, bin_ in enumerate(inc):
+                if bin_ % 8 < step:  # a computed (representative) slice
+                    assert np.array_equal(a["/bsdf/coherent"][i], b["/bsdf/coherent"][i])
+                    assert np.array_equal(a["/bsdf/multiple"][i], b["/bsdf/multiple"][i])
+                    continue
+                ok = (ea[i] > 0) & (eb[i] > 0)
+                zs.extend(((fa[i] - fb[i])[ok] / np.hypot(ea[i], eb[i])[ok]).ravel())
+                for l in range(fa.shape[1]):
+                    da = np.sum(fa[i, l] * op) - np.sum(fb[i, l] * op)
+                    se = np.sqrt(np.sum((ea[i, l] * op) ** 2) + np.sum((eb[i, l] * op) ** 2))
+                    albedo_z.append(da / se)
+            zs, albedo_z = np.array(zs), np.array(albedo_z)
+            beyond = np.mean(np.abs(zs) > 3)
+            # 0.27 % of normal z-scores exceed 3; the albedo sums the bins (their errors are negatively
+            # correlated within a slice, so its z is conservative).
+            assert beyond < 0.01 and 0.7 < np.mean(zs ** 2) < 1.3, (name, beyond, np.mean(zs ** 2))
+            assert np.all(np.abs(albedo_z) < 3), (name, albedo_z)
+        print(f"{name}: {logline.split('; ')[-1]}; computed slices identical to the full run; rotated slices vs "
+              f"full: {zs.size} bins, mean z^2 {np.mean(zs ** 2):.3f}, {100 * beyond:.2f}% beyond 3 SE, albedo |z| <= "
+              f"{np.max(np.abs(albedo_z)):.2f}; wall time {t_sym:.1f} s vs {t_full:.1f} s ({t_full / t_sym:.1f}x)")
 
 
 def many_tiles_job(path, n_theta, output, paths=20000):
