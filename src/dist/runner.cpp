@@ -136,9 +136,25 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     pathSecondsSum += since(ts);
     if (wave) {
       auto tw = Clock::now();
-      WaveTileResult w = wave->run(t, inc.bin, exact, cb, pairs ? pairs->exitMask(t) : std::vector<uint8_t>{});
+      std::vector<uint8_t> mask = pairs ? pairs->exitMask(t) : std::vector<uint8_t>{};
+      // No BTDF needed (effects planner): the transmitted bins keep geometric optics.
+      const bool incidentAbove = exact ? exact->z >= 0 : grid.isUpper(inc.bin);
+      auto transmitted = [&](int b) { return grid.isUpper(b) != incidentAbove; };
+      if (!job.waveTransmission) {
+        mask.resize(size_t(grid.binCount()), 1);
+        for (int b = 0; b < grid.binCount(); ++b)
+          if (transmitted(b)) mask[size_t(b)] = 0;
+      }
+      WaveTileResult w = wave->run(t, inc.bin, exact, cb, mask);
       waveSecondsSum += since(tw);
       addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
+      if (!job.waveTransmission && r.has(Component::Incoherent))
+        for (int l = 0; l < r.nLambda; ++l)
+          for (int b = 0; b < r.nBins; ++b)
+            if (transmitted(b)) {
+              r.at(Component::Incoherent, l, b) = 0;
+              r.stdError[int(Component::Incoherent)][size_t(l) * r.nBins + b] = 0;
+            }
       r.rays += w.rays;
       r.waveSamples = w.samples;
     }

@@ -259,9 +259,18 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     decisions.push_back(decision("btdf", false, "a conductor transmits nothing: no BTDF (transmitted bins are zero)"));
   } else {
     const bool needs = std::find(job.scene.needs.begin(), job.scene.needs.end(), "btdf") != job.scene.needs.end();
-    decisions.push_back(decision("btdf", true, needs ? "a dielectric transmits and the renderer needs the BTDF"
-                                                     : "the renderer needs only the BRDF, but a dielectric's paths "
-                                                       "continue through the surface: transmission is tabulated with it"));
+    // Without a BTDF to render, the wave term's transmitted bins are not worth their cost; the
+    // paths still cross the surface (a dielectric's reflection depends on what comes back through
+    // it), so the transmitted table keeps geometric optics. Kept when `lost` is requested (its
+    // masked power needs every exit bin).
+    const bool skip = !needs && chosen.has(Component::Incoherent) && !chosen.has(Component::Lost);
+    auto d = decision("btdf", needs, needs ? "a dielectric transmits and the renderer needs the BTDF"
+                                           : skip ? "the renderer needs only the BRDF: the wave term skips the transmitted "
+                                                    "bins, which keep geometric optics (incoherent = 0 there)"
+                                                  : "the renderer needs only the BRDF; transmission is traced with the "
+                                                    "reflection (the paths cross the surface) and costs no wave term here");
+    decisions.push_back(d);
+    plan["wave_transmission"] = !skip;
   }
   {
     const bool shared = job.material.directionsIndependentOfLambda();
@@ -290,6 +299,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
 void applyEffectsPlan(Job& job, const nlohmann::json& plan) {
   job.components = ComponentSet{};
   for (const auto& n : plan["components"]) job.components.add(*componentFromName(n.get<std::string>()));
+  job.waveTransmission = plan.value("wave_transmission", true);
   job.effectsPlan = plan.dump();
 }
 

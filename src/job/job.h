@@ -66,6 +66,9 @@ struct Job {
   // before the run; effectsPlan is its decisions as JSON (recorded in the output file).
   bool autoComponents = false;
   std::string effectsPlan;
+  // False when the planner found that the renderer needs no BTDF of this dielectric: the wave term
+  // skips the transmitted exit bins, which keep geometric optics (incoherent = 0 there).
+  bool waveTransmission = true;
   SceneNeeds scene;
   uint64_t pathsPerSlice = 1000000;
   // Progressive sampling: rounds of pathsPerSlice paths until the slice's estimated relative error

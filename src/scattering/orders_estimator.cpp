@@ -86,8 +86,8 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
                                         const std::function<void(uint64_t)>& progress,
                                         const std::vector<uint8_t>& exitMask) const {
   // The cost is per incidence sample and order, not per exit bin: every bin is computed and
-  // `computed` stays empty (the mask is a permission to skip, not an obligation).
-  (void)exitMask;
+  // `computed` stays empty (the mask is a permission to skip, not an obligation), except that the
+  // transmitted orders are left out when the mask excludes the whole other hemisphere.
   auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = ctx_.grid;
   const PeriodicScene& scene = ctx_.scene;
@@ -96,6 +96,9 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   const int K = exactDirection ? 1 : std::max(2, ctx_.settings.incidenceDirections);
   const bool masked = ctx_.settings.computeMasked;
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
+  bool transmissionWanted = exitMask.empty();
+  for (int b = 0; b < nB && !transmissionWanted; ++b)
+    transmissionWanted = grid.isUpper(b) != fromAbove && exitMask[size_t(b)];
   const wave::Media media(ctx_);
   const double Lx = scene.sizeX(), Ly = scene.sizeY(), area = sampler_.totalArea();
   const double sigma = ctx_.window.sigma();
@@ -104,6 +107,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   // Per incidence sample k: power per (λ, bin) and its variance; averaged over k at the end.
   std::vector<std::vector<double>> pv(K), pm(K), vv(K), vm(K);
   std::atomic<uint64_t> rays{0};
+  uint64_t pointOrderPairs = 0;
 
   for (int k = 0; k < K; ++k) {
     Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(k), kOrdersStream);
@@ -117,7 +121,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       // reflected orders below the horizon (side = false); for a dielectric the transmitted orders.
       for (int side = 0; side < 3; ++side) {
         const bool trans = side == 2;
-        if (trans && media.conductor()) continue;
+        if (trans && (media.conductor() || !transmissionWanted)) continue;
         if (side == 1 && !(masked && media.conductor())) continue;
         const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
         const double reach = nO * k0 + nI * k0;  // |G| can be at most this for a propagating order
@@ -142,6 +146,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       }
     }
     const size_t nO = orders.size();
+    pointOrderPairs += uint64_t(N) * nO;
     // Accumulators per order, polarisation, group and visible/masked: Σ X.
     std::vector<Complex> S(nO * 2 * kGroups * 2, 0.0);
     auto idx = [&](size_t o, int pol, int g, int msk) { return ((o * 2 + pol) * kGroups + g) * 2 + msk; };
@@ -267,7 +272,8 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   };
   combine(pv, vv, r.fws, r.fwsErr);
   if (masked) combine(pm, vm, r.pmsk, r.pmskErr);
-  r.samples = uint64_t(K) * uint64_t(N);
+  // Kirchhoff samples per wavelength: surface point x exit direction (an order).
+  r.samples = pointOrderPairs / uint64_t(std::max(1, nL));
   r.rays = rays.load();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;

@@ -316,6 +316,9 @@ def test_effects_auto():
         "gentle large-scale noise (rms 0.5 um, correlation 5 um), delta_c = 20 um": (
             'kind = "gaussian"\nsize_um = [20.0, 20.0]\nrms_um = 0.5\ncorrelation_um = 5.0', 'name = "Al"',
             "coherence_length_um = 20.0", {"coherent", "multiple"}),
+        "glass sine grating, the renderer needs only the BRDF": (
+            'kind = "sine-grating"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.03',
+            'kind = "dielectric"\nior = 1.5', 'coherence_length_um = 50.0\nneeds = ["brdf"]', {"coherent", "incoherent"}),
     }
     for k, (name, (geo, mat, scene, expected)) in enumerate(scenes.items()):
         auto = effects_job(os.path.join(TMP, f"auto{k}.toml"), geo, mat, scene)
@@ -333,8 +336,17 @@ def test_effects_auto():
             assert got == expected, f"{name}: auto chose {sorted(got)}, expected {sorted(expected)}\n{plan}"
             recorded = json.loads(a.attrs["effects_plan"])
             assert set(recorded["components"]) == expected, recorded
-            assert not decisions["btdf"]["on"] and "conductor transmits nothing" in decisions["btdf"]["reason"]
+            brdf_only = 'needs = ["brdf"]' in scene
+            assert not decisions["btdf"]["on"], decisions["btdf"]
+            assert ("only the BRDF" if brdf_only else "conductor transmits nothing") in decisions["btdf"]["reason"]
             op = a["/grid/projected_solid_angle"][:]
+            nh = len(op) // 2
+            if brdf_only:
+                # The wave term skipped the transmitted bins: they keep geometric optics, and the
+                # comparison is over the BRDF the renderer needs.
+                assert np.all(a["/bsdf/incoherent"][:, :, nh:] == 0)
+                assert a["/stats/wave_samples"][:].sum() < b["/stats/wave_samples"][:].sum()
+                op = np.where(np.arange(len(op)) < nh, op, 0)
             worst = -1e9
             for i in range(a["/bsdf/coherent"].shape[0]):
                 for l in range(a["/bsdf/coherent"].shape[1]):
