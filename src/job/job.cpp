@@ -289,9 +289,9 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.maxDepth = int(bounded("max_depth", 100, 1000000));
   job.seed = uint64_t(samp.getInt("seed", 1));
   job.waveEstimator = samp.getString("wave_estimator", "auto");
-  if (job.waveEstimator != "paper" && job.waveEstimator != "area" && job.waveEstimator != "orders" &&
+  if (job.waveEstimator != "paper" && job.waveEstimator != "area" && job.waveEstimator != "orders" && job.waveEstimator != "exact" &&
       job.waveEstimator != "auto")
-    samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\" or \"paper\"");
+    samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\", \"exact\" or \"paper\"");
   job.waveSamplesPerBin = bounded("wave_samples_per_bin", 256, 1000000000);
   job.wavePointsPerDirection = bounded("wave_points_per_direction", 64, 1000000000);
   if (job.wavePointsPerDirection < 2) samp.fail("wave_points_per_direction", "must be >= 2 (pairwise estimator)");
@@ -357,8 +357,9 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       job.symmetryReason = symmetry == "none" ? "none ([directions] symmetry = \"none\")" : "none declared or detected";
   }
 
-  if (job.waveEstimator == "orders" && !job.statistical && !(job.geometry.periodic && job.scene.coherenceLength_um > 0))
-    samp.fail("wave_estimator", "\"orders\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
+  if ((job.waveEstimator == "orders" || job.waveEstimator == "exact") && !job.statistical &&
+      !(job.geometry.periodic && job.scene.coherenceLength_um > 0))
+    samp.fail("wave_estimator", "\"" + job.waveEstimator + "\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
 
   root.reportUnused();
   return job;

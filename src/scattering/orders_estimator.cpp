@@ -5,9 +5,12 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 
+#include "core/quadrature.h"
 #include "core/rng.h"
+#include "scattering/triangle_fourier.h"
 #include "scattering/wave_common.h"
 
 using mbsdf::wave::ExitVisibility;
@@ -75,11 +78,70 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
     }
 }
 
+// Ĥ_G = Σ_T V_T g_T ∫_T e^{i q·x} dA for one order (header): H[0..1] = visible s, p; H[2..3] = masked
+// s, p (only with `masked`). Facets are visited in index order: the sum is deterministic.
+void exactAmplitude(const WaveContext& ctx, const Order& ord, const Vec3& wi, bool fromAbove, const wave::Media& media,
+                    bool masked, Complex* H, uint64_t* rays) {
+  constexpr int kMaxDepth = 3;
+  const Microgeometry& g = ctx.geometry;
+  const int l = ord.lambda;
+  const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
+  const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
+  const Vec3 q = wi * (-nI * k0) - ord.wo * (nO * k0);  // k1 − k2, as in kirchhoffIntegrand
+  for (size_t t = 0; t < g.triangles.size(); ++t) {
+    const auto& tri = g.triangles[t];
+    const Vec3 n = g.triangleNormal(t);
+    if (dot(n, n) == 0) continue;  // degenerate: no area
+    const Vec3 m = fromAbove ? normalize(n) : -normalize(n);
+    const double cosLocal = dot(m, wi);
+    if (cosLocal <= 0) continue;  // back-facing to the light
+    const double mo = dot(m, ord.wo);
+    if (ord.transmission ? mo >= 0 : mo <= 0) continue;  // back-facing to the order direction
+    // g (s, p) of the facet: the integrand without its phase.
+    const KirchhoffValue g0 = kirchhoffIntegrand(Vec3{0, 0, 0}, m, wi, ord.wo, k0, nI, nO, media.fresnel(l, cosLocal, fromAbove),
+                                                 ord.transmission);
+    // 0 shadowed, 1 visible, 2 masked, for a point of facet t.
+    auto state = [&](const Vec3& x) {
+      ++*rays;
+      if (!wave::escapes(ctx.scene, x, m, wi, unsigned(t), fromAbove)) return 0;
+      const ExitVisibility v = wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(t), fromAbove, ord.transmission, rays);
+      return v == ExitVisibility::Visible ? 1 : 2;
+    };
+    auto add = [&](const Vec3& a, const Vec3& b, const Vec3& c, int st) {
+      if (st == 0 || (st == 2 && !masked)) return;
+      const Complex f = triangleFourier(a, b, c, q);
+      H[st == 1 ? 0 : 2] += g0.s * f;
+      H[st == 1 ? 1 : 3] += g0.p * f;
+    };
+    // Visibility by the centroid and three points inset towards the vertices; split where they
+    // disagree.
+    std::function<void(const Vec3&, const Vec3&, const Vec3&, int)> element = [&](const Vec3& a, const Vec3& b,
+                                                                                    const Vec3& c, int depth) {
+      const Vec3 ctr = (a + b + c) * (1.0 / 3.0);
+      const int s0 = state(ctr);
+      bool agree = true;
+      for (const Vec3* v : {&a, &b, &c}) agree = agree && state(ctr + (*v - ctr) * 0.9) == s0;
+      if (agree || depth == kMaxDepth) {
+        add(a, b, c, s0);
+        return;
+      }
+      const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
+      element(a, ab, ca, depth + 1);
+      element(ab, b, bc, depth + 1);
+      element(ca, bc, c, depth + 1);
+      element(ab, bc, ca, depth + 1);
+    };
+    element(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0);
+  }
+}
+
 }  // namespace
 
-OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx) : ctx_(ctx), sampler_(ctx.geometry) {
+OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx, bool exact)
+    : ctx_(ctx), sampler_(ctx.geometry), exact_(exact) {
   if (!ctx.scene.periodic() || !ctx.window.active())
-    throw std::invalid_argument("the orders estimator needs a periodic patch and a coherence window");
+    throw std::invalid_argument(std::string("the ") + (exact ? "exact" : "orders") +
+                                " estimator needs a periodic patch and a coherence window");
 }
 
 WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
@@ -93,7 +155,13 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   const PeriodicScene& scene = ctx_.scene;
   const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();
   const int N = std::max(2 * kGroups, ctx_.settings.samplesPerBin);
-  const int K = exactDirection ? 1 : std::max(2, ctx_.settings.incidenceDirections);
+  // Incidence directions: one collimated beam; else K random ones (orders), or the nodes of an
+  // n x n and an (n−1) x (n−1) Gauss–Legendre rule over the incidence bin (exact).
+  const int nRule = std::max(2, int(std::ceil(std::sqrt(double(std::max(1, ctx_.settings.incidenceDirections))))));
+  const QuadratureRule ruleHi = gaussLegendre(nRule, 0.0, 1.0), ruleLo = gaussLegendre(nRule - 1, 0.0, 1.0);
+  const bool quadrature = exact_ && !exactDirection;
+  const int K = exactDirection ? 1 : quadrature ? nRule * nRule + (nRule - 1) * (nRule - 1)
+                                                : std::max(2, ctx_.settings.incidenceDirections);
   const bool masked = ctx_.settings.computeMasked;
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   bool transmissionWanted = exitMask.empty();
@@ -109,9 +177,21 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   std::atomic<uint64_t> rays{0};
   uint64_t pointOrderPairs = 0;
 
+  std::vector<double> weight(size_t(K), 1.0 / K);  // of each incidence direction in its rule
+  auto incidence = [&](int k) {
+    if (exactDirection) return normalize(*exactDirection);
+    if (!quadrature) {
+      Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(k), kOrdersStream);
+      return grid.sampleCosine(incidenceBin, s.get1D(), s.get1D()).w;
+    }
+    const bool hi = k < nRule * nRule;
+    const QuadratureRule& q = hi ? ruleHi : ruleLo;
+    const int n = hi ? nRule : nRule - 1, j = hi ? k : k - nRule * nRule;
+    weight[size_t(k)] = q.w[size_t(j / n)] * q.w[size_t(j % n)];
+    return grid.sampleCosine(incidenceBin, q.x[size_t(j / n)], q.x[size_t(j % n)]).w;
+  };
   for (int k = 0; k < K; ++k) {
-    Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(k), kOrdersStream);
-    const Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s.get1D(), s.get1D()).w;
+    const Vec3 wi = incidence(k);
     const double cosI = std::abs(wi.z);
     // Propagating orders of every wavelength on the reflection (and transmission) side.
     std::vector<Order> orders;
@@ -146,13 +226,22 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       }
     }
     const size_t nO = orders.size();
-    pointOrderPairs += uint64_t(N) * nO;
+    pointOrderPairs += uint64_t(exact_ ? ctx_.geometry.triangles.size() : size_t(N)) * nO;
     // Accumulators per order, polarisation, group and visible/masked: Σ X.
     std::vector<Complex> S(nO * 2 * kGroups * 2, 0.0);
     auto idx = [&](size_t o, int pol, int g, int msk) { return ((o * 2 + pol) * kGroups + g) * 2 + msk; };
-    // Points in parallel blocks, each block accumulating into its own group: deterministic.
     const int blocks = kGroups;
     std::vector<uint64_t> blockRays(blocks, 0);
+    // exact: Ĥ_G (s, p; visible, masked) per order, summed over facets in closed form.
+    std::vector<Complex> H(exact_ ? nO * 4 : 0, 0.0);
+    if (exact_) {
+      std::vector<uint64_t> orderRays(nO, 0);
+      tbb::parallel_for(size_t(0), nO, [&](size_t o) {
+        exactAmplitude(ctx_, orders[o], wi, fromAbove, media, masked, &H[4 * o], &orderRays[o]);
+      });
+      for (uint64_t v : orderRays) rays += v;
+    } else {
+    // Points in parallel blocks, each block accumulating into its own group: deterministic.
     tbb::parallel_for(0, blocks, [&](int g) {
       const int j0 = g * N / blocks, j1 = (g + 1) * N / blocks;
       for (int j = j0; j < j1; ++j) {
@@ -184,6 +273,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         }
       }
     });
+    }
     for (uint64_t b : blockRays) rays += b;
     // |Ĥ_G|² per order (pairwise, unbiased) with a delete-a-group jackknife error, then the lobe
     // is shared among the bins.
@@ -204,6 +294,13 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       const Order& ord = orders[o];
       bool any = false;
       for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
+        if (exact_) {
+          const double P = 0.5 * (std::norm(H[4 * o + 2 * msk]) + std::norm(H[4 * o + 2 * msk + 1])) * ord.scale;
+          if (P == 0) continue;
+          op[o].P[msk] = P;
+          any = true;
+          continue;
+        }
         // Unbiased |Ĥ|² from the group sums S_g (independent replicas, each stratified):
         // (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)). `skip` leaves one group out (jackknife).
         auto estimate = [&](int skip) {
@@ -252,12 +349,20 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     if (progress) progress(uint64_t(k + 1) * uint64_t(N));
   }
   // Average over the incidence samples; the error combines the point error and the spread over k.
+  // exact with a quadrature over the incidence bin: the n-point rule, its error |Q_n − Q_{n−1}|.
   auto combine = [&](const std::vector<std::vector<double>>& p, const std::vector<std::vector<double>>& v,
                      std::vector<double>& f, std::vector<double>& e) {
     for (size_t i = 0; i < f.size(); ++i) {
       const int b = int(i % size_t(nB));
       if (grid.projectedSolidAngle(b) <= 0) continue;  // disk pixels outside the unit disk
       const double toF = 1.0 / grid.projectedSolidAngle(b);
+      if (quadrature) {
+        double hi = 0, lo = 0;
+        for (int k = 0; k < K; ++k) (k < nRule * nRule ? hi : lo) += weight[size_t(k)] * p[k][i];
+        f[i] = hi * toF;
+        e[i] = std::abs(hi - lo) * toF;
+        continue;
+      }
       double mean = 0, var = 0;
       for (int k = 0; k < K; ++k) mean += p[k][i] / K;
       for (int k = 0; k < K; ++k) var += v[k][i] / (double(K) * K);

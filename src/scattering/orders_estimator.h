@@ -16,6 +16,15 @@
 // stratified over the surface (Morton order), by the unbiased cross-group form
 // (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)), with a delete-a-group jackknife standard error. Points and shadow rays are
 // shared by all orders and wavelengths; each (point, order direction) needs one masking ray.
+//
+// `exact` (issue "exact wave evaluator", first step): the same lobes, but Ĥ_G summed over the facets
+// with the phase integrated in closed form (triangle_fourier.h): over a flat facet g is constant,
+// so Ĥ_G = Σ_T V_T g_T ∫_T e^{i q·x} dA. Visibility (shadowing towards ωi, masking towards ω_G) is
+// tested at the centroid and three inset points of each facet; a facet whose points disagree is
+// split into four, down to 4^3 pieces, whose centroid then decides. With a collimated beam the
+// result has no sampling noise (standard error 0); with bin-averaged incidence the incidence bin is
+// integrated by an n x n Gauss–Legendre rule in its cosine-weighted sample space (n² >=
+// wave_incidence_directions) and the standard error is estimated as |Q_n − Q_{n−1}| per bin.
 #pragma once
 #include "geometry/surface_sampler.h"
 #include "scattering/wave_estimator.h"
@@ -24,8 +33,8 @@ namespace mbsdf {
 
 class OrdersWaveEstimator : public WaveEstimator {
  public:
-  explicit OrdersWaveEstimator(const WaveContext& ctx);
-  std::string name() const override { return "orders"; }
+  explicit OrdersWaveEstimator(const WaveContext& ctx, bool exact = false);
+  std::string name() const override { return exact_ ? "exact" : "orders"; }
   WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
                      const std::function<void(uint64_t)>& progress = {},
                      const std::vector<uint8_t>& exitMask = {}) const override;
@@ -33,6 +42,7 @@ class OrdersWaveEstimator : public WaveEstimator {
  private:
   WaveContext ctx_;
   SurfaceSampler sampler_;
+  bool exact_ = false;
 };
 
 }  // namespace mbsdf

@@ -16,6 +16,7 @@ std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx) {
   if (ctx.settings.estimator == "area") return std::make_unique<AreaWaveEstimator>(ctx);
   if (ctx.settings.estimator == "paper") return std::make_unique<PaperWaveEstimator>(ctx);
   if (ctx.settings.estimator == "orders") return std::make_unique<OrdersWaveEstimator>(ctx);
+  if (ctx.settings.estimator == "exact") return std::make_unique<OrdersWaveEstimator>(ctx, true);
   throw std::invalid_argument("unknown wave estimator '" + ctx.settings.estimator + "'");
 }
 
