@@ -12,19 +12,6 @@
 using namespace mbsdf;
 using namespace mbsdf::test;
 
-namespace {
-// Energy of the upper-hemisphere bins whose centre lies within `radius` of direction w in the
-// projected (x, y) plane of directions.
-double energyAround(const DirectionGrid& g, const std::vector<double>& f, int l, const Vec3& w, double radius) {
-  double e = 0;
-  for (int b = 0; b < g.binsPerHemisphere(); ++b) {
-    Vec3 c = g.centre(b);
-    if (std::hypot(c.x - w.x, c.y - w.y) <= radius) e += f[size_t(l) * g.binCount() + b] * g.projectedSolidAngle(b);
-  }
-  return e;
-}
-}  // namespace
-
 // Shallow sinusoidal reflective grating, perfect conductor, period 5 µm, amplitude 0.05 µm,
 // λ = 0.5 µm, normal incidence: orders at sin θm = mλ/Λ with efficiencies J_m²(2 k0 h) (thin
 // grating) within 0.01 absolute for |m| <= 3.

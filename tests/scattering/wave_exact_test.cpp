@@ -13,17 +13,6 @@
 using namespace mbsdf;
 using namespace mbsdf::test;
 
-namespace {
-double energyAround(const DirectionGrid& g, const std::vector<double>& f, int l, const Vec3& w, double radius) {
-  double e = 0;
-  for (int b = 0; b < g.binsPerHemisphere(); ++b) {
-    Vec3 c = g.centre(b);
-    if (std::hypot(c.x - w.x, c.y - w.y) <= radius) e += f[size_t(l) * g.binCount() + b] * g.projectedSolidAngle(b);
-  }
-  return e;
-}
-}  // namespace
-
 // Flat interfaces under a collimated beam: Σ f Ω⊥ = Fresnel reflectance within 0.1 % (gold at
 // 0°, 30°, 60°, 70°; glass reflection and transmission from outside at 40°), with no sampling error.
 // (At 80° the order's Gaussian lobe, sd 0.0074 in direction cosines for δc = 50 µm, reaches past

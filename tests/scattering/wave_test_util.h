@@ -1,5 +1,6 @@
 // Helpers for the wave-optics tests: one wave tile on a geometry, hemispherical integrals.
 #pragma once
+#include <cmath>
 #include <memory>
 
 #include "scattering/wave_estimator.h"
@@ -40,5 +41,16 @@ struct WaveScenario {
     return {s, std::sqrt(v)};
   }
 };
+
+// Energy of the upper-hemisphere bins whose centre lies within `radius` of direction w in the
+// projected (x, y) plane of directions.
+inline double energyAround(const DirectionGrid& g, const std::vector<double>& f, int l, const Vec3& w, double radius) {
+  double e = 0;
+  for (int b = 0; b < g.binsPerHemisphere(); ++b) {
+    Vec3 c = g.centre(b);
+    if (std::hypot(c.x - w.x, c.y - w.y) <= radius) e += f[size_t(l) * g.binCount() + b] * g.projectedSolidAngle(b);
+  }
+  return e;
+}
 
 }  // namespace mbsdf::test
