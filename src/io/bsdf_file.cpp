@@ -249,11 +249,9 @@ void BsdfFileWriter::create(const std::string& filename) {
   setStringAttr(f, "symmetry",
                 job.isotropic ? "isotropic: one incidence azimuth per theta ring computed, the other slices of the ring "
                                 "rotated from it (" + job.symmetryReason + ")"
-                : job.rotationOrder > 1
-                    ? "rotation by 360/" + std::to_string(job.rotationOrder) + " degrees: one " +
-                          std::to_string(job.rotationOrder) + "th of each theta ring computed, the rest rotated (" +
-                          job.symmetryReason + ")"
-                    : job.symmetryReason);
+                : job.symmetryReduced() ? "reduced: part of each theta ring computed, the other slices mapped from it (" +
+                                              job.symmetryReason + ")"
+                                        : job.symmetryReason);
   const bool halved = job.halvesWaveByReciprocity();
   setStringAttr(f, "reciprocity",
                 halved ? "wave term computed once per pair of incidence bins on the same side; the other half of "

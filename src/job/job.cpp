@@ -337,23 +337,33 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     const bool wanted = symmetry == "isotropic" || (symmetry == "auto" && isotropicNdf);
     if (symmetry == "isotropic" && job.statistical && !isotropicNdf)
       dirs.fail("symmetry", "the surface's NDF is anisotropic (alpha_x != alpha_y)");
-    // Explicit geometry: detect a 4- or 2-fold rotation symmetry of the patch (symmetry.h).
-    const int order = symmetry == "auto" && !job.statistical ? rotationOrderOf(job.geometry) : 1;
+    // Explicit geometry: detect rotation (4- or 2-fold) and mirror symmetry of the patch (symmetry.h).
+    const PatchSymmetry ps = symmetry == "auto" && !job.statistical ? patchSymmetryOf(job.geometry) : PatchSymmetry{};
+    const int order = ps.rotationOrder;
+    const bool found = order > 1 || ps.mirror;
     const auto* tp = std::get_if<ThetaPhiGrid>(&job.gridLayout);
-    if ((wanted || order > 1) && !tp)
+    if ((wanted || found) && !tp)
       job.symmetryReason = "not used: needs a theta-phi grid (its rings map onto themselves under rotation)";
-    else if ((wanted || order > 1) && !job.incidenceAll)
+    else if ((wanted || found) && !job.incidenceAll)
       job.symmetryReason = "not used: needs incidence = \"all\"";
     else if (wanted)
       job.isotropic = true, job.symmetryReason = symmetry == "isotropic" ? "declared isotropic ([directions] symmetry)"
                                                                           : "detected: the surface's NDF is isotropic";
-    else if (order > 1 && tp->nPhi % order != 0)
-      job.symmetryReason = "not used: the patch has " + std::to_string(order) + "-fold rotation symmetry but n_phi = " +
-                           std::to_string(tp->nPhi) + " is not a multiple of " + std::to_string(order);
-    else if (order > 1)
-      job.rotationOrder = order, job.symmetryReason = "detected: the patch is invariant under rotation by " +
-                                                      std::to_string(360 / order) + " degrees";
-    else
+    else if (found) {
+      std::string what;
+      if (order > 1 && tp->nPhi % order == 0) {
+        job.rotationOrder = order;
+        what = "rotation by " + std::to_string(360 / order) + " degrees";
+      } else if (order > 1) {
+        what = "(rotation by " + std::to_string(360 / order) + " degrees unused: n_phi = " + std::to_string(tp->nPhi) +
+               " is not a multiple of " + std::to_string(order) + ")";
+      }
+      if (ps.mirror) {
+        job.mirrorSymmetric = true;
+        what += std::string(what.empty() ? "" : " and ") + "the mirror y -> -y";
+      }
+      job.symmetryReason = (job.symmetryReduced() ? "detected: the patch is invariant under " : "not used: ") + what;
+    } else
       job.symmetryReason = symmetry == "none" ? "none ([directions] symmetry = \"none\")" : "none declared or detected";
   }
 

@@ -57,7 +57,8 @@ struct Job {
   // symmetryReason says why or why not.
   bool isotropic = false;
   int rotationOrder = 1;
-  bool symmetryReduced() const { return isotropic || rotationOrder > 1; }
+  bool mirrorSymmetric = false;  // invariant under y -> −y
+  bool symmetryReduced() const { return isotropic || rotationOrder > 1 || mirrorSymmetric; }
   std::string symmetryReason;
   ComponentSet components;
   std::vector<std::string> requestedComponents;

@@ -9,9 +9,12 @@
 // rotations of it: nPhi times fewer tiles. A surface that is only invariant under rotations by
 // 2π/n about the patch centre (a square lattice: n = 4; any periodic patch rotated by 180°: n = 2)
 // gets the same with rotations by multiples of nPhi/n bins: the representatives are the first
-// nPhi/n azimuths of each ring, n times fewer tiles. rotationOrderOf() detects n for explicit
-// geometry by mapping every facet onto a facet of the rotated patch.
+// nPhi/n azimuths of each ring, n times fewer tiles. A mirror y -> −y (φ -> −φ, bin p -> nPhi − 1 − p)
+// halves that again: the slice of T(rep) is the representative's with exit bins mapped by T^-1.
+// patchSymmetryOf() detects both for explicit geometry by mapping every facet onto a facet of the
+// transformed patch.
 #pragma once
+#include <cstdint>
 #include <vector>
 
 #include "core/direction_grid.h"
@@ -20,9 +23,15 @@
 
 namespace mbsdf {
 
-// The largest n in {4, 2} such that the microgeometry is invariant under rotation by 2π/n about the
-// patch centre (facet centroids and normals rotated, wrapped into the periodic cell, matched to
-// within 1e-6 of the patch size); 1 if neither. n = 4 needs a square patch.
+// Symmetries of a microgeometry about the patch centre, found by mapping every facet (centroid and
+// normal, wrapped into the periodic cell) onto a facet within 1e-6 of the patch size: the largest
+// n in {4, 2} with invariance under rotation by 2π/n (4 needs a square patch; 1 if neither), and
+// invariance under the mirror y -> −y (φ -> −φ).
+struct PatchSymmetry {
+  int rotationOrder = 1;
+  bool mirror = false;
+};
+PatchSymmetry patchSymmetryOf(const Microgeometry& g);
 int rotationOrderOf(const Microgeometry& g);
 
 class AzimuthalSymmetry {
@@ -42,6 +51,7 @@ class AzimuthalSymmetry {
   const DirectionGrid& grid_;
   int nPhi_ = 1;
   std::vector<int> rep_, shift_;
+  std::vector<uint8_t> mirror_;
   std::vector<std::vector<int>> members_;
   int count_ = 0;
 };

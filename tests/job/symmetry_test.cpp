@@ -6,16 +6,25 @@
 
 using namespace mbsdf;
 
-TEST(Symmetry, RotationOrderOfPatches) {
-  // A square lattice of hemispheres: 4-fold.
-  EXPECT_EQ(rotationOrderOf(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25)), 4);
-  // The same lattice with elliptic domes (rx != ry): only 2-fold.
-  EXPECT_EQ(rotationOrderOf(makeDomeLattice(10, 10, 5, 5, 2, 1.5, 1.5, 0.25)), 2);
+TEST(Symmetry, RotationAndMirrorOfPatches) {
+  auto expect = [](const Microgeometry& g, int order, bool mirror, const char* what) {
+    const PatchSymmetry s = patchSymmetryOf(g);
+    EXPECT_EQ(s.rotationOrder, order) << what;
+    EXPECT_EQ(s.mirror, mirror) << what;
+  };
+  // A square lattice of hemispheres: 4-fold and mirror.
+  expect(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25), 4, true, "hemispheres");
+  // The same lattice with elliptic domes (rx != ry): 2-fold and mirror.
+  expect(makeDomeLattice(10, 10, 5, 5, 2, 1.5, 1.5, 0.25), 2, true, "elliptic domes");
   // A random heightfield: none.
-  EXPECT_EQ(rotationOrderOf(makeGaussian(10, 10, 0.3, 1.0, 64, 64, 3)), 1);
-  // A rectangular flat patch (two triangles): 2-fold, not 4 (the patch is not square).
-  EXPECT_EQ(rotationOrderOf(makeFlat(10, 6, 10)), 2);
-  // A 4-fold lattice shifted off the patch centre is still 4-fold: periodic wrap-around.
+  expect(makeGaussian(10, 10, 0.3, 1.0, 64, 64, 3), 1, false, "gaussian");
+  // A rectangular flat patch of two triangles: 2-fold (not 4: not square); the mirror maps its
+  // diagonal onto the other one, but the surface (a plane) is mirror symmetric.
+  expect(makeFlat(10, 6, 10), 2, true, "flat");
+  // A sine profile along x: z(−x) = −z(x) is no rotation symmetry, but y -> −y is a mirror.
+  expect(makeSineGrating(5, 1, 5, 0.1, 32, 0), 1, true, "sine grating");
+  // A 4-fold lattice whose facets are shifted by half a period (out of the centred cell) is still
+  // 4-fold: facets are compared modulo the period.
   Microgeometry shifted = makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25);
   for (auto& v : shifted.vertices) v.x += 2.5, v.y += 2.5;
   EXPECT_EQ(rotationOrderOf(shifted), 4);
