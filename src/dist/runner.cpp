@@ -75,11 +75,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   const int nTiles = int(job.incidence.size());
   // Reciprocity (PHYSICS.md §8): each pair of incidence bins gets the wave term once.
   std::optional<ReciprocalPairs> pairs;
-  if (wave && job.halvesWaveByReciprocity()) {
-    std::vector<int> bins;
-    for (const auto& i : job.incidence) bins.push_back(i.bin);
-    pairs.emplace(std::move(bins), grid.binCount(), grid.binsPerHemisphere());
-  }
+  if (wave && job.halvesWaveByReciprocity()) pairs.emplace(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere());
   if (wave && mpi.rank() == 0)
     spdlog::info("reciprocity: {}", pairs ? fmt::format("the wave term is computed for {:.1f}% of the same-side bin "
                                                         "pairs, the rest mirrored when every slice is done",
@@ -255,7 +251,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     writeOne(r);
     if (symmetry)
       for (int m : symmetry->members(r.incidenceIndex))
-        if (m != r.incidenceIndex) writeOne(symmetry->rotate(r, m, job.incidence[size_t(m)].bin));
+        if (m != r.incidenceIndex) writeOne(symmetry->mappedSlice(r, m, job.incidence[size_t(m)].bin));
     for (Component c : job.components.list()) {
       if (pairs && c == Component::Incoherent) continue;  // complete only after the reciprocity fill
       double e = 0;

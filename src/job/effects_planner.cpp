@@ -141,11 +141,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   {
     nlohmann::json d;
     bool on = false;
-    const double meanLambda = [&] {
-      double s = 0;
-      for (double l : job.lambda_nm) s += l * 1e-3 / nL;
-      return s;
-    }();
+    const double meanLambda = job.meanLambda_um();
     const double binDeg = degrees(std::sqrt(2 * kPi / grid.binsPerHemisphere()));
     if (job.statistical) {
       d = decision("incoherent", false, "a statistical surface has no explicit geometry to diffract (microflake model)");

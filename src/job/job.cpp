@@ -240,10 +240,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       if (!(diameter < 180)) scene.fail("source_angular_diameter_deg", "must be below 180");
       job.scene.coherenceSource = "source_angular_diameter_deg";
     }
-    double meanLambda_um = 0;
-    for (double l : job.lambda_nm) meanLambda_um += l * 1e-3 / double(job.lambda_nm.size());
     job.scene.sourceAngularDiameter_deg = diameter;
-    job.scene.coherenceLength_um = coherenceLengthOfDiskSource(radians(diameter), meanLambda_um);
+    job.scene.coherenceLength_um = coherenceLengthOfDiskSource(radians(diameter), job.meanLambda_um());
   }
   job.scene.needs = scene.getStrings("needs", {"brdf", "btdf"});
   for (auto& n : job.scene.needs)
@@ -337,15 +335,20 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     const bool wanted = symmetry == "isotropic" || (symmetry == "auto" && isotropicNdf);
     if (symmetry == "isotropic" && job.statistical && !isotropicNdf)
       dirs.fail("symmetry", "the surface's NDF is anisotropic (alpha_x != alpha_y)");
-    // Explicit geometry: detect rotation (4- or 2-fold) and mirror symmetry of the patch (symmetry.h).
-    const PatchSymmetry ps = symmetry == "auto" && !job.statistical ? patchSymmetryOf(job.geometry) : PatchSymmetry{};
+    // Explicit geometry: detect rotation (4- or 2-fold) and mirror symmetry of the patch (symmetry.h),
+    // only where the job could use it (the check maps every facet and may build an Embree scene).
+    const auto* tp = std::get_if<ThetaPhiGrid>(&job.gridLayout);
+    const bool reducible = tp && job.incidenceAll;
+    const PatchSymmetry ps =
+        symmetry == "auto" && !job.statistical && reducible ? patchSymmetryOf(job.geometry) : PatchSymmetry{};
     const int order = ps.rotationOrder;
     const bool found = order > 1 || ps.mirror;
-    const auto* tp = std::get_if<ThetaPhiGrid>(&job.gridLayout);
-    if ((wanted || found) && !tp)
+    if (wanted && !tp)
       job.symmetryReason = "not used: needs a theta-phi grid (its rings map onto themselves under rotation)";
-    else if ((wanted || found) && !job.incidenceAll)
+    else if (wanted && !job.incidenceAll)
       job.symmetryReason = "not used: needs incidence = \"all\"";
+    else if (symmetry == "auto" && !job.statistical && !reducible)
+      job.symmetryReason = "not checked: needs a theta-phi grid and incidence = \"all\"";
     else if (wanted)
       job.isotropic = true, job.symmetryReason = symmetry == "isotropic" ? "declared isotropic ([directions] symmetry)"
                                                                           : "detected: the surface's NDF is isotropic";

@@ -95,6 +95,17 @@ struct Job {
   // an estimator whose cost is per exit bin (area, paper).
   std::string reciprocityOffReason() const;
   bool halvesWaveByReciprocity() const { return reciprocityOffReason().empty(); }
+  // Sphere bin of each incidence direction, in incidence order.
+  std::vector<int> incidenceBins() const {
+    std::vector<int> v;
+    for (const auto& i : incidence) v.push_back(i.bin);
+    return v;
+  }
+  double meanLambda_um() const {
+    double s = 0;
+    for (double l : lambda_nm) s += l * 1e-3;
+    return lambda_nm.empty() ? 0.0 : s / double(lambda_nm.size());
+  }
   std::vector<double> lambda_um() const {
     std::vector<double> v;
     for (double l : lambda_nm) v.push_back(l * 1e-3);

@@ -100,9 +100,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   // the whole slice; on average a tile computes the pairs' fraction of it.
   if (job.components.has(Component::Incoherent)) {
     if (job.halvesWaveByReciprocity()) {
-      std::vector<int> bins;
-      for (const auto& i : job.incidence) bins.push_back(i.bin);
-      const double fraction = ReciprocalPairs(bins, nB, grid.binsPerHemisphere()).computedFraction();
+      const double fraction = ReciprocalPairs(job.incidenceBins(), nB, grid.binsPerHemisphere()).computedFraction();
       p["reciprocity"] = {{"used", true},
                           {"computed_fraction", fraction},
                           {"wave_seconds_per_tile_without", waveSeconds},

@@ -91,8 +91,6 @@ PatchSymmetry patchSymmetryOf(const Microgeometry& g) {
   return s;
 }
 
-int rotationOrderOf(const Microgeometry& g) { return patchSymmetryOf(g).rotationOrder; }
-
 AzimuthalSymmetry::AzimuthalSymmetry(const Job& job, const DirectionGrid& grid) : grid_(grid) {
   const auto* tp = std::get_if<ThetaPhiGrid>(&grid.layout());
   if (!job.symmetryReduced() || !tp || !job.incidenceAll) throw std::logic_error("AzimuthalSymmetry: job is not reducible");
@@ -134,7 +132,7 @@ AzimuthalSymmetry::AzimuthalSymmetry(const Job& job, const DirectionGrid& grid) 
   for (int i = 0; i < n; ++i) count_ += rep_[size_t(i)] == i;
 }
 
-TileResult AzimuthalSymmetry::rotate(const TileResult& r, int target, int targetBin) const {
+TileResult AzimuthalSymmetry::mappedSlice(const TileResult& r, int target, int targetBin) const {
   TileResult out = r;
   out.tile = target;
   out.incidenceIndex = target;

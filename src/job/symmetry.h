@@ -32,7 +32,6 @@ struct PatchSymmetry {
   bool mirror = false;
 };
 PatchSymmetry patchSymmetryOf(const Microgeometry& g);
-int rotationOrderOf(const Microgeometry& g);
 
 class AzimuthalSymmetry {
  public:
@@ -44,8 +43,9 @@ class AzimuthalSymmetry {
   // Incidence indices whose slices are rotations of representative r's (r included).
   const std::vector<int>& members(int r) const { return members_[size_t(r)]; }
   int representativeCount() const { return count_; }
-  // The slice of incidence index `target` from its representative's tile.
-  TileResult rotate(const TileResult& representativeTile, int target, int targetBin) const;
+  // The slice of incidence index `target` from its representative's tile (rotated, and mirrored
+  // when the map from the representative includes the mirror).
+  TileResult mappedSlice(const TileResult& representativeTile, int target, int targetBin) const;
 
  private:
   const DirectionGrid& grid_;

@@ -27,5 +27,5 @@ TEST(Symmetry, RotationAndMirrorOfPatches) {
   // 4-fold: facets are compared modulo the period.
   Microgeometry shifted = makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25);
   for (auto& v : shifted.vertices) v.x += 2.5, v.y += 2.5;
-  EXPECT_EQ(rotationOrderOf(shifted), 4);
+  EXPECT_EQ(patchSymmetryOf(shifted).rotationOrder, 4);
 }
