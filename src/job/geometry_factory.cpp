@@ -19,7 +19,12 @@ std::string resolvePath(const std::string& base, const std::string& file) {
   if (p.is_absolute() || base.empty()) return file;
   return (std::filesystem::path(base) / p).string();
 }
+
+double gMaxGeneratedTriangles = 1e7;
 }  // namespace
+
+double maxGeneratedTriangles() { return gMaxGeneratedTriangles; }
+void setMaxGeneratedTriangles(double n) { gMaxGeneratedTriangles = n; }
 
 Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut) {
   const std::string kind = geo.getString("kind", "flat");
@@ -54,11 +59,11 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
 
   // Impossible sizes fail here, before anything is allocated (found by fuzz_job: a tiny
   // resolution_um made a hemispheres patch of billions of triangles).
-  constexpr double kMaxTriangles = 1e7;
+  const double maxTriangles = maxGeneratedTriangles();
   auto budget = [&](const std::string& key, double triangles) {
-    if (!(triangles <= kMaxTriangles))
+    if (!(triangles <= maxTriangles))
       geo.fail(key, fmt::format("would generate about {:.3g} triangles (limit {:.3g}); use a coarser resolution or "
-                                "a smaller patch", triangles, kMaxTriangles));
+                                "a smaller patch", triangles, maxTriangles));
   };
   auto rings = [](double length, double res) { return std::max(2.0, std::ceil(length / res)); };
   Microgeometry g;

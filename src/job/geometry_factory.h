@@ -10,4 +10,10 @@ namespace mbsdf {
 
 Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut);
 
+// The most triangles a generator may make (1e7 unless set; a job asking for more fails naming the
+// key to change). The job fuzzer lowers it so that each input stays a fraction of a second under
+// the sanitizers: a valid 1e7-facet job takes about 80 s there, and it is linear work, not a hang.
+double maxGeneratedTriangles();
+void setMaxGeneratedTriangles(double n);
+
 }  // namespace mbsdf

@@ -28,4 +28,12 @@ TEST(Symmetry, RotationAndMirrorOfPatches) {
   Microgeometry shifted = makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25);
   for (auto& v : shifted.vertices) v.x += 2.5, v.y += 2.5;
   EXPECT_EQ(patchSymmetryOf(shifted).rotationOrder, 4);
+  // A long thin grating (500 × 1 µm, 100 periods, 20 rows): centroids are matched within 1e-6 of
+  // each side's own length, so rows 0.05 µm apart are told apart; its surface is mirror symmetric.
+  expect(makeSineGrating(500, 1, 5, 0.05, 64, 0.05), 1, true, "long thin grating");
+  // More than 64 facets on one spot: too degenerate to check, reported as no symmetry.
+  Microgeometry stacked = makeFlat(10, 10, 10);
+  const auto tri = stacked.triangles.front();
+  for (int k = 0; k < 70; ++k) stacked.triangles.push_back(tri);
+  expect(stacked, 1, false, "stacked facets");
 }
