@@ -185,9 +185,17 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
     if (!o) throw std::runtime_error("cannot write " + outPath);
     o << "# microbsdf slice: model " << req.model << ", incidence theta " << file.incidenceTheta(inc) << " deg, phi "
       << file.incidencePhi(inc) << " deg; f in 1/sr (bin average), stderr = standard error\n";
+    // The colour a renderer fed with RGB uses, when some wavelength is visible: CIE 1931 XYZ (each
+    // sample standing for its band, core/colour.h) and linear sRGB.
+    std::optional<SpectrumToColour> colour;
+    try {
+      colour.emplace(lambda);
+    } catch (const std::invalid_argument&) {
+    }
     o << "bin,hemisphere,theta_deg,phi_deg,solid_angle_sr,projected_solid_angle_sr";
     for (double l : lambda) o << ",f_" << l << "nm";
     for (double l : lambda) o << ",stderr_" << l << "nm";
+    if (colour) o << ",X,Y,Z,R_linear,G_linear,B_linear,stderr_X,stderr_Y,stderr_Z";
     o << "\n";
     o.precision(9);
     for (int b = 0; b < nB; ++b) {
@@ -197,6 +205,20 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
         << degrees(sphericalPhi(c)) << "," << grid.solidAngle(b) << "," << grid.projectedSolidAngle(b);
       for (int l = 0; l < nL; ++l) o << "," << f[size_t(l) * nB + b];
       for (int l = 0; l < nL; ++l) o << "," << err[size_t(l) * nB + b];
+      if (colour) {
+        std::vector<double> v(static_cast<size_t>(nL));
+        for (int l = 0; l < nL; ++l) v[size_t(l)] = f[size_t(l) * nB + b];
+        const Colour3 xyz = colour->xyz(v.data()), rgb = xyzToLinearSrgb(xyz);
+        for (double x : xyz) o << "," << x;
+        for (double x : rgb) o << "," << x;
+        // Σ_λ w_λ se_λ: the standard error of X, Y, Z whatever the correlation between wavelengths
+        // (they share paths; the weights are non-negative), an upper bound.
+        for (int c = 0; c < 3; ++c) {
+          double se = 0;
+          for (int l = 0; l < nL; ++l) se += colour->weights()[size_t(l)][size_t(c)] * err[size_t(l) * nB + b];
+          o << "," << se;
+        }
+      }
       o << "\n";
     }
   } else {

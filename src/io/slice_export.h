@@ -34,7 +34,9 @@ std::vector<std::string> availableModels(const BsdfFileReader& file);
 //        wavelength is visible);
 //  .png: true colour (sRGB, gamma-encoded, × exposure; visible wavelengths needed) or false colour: log2 of the spectral mean
 //        on [log2Min, log2Max] with a colour bar along the bottom (the paper's Fig. 5 scale);
-//  .csv: one row per exit bin.
+//  .csv: one row per exit bin: f and its standard error per wavelength, then (when a wavelength
+//        is visible) X, Y, Z and linear sRGB of the spectrum, and the standard errors of X, Y, Z
+//        (Σ_λ w_λ se_λ: an upper bound whatever the correlation between wavelengths).
 // Returns the incidence index used.
 int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::string& outPath);
 

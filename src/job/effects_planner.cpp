@@ -2,10 +2,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <functional>
 #include <cmath>
+#include <map>
 #include <optional>
+#include <tuple>
 #include <sstream>
 
+#include "core/colour.h"
 #include "job/transport.h"
 #include "scattering/wave_estimator.h"
 
@@ -58,6 +62,42 @@ double rmsSlope(const Microgeometry& g) {
   return w > 0 ? std::sqrt(s2 / w) : 0.0;
 }
 
+}  // namespace
+
+std::vector<int> resolutionCells(const DirectionGrid& grid, double resolution_deg) {
+  const int nB = grid.binCount();
+  std::vector<int> cellOf(size_t(nB), -1);
+  std::map<std::tuple<bool, int, int>, int> index;
+  const double res = radians(resolution_deg);
+  for (int b = 0; b < nB; ++b) {
+    if (grid.projectedSolidAngle(b) <= 0) continue;
+    if (res <= 0) {
+      cellOf[size_t(b)] = int(index.size());
+      index[{false, b, 0}] = cellOf[size_t(b)];
+      continue;
+    }
+    // A cap of radius res/2 about the normal on the bin's side (one cell: a peak along the normal
+    // is not cut into sectors), then round((90° − res/2)/res) rings of equal width w ≈ res up to
+    // the horizon, each cut into sectors of about res² (ring area 2π sin θ_ring w / res²).
+    const Vec3 c = grid.centre(b);
+    const double theta = std::acos(std::min(1.0, std::abs(c.z)));
+    const double rest = kPi / 2 - res / 2;
+    const int rings = std::max(1, int(std::lround(rest / res)));
+    const double w = rest / rings;
+    const int ring = theta < res / 2 ? 0 : std::min(rings, 1 + int(std::floor((theta - res / 2) / w)));
+    const double ringCentre = res / 2 + (ring - 0.5) * w;
+    const int sectors = ring == 0 ? 1 : std::max(1, int(std::lround(2 * kPi * std::sin(ringCentre) * w / (res * res))));
+    double phi = std::atan2(c.y, c.x);
+    if (phi < 0) phi += 2 * kPi;
+    const int sector = std::min(sectors - 1, int(std::floor(phi / (2 * kPi) * sectors)));
+    auto [it, added] = index.try_emplace({c.z >= 0, ring, sector}, int(index.size()));
+    cellOf[size_t(b)] = it->second;
+  }
+  return cellOf;
+}
+
+namespace {
+
 nlohmann::json decision(const std::string& effect, bool on, const std::string& reason) {
   return {{"effect", effect}, {"on", on}, {"reason", reason}};
 }
@@ -67,6 +107,122 @@ std::string fmt3(double v) {
   s.precision(3);
   s << v;
   return s.str();
+}
+
+
+// Wavelengths. A renderer fed with colour ([scene] colour = "rgb") needs the XYZ of each bin, not
+// the spectrum: the fewest of the job's wavelengths (3, 4, ... spread evenly over the sorted list)
+// whose colour — each sample standing for its band, as every reader converts it (core/colour.h) —
+// matches the full spectrum's within the tolerance: for every pilot and each of X, Y, Z,
+// Σ_cells |Σ_b∈cell (c_subset − c_full) Ω⊥| over the renderer's resolution cells of the model the
+// job will store (GS + multiple), less its noise, + 2 sd. The noise is measured, not modelled: the
+// geometric pilots run a second time with another seed, the difference is taken from their mean,
+// and half the replicas' difference has the noise of that mean (the wavelengths share paths, so
+// their errors are correlated and a per-wavelength error model would misjudge it). With
+// diffraction on, every wavelength is kept: orders and speckle move with λ, which is what the
+// samples resolve (and a Monte Carlo wave pilot is too noisy to show that a subset suffices).
+// The saving: a dispersive material traces one path set per wavelength; otherwise the output.
+// `replicate` fills a second, independent set of pilots (other seeds).
+using PilotReplica = std::function<void(std::vector<TileResult>*)>;
+nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, const std::vector<TileResult>& geo,
+                                  const ComponentSet& chosen, const PilotReplica& replicate, nlohmann::json* plan) {
+  const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  const bool shared = job.material.directionsIndependentOfLambda();
+  const std::string sharing =
+      std::string(shared ? "paths shared by all of them (only Fresnel depends on lambda: per-wavelength weights)"
+                         : "one path set per wavelength (dispersive dielectric: refraction depends on lambda)") +
+      (chosen.has(Component::Incoherent) ? "; the wave term is evaluated per wavelength" : "");
+  if (job.scene.colour != "rgb")
+    return decision("wavelengths", true, std::to_string(nL) + " wavelengths (the renderer needs the spectrum); " + sharing);
+  if (nL <= 3)
+    return decision("wavelengths", true, std::to_string(nL) + " wavelengths, no fewer for colour (needs 3); " + sharing);
+  std::vector<int> order(static_cast<size_t>(nL));
+  for (int l = 0; l < nL; ++l) order[size_t(l)] = l;
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return job.lambda_nm[size_t(a)] < job.lambda_nm[size_t(b)]; });
+  if (chosen.has(Component::Incoherent))
+    return decision("wavelengths", true,
+                    std::to_string(nL) + " wavelengths, all kept although the renderer needs colour: diffraction changes "
+                                         "with lambda (orders and speckle move), which is what the samples resolve; " + sharing);
+  std::vector<TileResult> geo2;
+  replicate(&geo2);
+  const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
+  const int nCells = *std::max_element(cellOf.begin(), cellOf.end()) + 1;
+  // The stored model's f at (replica r, pilot k, wavelength l, bin b).
+  auto model = [&](int r, size_t k, int l, int b) {
+    const std::vector<TileResult>& g = r == 0 ? geo : geo2;
+    double f = g[k].at(Component::Coherent, l, b);
+    if (chosen.has(Component::Multiple)) f += g[k].at(Component::Multiple, l, b);
+    return f;
+  };
+  std::vector<double> sortedLambda;
+  for (int l : order) sortedLambda.push_back(job.lambda_nm[size_t(l)]);
+  const std::vector<Colour3> wFull = SpectrumToColour(sortedLambda).weights();
+  double bestWorst = 0, worstL1 = 0;
+  for (int n = 3; n < nL; ++n) {
+    std::vector<int> pick;  // positions in `order`
+    for (int i = 0; i < n; ++i) pick.push_back(int(std::lround(double(i) * (nL - 1) / (n - 1))));
+    std::vector<double> subLambda;
+    for (int i : pick) subLambda.push_back(sortedLambda[size_t(i)]);
+    // c_subset − c_full = Σ_i a_i f_i: a = the subset's weight at its samples minus the full set's.
+    std::vector<Colour3> a(static_cast<size_t>(nL));
+    const std::vector<Colour3> wSub = SpectrumToColour(subLambda).weights();
+    for (int i = 0; i < nL; ++i)
+      for (int c = 0; c < 3; ++c) a[size_t(i)][size_t(c)] = -wFull[size_t(i)][size_t(c)];
+    for (int j = 0; j < n; ++j)
+      for (int c = 0; c < 3; ++c) a[size_t(pick[size_t(j)])][size_t(c)] += wSub[size_t(j)][size_t(c)];
+    // Per pilot and channel, at the renderer's resolution (cells, resolutionCells()): L1 =
+    // Σ_cells |d̄| of the replicas' mean d̄ = Σ_b∈cell d_b Ω⊥, its noise floor Σ_cells |d1 − d2|/2
+    // (the same distribution as d̄'s noise), sd √Σ_cells ((d1 − d2)/2)².
+    double worst = -1e300, l1AtWorst = 0;
+    for (size_t k = 0; k < geo.size(); ++k) {
+      std::vector<Colour3> c1(size_t(nCells), Colour3{0, 0, 0}), c2(size_t(nCells), Colour3{0, 0, 0});
+      for (int b = 0; b < nB; ++b) {
+        const int cell = cellOf[size_t(b)];
+        if (cell < 0) continue;
+        const double op = grid.projectedSolidAngle(b);
+        for (int i = 0; i < nL; ++i) {
+          const double f1 = model(0, k, order[size_t(i)], b) * op, f2 = model(1, k, order[size_t(i)], b) * op;
+          for (int c = 0; c < 3; ++c) {
+            c1[size_t(cell)][size_t(c)] += a[size_t(i)][size_t(c)] * f1;
+            c2[size_t(cell)][size_t(c)] += a[size_t(i)][size_t(c)] * f2;
+          }
+        }
+      }
+      Colour3 l1{0, 0, 0}, floor{0, 0, 0}, var{0, 0, 0};
+      for (int cell = 0; cell < nCells; ++cell)
+        for (int c = 0; c < 3; ++c) {
+          const double d1 = c1[size_t(cell)][size_t(c)], d2 = c2[size_t(cell)][size_t(c)];
+          l1[size_t(c)] += std::abs(0.5 * (d1 + d2));
+          floor[size_t(c)] += std::abs(0.5 * (d1 - d2));
+          var[size_t(c)] += 0.25 * (d1 - d2) * (d1 - d2);
+        }
+      for (int c = 0; c < 3; ++c) {
+        const double upper = l1[size_t(c)] - floor[size_t(c)] + 2 * std::sqrt(var[size_t(c)]);
+        if (upper > worst) worst = upper, l1AtWorst = l1[size_t(c)];
+      }
+    }
+    if (worst <= job.scene.tolerance) {
+      auto d = decision("wavelengths", true,
+                        "the renderer needs colour: " + std::to_string(n) + " of " + std::to_string(nL) +
+                            " wavelengths reproduce the pilots' XYZ: sum|dXYZ| * proj. solid angle " + fmt3(l1AtWorst) +
+                            ", beyond noise at most " + fmt3(worst) + " <= tolerance " + fmt3(job.scene.tolerance) +
+                            (n > 3 ? " (" + std::to_string(n - 1) + " would not)" : "") + "; " + sharing);
+      d["pilot_colour_l1"] = l1AtWorst;
+      d["pilot_colour_upper"] = worst;
+      d["wavelengths_nm"] = subLambda;
+      (*plan)["lambda_nm"] = subLambda;
+      return d;
+    }
+    bestWorst = worst, worstL1 = l1AtWorst;
+  }
+  auto d = decision("wavelengths", true,
+                    "the renderer needs colour, but every subset of the " + std::to_string(nL) +
+                        " wavelengths changes the pilots' XYZ beyond the tolerance " + fmt3(job.scene.tolerance) + " (" +
+                        std::to_string(nL - 1) + " of them: " + fmt3(worstL1) + ", beyond noise " + fmt3(bestWorst) +
+                        "): all kept; " + sharing);
+  d["pilot_colour_l1"] = worstL1;
+  d["pilot_colour_upper"] = bestWorst;
+  return d;
 }
 
 }  // namespace
@@ -105,6 +261,21 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     }
     *se = std::sqrt(v);
     return e;
+  };
+
+  // The job's wave estimator for the pilots.
+  WaveSettings ws;
+  ws.estimator = job.resolvedWaveEstimator();
+  ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));
+  ws.pointsPerDirection = int(job.wavePointsPerDirection);
+  ws.incidenceDirections = int(job.waveIncidenceDirections);
+  auto makeWave = [&](uint64_t seed, const PeriodicScene& scene) {
+    WaveSettings s = ws;
+    s.seed = seed;
+    return makeWaveEstimator(WaveContext{job.geometry, scene, job.material, job.lambda_um(), grid,
+                                         CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um, job.geometry.sizeX,
+                                                                              job.geometry.sizeY, job.geometry.periodic),
+                                         s});
   };
 
   nlohmann::json plan;
@@ -146,33 +317,34 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     if (job.statistical) {
       d = decision("incoherent", false, "a statistical surface has no explicit geometry to diffract (microflake model)");
     } else {
-      WaveSettings ws;
-      ws.estimator = job.resolvedWaveEstimator();
-      ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));
-      ws.pointsPerDirection = int(job.wavePointsPerDirection);
-      ws.incidenceDirections = int(job.waveIncidenceDirections);
-      ws.seed = job.seed;
-      auto est = makeWaveEstimator(WaveContext{job.geometry, *transport.scene(), job.material, job.lambda_um(), grid,
-                                               CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um,
-                                                                                    job.geometry.sizeX, job.geometry.sizeY,
-                                                                                    job.geometry.periodic),
-                                               ws});
-      // Per pilot and wavelength: the L1 difference and its noise; the decision uses the largest
-      // upper estimate (L1 − floor + 2 sd) and the largest lower estimate (L1 − floor − 2 sd).
+      auto est = makeWave(job.seed, *transport.scene());
+      // Per pilot and wavelength: the L1 difference and its noise at the renderer's angular
+      // resolution (bins pooled into cells of that size, resolutionCells()); the decision uses the
+      // largest upper estimate (L1 − floor + 2 sd) and the largest lower estimate (L1 − floor − 2 sd).
+      const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
+      const int nCells = cellOf.empty() ? 0 : *std::max_element(cellOf.begin(), cellOf.end()) + 1;
       double upper = -1e300, lower = -1e300, worstL1 = 0, worstFloor = 0, worstTheta = 0;
+      int wavePilotsRun = 0;
       for (size_t k = 0; k < pilots.size(); ++k) {
         const auto& inc = job.incidence[size_t(pilots[k])];
         const WaveTileResult w = est->run(pilots[k], inc.bin, beam(pilots[k]));
         const TileResult& r = geo[k];
         for (int l = 0; l < nL; ++l) {
-          double l1 = 0, floor = 0, var = 0;
+          // Per cell: Σ (f_ws − f_coh) Ω⊥ and its variance Σ (s Ω⊥)².
+          std::vector<double> diff(size_t(nCells), 0.0), cellVar(size_t(nCells), 0.0);
           for (int b = 0; b < nB; ++b) {
+            if (cellOf[size_t(b)] < 0) continue;
             const size_t x = size_t(l) * nB + b;
             const double op = grid.projectedSolidAngle(b);
             const double s = std::hypot(w.fwsErr[x], r.stdError[int(Component::Coherent)][x]);
-            l1 += std::abs(w.fws[x] - r.at(Component::Coherent, l, b)) * op;
-            floor += std::sqrt(2 / kPi) * s * op;
-            var += s * op * s * op;
+            diff[size_t(cellOf[size_t(b)])] += (w.fws[x] - r.at(Component::Coherent, l, b)) * op;
+            cellVar[size_t(cellOf[size_t(b)])] += s * op * s * op;
+          }
+          double l1 = 0, floor = 0, var = 0;
+          for (int c = 0; c < nCells; ++c) {
+            l1 += std::abs(diff[size_t(c)]);
+            floor += std::sqrt(2 / kPi) * std::sqrt(cellVar[size_t(c)]);
+            var += cellVar[size_t(c)];
           }
           lower = std::max(lower, l1 - floor - 2 * std::sqrt(var));
           if (l1 - floor + 2 * std::sqrt(var) > upper) {
@@ -182,6 +354,10 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
             worstTheta = inc.theta_deg;
           }
         }
+        // One pilot whose difference exceeds the tolerance beyond noise decides: the others would
+        // only confirm it (they cost as much as a tile's wave term each).
+        wavePilotsRun = int(k) + 1;
+        if (lower > tol) break;
       }
       const double sigmaH = rmsHeight(job.geometry), slope = rmsSlope(job.geometry);
       // Rayleigh roughness at the most grazing pilot (the smallest g, the strongest specular spike).
@@ -191,7 +367,10 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       const double blurDeg = job.scene.coherenceLength_um > 0 ? degrees(meanLambda / job.scene.coherenceLength_um) : 0;
       std::string why = "pilot WS - GS difference sum|f_ws - f_coh| * proj. solid angle = " + fmt3(worstL1) +
                         " (noise floor " + fmt3(worstFloor) + "; beyond noise: lower estimate " + fmt3(lower) +
-                        ", upper " + fmt3(upper) + ") at theta " + fmt3(worstTheta) + " deg";
+                        ", upper " + fmt3(upper) + ") at theta " + fmt3(worstTheta) + " deg" +
+                        (wavePilotsRun < int(pilots.size()) ? " (decided by the first " + std::to_string(wavePilotsRun) +
+                                                                  " of " + std::to_string(pilots.size()) + " wave pilots)"
+                                                            : "");
       // Kirchhoff-theory estimate, used when the pilot cannot decide (its noise straddles the
       // tolerance): the diffraction-limited specular spike 2 R e^{-g} (geometric optics has none;
       // R <= 1) plus the blur of a lobe of width 2·slope by the window's diffraction, angular sd
@@ -222,7 +401,11 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       d = decision("incoherent", on,
                    why + "; Rayleigh roughness g = " + fmt3(g) +
                        (g < 0.1 ? " (smooth: specular with a diffuse halo)" : g > 10 ? " (rough)" : " (intermediate)") +
-                       "; coherence blur lambda/delta_c = " + fmt3(blurDeg) + " deg vs bins of " + fmt3(binDeg) + " deg");
+                       "; coherence blur lambda/delta_c = " + fmt3(blurDeg) + " deg vs bins of " + fmt3(binDeg) + " deg" +
+                       (job.scene.angularResolution_deg > 0
+                            ? " pooled to the renderer's " + fmt3(job.scene.angularResolution_deg) + " deg (" +
+                                  std::to_string(nCells) + " cells)"
+                            : ""));
       d["pilot_lower"] = lower;
       d["kirchhoff_estimate"] = physical;
       d["rms_slope"] = slope;
@@ -234,7 +417,10 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       d["rms_height_um"] = sigmaH;
       d["coherence_blur_deg"] = blurDeg;
       d["bin_deg"] = binDeg;
+      d["angular_resolution_deg"] = job.scene.angularResolution_deg;
+      d["resolution_cells"] = nCells;
       d["wave_samples_per_bin"] = ws.samplesPerBin;
+      d["wave_pilots_run"] = wavePilotsRun;
     }
     if (forced.has(Component::Incoherent) && !on) {
       d["reason"] = d["reason"].get<std::string>() + "; kept: requested";
@@ -268,14 +454,23 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     decisions.push_back(d);
     plan["wave_transmission"] = !skip;
   }
-  {
-    const bool shared = job.material.directionsIndependentOfLambda();
-    decisions.push_back(decision(
-        "wavelengths", true,
-        std::to_string(nL) + " wavelengths; " +
-            (shared ? "paths shared by all of them (only Fresnel depends on lambda: per-wavelength weights)"
-                    : "one path set per wavelength (dispersive dielectric: refraction depends on lambda)") +
-            (chosen.has(Component::Incoherent) ? "; the wave term is evaluated per wavelength" : "")));
+  const PilotReplica replicate = [&](std::vector<TileResult>* geo2) {
+    Job other = pilotJob;
+    other.seed = job.seed ^ 0x9E3779B97F4A7C15ull;
+    GeometricTransport t2(other, grid, paths);
+    for (int p : pilots) geo2->push_back(t2.run(p, p, job.incidence[size_t(p)].bin, beam(p)));
+  };
+  decisions.push_back(wavelengthDecision(job, grid, geo, chosen, replicate, &plan));
+  if (job.scene.incidenceMax_deg < 90) {
+    const int candidates = [&] {
+      int n = 0;
+      for (int b = 0; b < (job.material.isConductor() ? grid.binsPerHemisphere() : nB); ++b) n += grid.projectedSolidAngle(b) > 0;
+      return n;
+    }();
+    decisions.push_back(decision("incidence", true,
+                                 "the renderer looks up incidences within " + fmt3(job.scene.incidenceMax_deg) +
+                                     " deg of the normal ([scene] incidence_max_deg): " + std::to_string(job.incidence.size()) +
+                                     (job.incidenceAll ? " of " + std::to_string(candidates) + " incidence bins" : " listed incidences")));
   }
 
   std::vector<std::string> names;
@@ -296,6 +491,7 @@ void applyEffectsPlan(Job& job, const nlohmann::json& plan) {
   job.components = ComponentSet{};
   for (const auto& n : plan["components"]) job.components.add(*componentFromName(n.get<std::string>()));
   job.waveTransmission = plan.value("wave_transmission", true);
+  if (plan.contains("lambda_nm")) job.lambda_nm = plan["lambda_nm"].get<std::vector<double>>();
   job.effectsPlan = plan.dump();
 }
 

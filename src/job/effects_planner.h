@@ -5,9 +5,11 @@
 //  - multiple: on when the pilot's multiply scattered energy Σ f·Ω⊥ (+ 3 standard errors) of any
 //    pilot slice and wavelength exceeds [scene] tolerance: leaving it out changes that slice by
 //    exactly that energy.
-//  - incoherent (diffraction): from the pilot's WS − GS difference at the job's grid and coherence,
-//    L1 = Σ_b |f_ws − f_coherent| Ω⊥, less the expected L1 of pure noise √(2/π) Σ_b s_b Ω⊥, ± 2
-//    standard deviations √Σ_b (s_b Ω⊥)²: off when the upper estimate is below [scene] tolerance, on
+//  - incoherent (diffraction): from the pilot's WS − GS difference at the renderer's angular
+//    resolution ([scene] angular_resolution_deg: bins pooled into cells of that size, default the
+//    job's bins) and the coherence, L1 = Σ_cells |Σ_b∈cell (f_ws − f_coherent) Ω⊥|, less the expected
+//    L1 of pure noise √(2/π) Σ_cells s_cell, ± 2 standard deviations √Σ s_cell² (s_cell² =
+//    Σ_b∈cell (s_b Ω⊥)²): off when the upper estimate is below [scene] tolerance, on
 //    when the lower one is above. When the pilot cannot decide (Monte Carlo noise straddles the
 //    tolerance, as for rough surfaces with the `area` estimator) and the features are much larger
 //    than λ (correlation length √2 σ_h/slope >= 5 λ), a Kirchhoff-theory estimate decides: the
@@ -32,6 +34,12 @@ struct EffectsPilotOptions {
   uint64_t paths = 20000;        // per pilot slice (at most the job's paths_per_slice)
   int waveSamplesPerBin = 1024;  // per exit bin (at least the job's wave_samples_per_bin)
 };
+
+// The cells of `resolution_deg` the renderer resolves: for each bin of the grid its cell index
+// (bins of zero projected solid angle: −1). Cells are rings of that width in the angle from the
+// normal on each side (about a cap of radius resolution/2), cut into sectors of about that width;
+// 0 keeps the bins.
+std::vector<int> resolutionCells(const DirectionGrid& grid, double resolution_deg);
 
 // Pilot incidence indices (sorted, distinct): the incidence closest to normal, the median and the
 // most grazing one. Used by the effects planner and by `plan`'s cost pilot.

@@ -247,6 +247,29 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   for (auto& n : job.scene.needs)
     if (n != "brdf" && n != "btdf") scene.fail("needs", "entries must be \"brdf\" or \"btdf\"");
   job.scene.tolerance = scene.positive("tolerance", 0.01);
+  job.scene.angularResolution_deg = scene.nonNegative("angular_resolution_deg", 0.0);
+  job.scene.colour = scene.getString("colour", "spectral");
+  if (job.scene.colour != "spectral" && job.scene.colour != "rgb") scene.fail("colour", "must be \"spectral\" or \"rgb\"");
+  if (!(job.scene.angularResolution_deg <= 90)) scene.fail("angular_resolution_deg", "must be in [0, 90]");
+  // The incidences the renderer will look up: with incidence = "all", bins farther than this from
+  // the normal on their side (light from above: θ; from inside a dielectric: 180° − θ) are not
+  // computed. Whole θ rings go, so symmetry and reciprocity still apply (an exit bin that is no
+  // longer an incidence bin is computed by the tile itself, reciprocity.h).
+  job.scene.incidenceMax_deg = scene.positive("incidence_max_deg", 90.0);
+  if (!(job.scene.incidenceMax_deg <= 90)) scene.fail("incidence_max_deg", "must be in (0, 90]");
+  {
+    auto fromNormal = [](double theta_deg) { return theta_deg <= 90 ? theta_deg : 180 - theta_deg; };
+    if (job.incidenceAll) {
+      std::erase_if(job.incidence, [&](const IncidenceDirection& d) { return fromNormal(d.theta_deg) > job.scene.incidenceMax_deg; });
+      if (job.incidence.empty())
+        scene.fail("incidence_max_deg", "leaves no incidence bin (the bin centres nearest the normal lie farther out)");
+    } else {
+      for (const auto& d : job.incidence)
+        if (fromNormal(d.theta_deg) > job.scene.incidenceMax_deg + 1e-9)
+          scene.fail("incidence_max_deg", "the listed incidence theta_deg = " + fmt::format("{:g}", d.theta_deg) +
+                                              " lies beyond it (remove one or the other)");
+    }
+  }
 
   ParamDict eff = root.table("effects");
   job.requestedComponents = eff.getStrings("components", {"auto"});

@@ -28,6 +28,15 @@ struct SceneNeeds {
   double sourceAngularDiameter_deg = 0;
   std::vector<std::string> needs{"brdf", "btdf"};
   double tolerance = 0.01;
+  // Largest incidence angle from the normal (on the light's side) the renderer looks up: with
+  // incidence = "all" the bins beyond it are not computed.
+  double incidenceMax_deg = 90.0;
+  // The angular detail the renderer resolves; the diffraction decision compares WS and GS pooled
+  // into cells of this size (0: the job's bins).
+  double angularResolution_deg = 0.0;
+  // "spectral" (the renderer integrates the spectrum) or "rgb" (it is fed colour: with
+  // components = "auto" the planner may compute fewer wavelengths, effects_planner.h).
+  std::string colour = "spectral";
 };
 
 // [geometry] kind = "statistical": a surface known only by its NDF, simulated by the microflake
@@ -50,7 +59,7 @@ struct Job {
   DirectionGrid::Layout gridLayout;
   std::vector<IncidenceDirection> incidence;
   bool exactIncidence = false;  // [directions] incidence_sampling = "exact": collimated beams
-  bool incidenceAll = false;    // [directions] incidence = "all": every bin on the incident side(s)
+  bool incidenceAll = false;    // [directions] incidence = "all": every bin on the incident side(s) (within scene.incidence_max_deg)
   // [directions] symmetry: an isotropic surface has one incidence azimuth per θ ring computed and
   // the other slices of the ring rotated from it; a surface invariant under rotation by 2π/n
   // (rotationOrder = n >= 2, e.g. a square lattice: 4) one n-th of each ring (symmetry.h).

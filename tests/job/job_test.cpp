@@ -184,6 +184,25 @@ TEST(Job, SceneLightSource) {
   EXPECT_FALSE(loadJobFromString("[effects]\ncomponents = [\"coherent\"]\n", "t.toml", "").autoComponents);
 }
 
+// [scene] incidence_max_deg: incidence = "all" keeps whole rings within the angle on each side;
+// a listed direction beyond it, or a range with no bin, is an error naming the key.
+TEST(Job, SceneIncidenceRange) {
+  const std::string dirs = "[directions]\nn_theta = 6\nn_phi = 4\n";  // ring centres 7.5, 22.5, ... 82.5 deg
+  Job al = loadJobFromString(dirs + "[scene]\nincidence_max_deg = 50.0\n", "t.toml", "");
+  EXPECT_EQ(al.incidence.size(), 3u * 4u);
+  for (const auto& d : al.incidence) EXPECT_LE(d.theta_deg, 50.0);
+  EXPECT_TRUE(al.incidenceAll);
+  Job glass = loadJobFromString("[material]\nkind = \"dielectric\"\nior = 1.5\n" + dirs + "[scene]\nincidence_max_deg = 30.0\n",
+                                "t.toml", "");
+  ASSERT_EQ(glass.incidence.size(), 2u * 2u * 4u);  // two rings above, two inside
+  for (const auto& d : glass.incidence) EXPECT_LE(std::min(d.theta_deg, 180 - d.theta_deg), 30.0);
+  EXPECT_EQ(loadJobFromString(dirs, "t.toml", "").incidence.size(), 6u * 4u);
+  EXPECT_NE(errorOf(dirs + "[scene]\nincidence_max_deg = 5.0\n").find("scene.incidence_max_deg"), std::string::npos);
+  EXPECT_NE(errorOf(dirs + "[scene]\nincidence_max_deg = 95.0\n").find("scene.incidence_max_deg"), std::string::npos);
+  EXPECT_NE(errorOf("[directions]\nincidence = [[70.0, 0.0]]\n[scene]\nincidence_max_deg = 60.0\n").find("scene.incidence_max_deg"),
+            std::string::npos);
+}
+
 // [directions] symmetry: detected for isotropic NDFs, refused for anisotropic ones, unused (with the
 // reason) without rings to reduce.
 TEST(Job, SymmetryDetectedOrDeclared) {
