@@ -1,5 +1,6 @@
 // Job files: defaults, errors that name file, line and key, unknown keys.
 #include "job/job.h"
+#include "job/symmetry.h"
 
 #include <gtest/gtest.h>
 
@@ -201,6 +202,13 @@ TEST(Job, SceneIncidenceRange) {
   EXPECT_NE(errorOf(dirs + "[scene]\nincidence_max_deg = 95.0\n").find("scene.incidence_max_deg"), std::string::npos);
   EXPECT_NE(errorOf("[directions]\nincidence = [[70.0, 0.0]]\n[scene]\nincidence_max_deg = 60.0\n").find("scene.incidence_max_deg"),
             std::string::npos);
+  // Whole rings go, so an isotropic surface still computes one azimuth per remaining ring.
+  Job iso = loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"ggx\"\nalpha = 0.3\n" + dirs +
+                                  "[scene]\nincidence_max_deg = 50.0\n",
+                              "t.toml", "");
+  ASSERT_TRUE(iso.symmetryReduced()) << iso.symmetryReason;
+  const DirectionGrid grid(iso.gridLayout);
+  EXPECT_EQ(AzimuthalSymmetry(iso, grid).representativeCount(), 3);
 }
 
 // [directions] symmetry: detected for isotropic NDFs, refused for anisotropic ones, unused (with the
