@@ -12,6 +12,10 @@
 //  - chandrasekhar_albedo / chandrasekhar_lobe: the microflake walk in Chandrasekhar's isotropic
 //    medium (constant NDF, mirror flakes of albedo 0.9, θi = 30°): albedo vs 1 − H(μi)√(1 − a), and
 //    the table's relative L1 distance Σ|f − f_ref|Ω⊥ / Σ f_ref Ω⊥ vs seed Eq. 30;
+//  - hemisphere_cell_ws: one 5 µm cell of HEMISPHERES (Al, θi = 50°, δc = 60 µm, 15 x 30 bins) in
+//    the grating-order regime: relative L1 distance of the WS table of `orders` and `area` to the
+//    deterministic `exact` table (`exact`'s own row: its distance to `orders` at 2^18 samples, the
+//    noise of that table); flat_al_40 and sine_grating also run `exact`;
 //  - hemispheres_gm (and its coherent / multiple components) / hemispheres_ws: the paper's HEMISPHERES (Al, 550 nm, θi = 30°, 30 x 60 bins):
 //    relative L1 distance of the GM table (path tracer) and of the WS table (area estimator, δc =
 //    50 µm) to a reference at 16x the largest budget (so the curves flatten at the reference's
@@ -104,10 +108,11 @@ int main(int argc, char** argv) {
     DirectionGrid grid(ThetaPhiGrid{30, 60});
     Vec3 wi = sphericalDirection(radians(40), radians(17));
     const double F = fresnelReflectance(std::cos(radians(40)), 1.0, al.ior(0.55));
-    for (const std::string est : {"orders", "area", "paper"})
+    for (const std::string est : {"orders", "area", "paper", "exact"})
       for (long budget : {64L, 256L, 1024L, 4096L, 16384L}) {
         if (est != "orders" && budget > 4096) continue;
-        for (int s = 0; s < seeds; ++s) {
+        if (est == "exact" && budget != 64) continue;  // deterministic: no budget
+        for (int s = 0; s < (est == "exact" ? 1 : seeds); ++s) {
           const WaveSettings ws = waveSettings(est, budget, s);
           auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, grid,
                                                  CoherenceWindow::fromCoherenceLength(50, 2, 2, true), ws});
@@ -124,10 +129,11 @@ int main(int argc, char** argv) {
     Material mirror = named("mirror");
     DirectionGrid grid(ThetaPhiGrid{90, 72});
     const double k0 = 2 * kPi / 0.5;
-    for (const std::string est : {"orders", "area", "paper"})
+    for (const std::string est : {"orders", "area", "paper", "exact"})
       for (long budget : {64L, 256L, 1024L, 4096L, 16384L}) {
         if (est != "orders" && budget > 1024) continue;
-        for (int s = 0; s < seeds; ++s) {
+        if (est == "exact" && budget != 64) continue;  // deterministic: no budget
+        for (int s = 0; s < (est == "exact" ? 1 : seeds); ++s) {
           const WaveSettings ws = waveSettings(est, budget, s);
           auto e = makeWaveEstimator(WaveContext{g, scene, mirror, {0.5}, grid,
                                                  CoherenceWindow::fromCoherenceLength(50, 5, 1, true), ws});
@@ -216,6 +222,36 @@ int main(int argc, char** argv) {
         row("chandrasekhar_albedo", "walk", budget, s, sec, std::abs(hemisphere(grid, f, true) - albedoRef) / albedoRef);
         row("chandrasekhar_lobe", "walk", budget, s, sec, relativeL1(grid, f, ref));
       }
+  }
+  // One cell of HEMISPHERES (5 µm, r = 2 µm, Al, 550 nm, θi = 50°: mutual shadowing) under a window
+  // much wider than the cell (δc = 60 µm: the grating-order regime, where `exact` applies): the WS
+  // table of every estimator against `orders` at 16x its largest budget.
+  {
+    Microgeometry g = makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25);
+    PeriodicScene scene(g);
+    Material al = named("Al");
+    DirectionGrid grid(ThetaPhiGrid{15, 30});
+    const Vec3 wi = sphericalDirection(radians(50), radians(20));
+    auto ws = [&](const std::string& est, long samples, int seed) {
+      auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, grid, CoherenceWindow::fromCoherenceLength(60, 5, 5, true),
+                                             waveSettings(est, samples, seed)});
+      Timer t;
+      WaveTileResult r = e->run(seed, grid.binOf(wi), wi);
+      return std::pair{r.fws, t.seconds()};
+    };
+    // `exact` (deterministic; checked against `orders` bin by bin in tests/scattering/
+    // wave_exact_test.cpp) is the reference; its own row is its distance to `orders` at 2^18
+    // samples, the noise of that Monte Carlo table.
+    const auto [ref, refSec] = ws("exact", 64, 0);
+    for (const std::string est : {"orders", "area"})
+      for (long budget : {64L, 256L, 1024L, 4096L, 16384L, 65536L}) {
+        if (est == "area" && budget > 4096) continue;
+        for (int s = 0; s < seeds; ++s) {
+          auto [f, sec] = ws(est, budget, s);
+          row("hemisphere_cell_ws", est, budget, s, sec, relativeL1(grid, f, ref));
+        }
+      }
+    row("hemisphere_cell_ws", "exact", 64, 0, refSec, relativeL1(grid, ws("orders", 1 << 18, 1000).first, ref));
   }
   // HEMISPHERES (the paper's surface) against high-budget references.
   {
