@@ -21,7 +21,9 @@
 //    reflection.
 //  - wavelengths: whether paths are shared by all wavelengths (only Fresnel depends on λ).
 // Pilots: collimated beams through the bin centres of the job's incidence directions closest to
-// normal, the median and the most grazing one.
+// normal, the median and the most grazing one. The wave pilot uses the job's estimator, or the
+// deterministic `exact` one (no sampling noise) in the grating-order regime when facets × orders
+// (π sizeX sizeY / λ²) stays below 2e5.
 
 #pragma once
 #include <nlohmann/json.hpp>
