@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <chrono>
-#include <functional>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <optional>
-#include <tuple>
 #include <sstream>
+#include <tuple>
 
 #include "core/colour.h"
 #include "job/transport.h"
@@ -112,7 +112,6 @@ std::string fmt3(double v) {
   s << v;
   return s.str();
 }
-
 
 // Wavelengths. A renderer fed with colour ([scene] colour = "rgb") needs the XYZ of each bin, not
 // the spectrum: the fewest of the job's wavelengths (3, 4, ... spread evenly over the sorted list)
@@ -283,14 +282,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));
   ws.pointsPerDirection = int(job.wavePointsPerDirection);
   ws.incidenceDirections = int(job.waveIncidenceDirections);
-  auto makeWave = [&](uint64_t seed, const PeriodicScene& scene) {
-    WaveSettings s = ws;
-    s.seed = seed;
-    return makeWaveEstimator(WaveContext{job.geometry, scene, job.material, job.lambda_um(), grid,
-                                         CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um, job.geometry.sizeX,
-                                                                              job.geometry.sizeY, job.geometry.periodic),
-                                         s});
-  };
+  ws.seed = job.seed;
 
   nlohmann::json plan;
   nlohmann::json decisions = nlohmann::json::array();
@@ -331,7 +323,11 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     if (job.statistical) {
       d = decision("incoherent", false, "a statistical surface has no explicit geometry to diffract (microflake model)");
     } else {
-      auto est = makeWave(job.seed, *transport.scene());
+      auto est = makeWaveEstimator(WaveContext{job.geometry, *transport.scene(), job.material, job.lambda_um(), grid,
+                                               CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um,
+                                                                                    job.geometry.sizeX, job.geometry.sizeY,
+                                                                                    job.geometry.periodic),
+                                               ws});
       // Per pilot and wavelength: the L1 difference and its noise at the renderer's angular
       // resolution (bins pooled into cells of that size, resolutionCells()); the decision uses the
       // largest upper estimate (L1 − floor + 2 sd) and the largest lower estimate (L1 − floor − 2 sd).
