@@ -54,18 +54,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   GeometricTransport transport(job, grid, job.pathsPerSlice);
   std::unique_ptr<WaveEstimator> wave;
   if (job.needsWave()) {
-    WaveSettings ws;
-    ws.estimator = job.resolvedWaveEstimator();
-    ws.samplesPerBin = int(job.waveSamplesPerBin);
-    ws.pointsPerDirection = int(job.wavePointsPerDirection);
-    ws.incidenceDirections = int(job.waveIncidenceDirections);
-    ws.seed = job.seed;
-    ws.computeMasked = job.components.has(Component::Lost);
-    wave = makeWaveEstimator(WaveContext{job.geometry, *transport.scene(), job.material, job.lambda_um(), grid,
-                                         CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um,
-                                                                              job.geometry.sizeX, job.geometry.sizeY,
-                                                                              job.geometry.periodic),
-                                         ws});
+    wave = makeJobWaveEstimator(job, grid, *transport.scene(), waveSettingsOf(job));
     if (mpi.rank() == 0)
       spdlog::info("scalar diffraction: {} estimator, {} samples per bin, coherence length {} µm{}", wave->name(),
                    job.waveSamplesPerBin, job.scene.coherenceLength_um,

@@ -266,9 +266,10 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     return e;
   };
 
-  // The job's wave estimator for the pilots.
-  WaveSettings ws;
-  ws.estimator = job.resolvedWaveEstimator();
+  // The job's wave estimator for the pilots, with at least options.waveSamplesPerBin samples and no
+  // masked sums (`lost` is decided on request only).
+  WaveSettings ws = waveSettingsOf(job);
+  ws.computeMasked = false;
   // Where the grating-order regime holds (a periodic patch under a window much wider than it), the
   // deterministic `exact` evaluator gives the pilot without sampling noise (issue 10), so a
   // difference is judged against the tolerance alone; it is used when the facet sums stay cheap.
@@ -280,9 +281,6 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     if (ws.estimator == "orders" && work <= kExactPilotMaxWork) ws.estimator = "exact";
   }
   ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));
-  ws.pointsPerDirection = int(job.wavePointsPerDirection);
-  ws.incidenceDirections = int(job.waveIncidenceDirections);
-  ws.seed = job.seed;
 
   nlohmann::json plan;
   nlohmann::json decisions = nlohmann::json::array();
@@ -323,11 +321,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     if (job.statistical) {
       d = decision("incoherent", false, "a statistical surface has no explicit geometry to diffract (microflake model)");
     } else {
-      auto est = makeWaveEstimator(WaveContext{job.geometry, *transport.scene(), job.material, job.lambda_um(), grid,
-                                               CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um,
-                                                                                    job.geometry.sizeX, job.geometry.sizeY,
-                                                                                    job.geometry.periodic),
-                                               ws});
+      auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
       // Per pilot and wavelength: the L1 difference and its noise at the renderer's angular
       // resolution (bins pooled into cells of that size, resolutionCells()); the decision uses the
       // largest upper estimate (L1 − floor + 2 sd) and the largest lower estimate (L1 − floor − 2 sd).

@@ -79,19 +79,10 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   const double pathSeconds = pilotSeconds * double(job.pathsPerSlice) / double(pilotPaths);
   double waveSeconds = 0;
   if (job.needsWave()) {
-    WaveSettings ws;
-    ws.estimator = job.resolvedWaveEstimator();
+    WaveSettings ws = waveSettingsOf(job);
     ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
                                      ws.estimator == "area" ? 2 * int(job.wavePointsPerDirection) : 16);
-    ws.pointsPerDirection = int(job.wavePointsPerDirection);
-    ws.incidenceDirections = int(job.waveIncidenceDirections);
-    ws.seed = job.seed;
-    ws.computeMasked = job.components.has(Component::Lost);
-    auto est = makeWaveEstimator(WaveContext{job.geometry, *transport.scene(), job.material, job.lambda_um(), grid,
-                                             CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um,
-                                                                                  job.geometry.sizeX, job.geometry.sizeY,
-                                                                                  job.geometry.periodic),
-                                             ws});
+    auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
     for (int t : pilots)
       waveSeconds += est->run(t, job.incidence[size_t(t)].bin, exactOf(t)).seconds *
                      double(job.waveSamplesPerBin) / double(ws.samplesPerBin) / pilots.size();

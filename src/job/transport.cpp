@@ -36,4 +36,23 @@ std::string GeometricTransport::describe() const {
   return "path tracer through the explicit microgeometry";
 }
 
+WaveSettings waveSettingsOf(const Job& job) {
+  WaveSettings ws;
+  ws.estimator = job.resolvedWaveEstimator();
+  ws.samplesPerBin = int(job.waveSamplesPerBin);
+  ws.pointsPerDirection = int(job.wavePointsPerDirection);
+  ws.incidenceDirections = int(job.waveIncidenceDirections);
+  ws.seed = job.seed;
+  ws.computeMasked = job.components.has(Component::Lost);
+  return ws;
+}
+
+std::unique_ptr<WaveEstimator> makeJobWaveEstimator(const Job& job, const DirectionGrid& grid, const PeriodicScene& scene,
+                                                    const WaveSettings& settings) {
+  return makeWaveEstimator(WaveContext{job.geometry, scene, job.material, job.lambda_um(), grid,
+                                       CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um, job.geometry.sizeX,
+                                                                            job.geometry.sizeY, job.geometry.periodic),
+                                       settings});
+}
+
 }  // namespace mbsdf

@@ -12,6 +12,7 @@
 #include "job/job.h"
 #include "microflake/microflake_walk.h"
 #include "scattering/path_tracer.h"
+#include "scattering/wave_estimator.h"
 
 namespace mbsdf {
 
@@ -31,5 +32,12 @@ class GeometricTransport {
   std::unique_ptr<MicroflakeDistribution> flakes_;
   std::unique_ptr<MicroflakeWalk> walk_;
 };
+
+// The job's wave-optics settings ([sampling] estimator, samples, points, incidence directions,
+// seed; masked sums when `lost` is a component), for the run and, adjusted, for the pilots.
+WaveSettings waveSettingsOf(const Job& job);
+// The job's wave estimator on `scene` with `settings` and the coherence window of [scene].
+std::unique_ptr<WaveEstimator> makeJobWaveEstimator(const Job& job, const DirectionGrid& grid, const PeriodicScene& scene,
+                                                    const WaveSettings& settings);
 
 }  // namespace mbsdf
