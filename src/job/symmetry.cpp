@@ -139,7 +139,7 @@ PatchSymmetry patchSymmetryOf(const Microgeometry& g) {
   return s;
 }
 
-AzimuthalSymmetry::AzimuthalSymmetry(const Job& job, const DirectionGrid& grid) : grid_(grid) {
+AzimuthalSymmetry::AzimuthalSymmetry(const Job& job, const DirectionGrid& grid) {
   const auto* tp = std::get_if<ThetaPhiGrid>(&grid.layout());
   if (!job.symmetryReduced() || !tp || !job.incidenceAll) throw std::logic_error("AzimuthalSymmetry: job is not reducible");
   nPhi_ = tp->nPhi;

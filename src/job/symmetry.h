@@ -24,7 +24,8 @@
 namespace mbsdf {
 
 // Symmetries of a microgeometry about the patch centre, found by mapping every facet (centroid and
-// normal, wrapped into the periodic cell) onto a facet within 1e-6 of the patch size: the largest
+// normal, wrapped into the periodic cell) onto a facet within 1e-6 of the patch's side along each
+// axis (or, for the mirror, onto the surface: symmetry.cpp): the largest
 // n in {4, 2} with invariance under rotation by 2π/n (4 needs a square patch; 1 if neither), and
 // invariance under the mirror y -> −y (φ -> −φ).
 struct PatchSymmetry {
@@ -48,7 +49,6 @@ class AzimuthalSymmetry {
   TileResult mappedSlice(const TileResult& representativeTile, int target, int targetBin) const;
 
  private:
-  const DirectionGrid& grid_;
   int nPhi_ = 1;
   std::vector<int> rep_, shift_;
   std::vector<uint8_t> mirror_;
