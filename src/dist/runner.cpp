@@ -55,10 +55,12 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   std::unique_ptr<WaveEstimator> wave;
   if (job.needsWave()) {
     wave = makeJobWaveEstimator(job, grid, *transport.scene(), waveSettingsOf(job));
-    if (mpi.rank() == 0)
-      spdlog::info("scalar diffraction: {} estimator, {} samples per bin, coherence length {} µm{}", wave->name(),
-                   job.waveSamplesPerBin, job.scene.coherenceLength_um,
-                   job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
+    if (mpi.rank() == 0) {
+      const std::string notes = wave->notes();
+      spdlog::info("scalar diffraction: {} estimator, {}, coherence length {} µm{}", wave->name(),
+                   notes.empty() ? std::to_string(job.waveSamplesPerBin) + " samples per bin" : notes,
+                   job.scene.coherenceLength_um, job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
+    }
   }
 
   const int nTiles = int(job.incidence.size());

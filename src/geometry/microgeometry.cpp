@@ -143,6 +143,36 @@ Microgeometry heightfieldMesh(const std::vector<double>& h, int nx, int ny, doub
   return g;
 }
 
+std::optional<HeightGrid> heightGridOf(const Microgeometry& g) {
+  if (g.vertices.size() < 4 || g.sizeX <= 0 || g.sizeY <= 0) return std::nullopt;
+  // nx from the first row's spacing, then everything is checked against heightfieldMesh's layout.
+  const double dx0 = g.vertices[1].x - g.vertices[0].x;
+  if (!(dx0 > 0)) return std::nullopt;
+  const long nxl = std::lround(g.sizeX / dx0);
+  if (nxl < 1 || nxl > (1 << 20) || g.vertices.size() % size_t(nxl + 1) != 0) return std::nullopt;
+  const int nx = int(nxl), ny = int(g.vertices.size() / size_t(nx + 1)) - 1;
+  if (ny < 1 || g.triangles.size() != 2 * size_t(nx) * size_t(ny)) return std::nullopt;
+  const double tol = 1e-9 * std::max(g.sizeX, g.sizeY);
+  HeightGrid hg{nx, ny, std::vector<double>(size_t(nx) * ny)};
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i) {
+      const Vec3& v = g.vertices[size_t(j) * (nx + 1) + i];
+      if (std::abs(v.x - (-g.sizeX / 2 + g.sizeX * i / nx)) > tol || std::abs(v.y - (-g.sizeY / 2 + g.sizeY * j / ny)) > tol)
+        return std::nullopt;
+      const double& seam = hg.h[size_t(j % ny) * nx + (i % nx)];
+      if (i < nx && j < ny) hg.h[size_t(j) * nx + i] = v.z;
+      else if (v.z != seam) return std::nullopt;  // the seam must repeat the first row/column
+    }
+  auto id = [&](int i, int j) { return uint32_t(j * (nx + 1) + i); };
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const size_t t = 2 * (size_t(j) * nx + i);
+      const std::array<uint32_t, 3> a{id(i, j), id(i + 1, j), id(i + 1, j + 1)}, b{id(i, j), id(i + 1, j + 1), id(i, j + 1)};
+      if (g.triangles[t] != a || g.triangles[t + 1] != b) return std::nullopt;
+    }
+  return hg;
+}
+
 void writePly(const Microgeometry& g, const std::string& path) {
   std::ofstream f(path, std::ios::binary);
   if (!f) throw std::runtime_error("cannot write " + path);

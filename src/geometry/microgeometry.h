@@ -6,6 +6,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -47,6 +48,14 @@ struct Microgeometry {
 // Periodic heightfield on an nx x ny grid of heights (row-major, h[j*nx + i] at
 // x = -sizeX/2 + i*sizeX/nx, y likewise); the grid wraps around, so the mesh is seamless.
 Microgeometry heightfieldMesh(const std::vector<double>& h, int nx, int ny, double sizeX, double sizeY);
+
+// The heights of a mesh laid out as heightfieldMesh lays it out (same vertex grid and triangle
+// order, any heights), e.g. for the Fourier-domain wave evaluator; none for any other mesh.
+struct HeightGrid {
+  int nx = 0, ny = 0;
+  std::vector<double> h;  // h[j*nx + i]
+};
+std::optional<HeightGrid> heightGridOf(const Microgeometry& g);
 
 // Write the patch as binary little-endian PLY (for looking at it in MeshLab/Blender).
 void writePly(const Microgeometry& g, const std::string& path);

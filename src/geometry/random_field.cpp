@@ -1,11 +1,10 @@
 #include "geometry/random_field.h"
 
-#include <fftw3.h>
-
 #include <cmath>
 #include <complex>
 #include <memory>
 
+#include "core/fftw.h"
 #include "core/rng.h"
 #include "core/vecmath.h"
 
@@ -26,26 +25,21 @@ void normaliseRms(std::vector<double>& h, double rms) {
   for (double& v : h) v *= scale;
 }
 
-struct FftwFree {
-  void operator()(void* p) const { fftw_free(p); }
-};
-struct PlanDestroy {
-  void operator()(fftw_plan p) const { fftw_destroy_plan(p); }
-};
-using PlanPtr = std::unique_ptr<std::remove_pointer_t<fftw_plan>, PlanDestroy>;
-
 }  // namespace
 
 std::vector<double> gaussianRandomField(int nx, int ny, double sizeX, double sizeY, double rms, double corr,
                                         uint64_t seed) {
   size_t n = size_t(nx) * ny;
   int nxc = nx / 2 + 1;
-  std::unique_ptr<double, FftwFree> real(static_cast<double*>(fftw_malloc(sizeof(double) * n)));
-  std::unique_ptr<fftw_complex, FftwFree> spec(
-      static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * size_t(ny) * nxc)));
+  auto real = fftw::allocate<double>(n);
+  auto spec = fftw::allocate<fftw_complex>(size_t(ny) * nxc);
   // Plans are made before the data is written (FFTW_ESTIMATE does not touch the arrays).
-  PlanPtr fwd(fftw_plan_dft_r2c_2d(ny, nx, real.get(), spec.get(), FFTW_ESTIMATE));
-  PlanPtr inv(fftw_plan_dft_c2r_2d(ny, nx, spec.get(), real.get(), FFTW_ESTIMATE));
+  fftw::Plan fwd, inv;
+  {
+    std::lock_guard<std::mutex> lock(fftw::planMutex());
+    fwd.reset(fftw_plan_dft_r2c_2d(ny, nx, real.get(), spec.get(), FFTW_ESTIMATE));
+    inv.reset(fftw_plan_dft_c2r_2d(ny, nx, spec.get(), real.get(), FFTW_ESTIMATE));
+  }
   Sampler rng(seed, kGeometryTile, 0);
   for (size_t i = 0; i < n; ++i) {
     // Box–Muller: white Gaussian noise.

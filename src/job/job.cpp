@@ -13,6 +13,7 @@
 #include "job/params.h"
 #include "job/symmetry.h"
 #include "scattering/coherence_window.h"
+#include "scattering/fft_estimator.h"
 
 namespace mbsdf {
 namespace {
@@ -311,8 +312,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.seed = uint64_t(samp.getInt("seed", 1));
   job.waveEstimator = samp.getString("wave_estimator", "auto");
   if (job.waveEstimator != "paper" && job.waveEstimator != "area" && job.waveEstimator != "orders" && job.waveEstimator != "exact" &&
-      job.waveEstimator != "auto")
-    samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\", \"exact\" or \"paper\"");
+      job.waveEstimator != "fft" && job.waveEstimator != "auto")
+    samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\", \"exact\", \"fft\" or \"paper\"");
   job.waveSamplesPerBin = bounded("wave_samples_per_bin", 256, 1000000000);
   job.wavePointsPerDirection = bounded("wave_points_per_direction", 64, 1000000000);
   if (job.wavePointsPerDirection < 2) samp.fail("wave_points_per_direction", "must be >= 2 (pairwise estimator)");
@@ -393,9 +394,14 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       job.symmetryReason = symmetry == "none" ? "none ([directions] symmetry = \"none\")" : "none declared or detected";
   }
 
-  if ((job.waveEstimator == "orders" || job.waveEstimator == "exact") && !job.statistical &&
+  if ((job.waveEstimator == "orders" || job.waveEstimator == "exact" || job.waveEstimator == "fft") && !job.statistical &&
       !(job.geometry.periodic && job.scene.coherenceLength_um > 0))
     samp.fail("wave_estimator", "\"" + job.waveEstimator + "\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
+  if (job.waveEstimator == "fft" && !job.statistical) {
+    const std::string why = fftUnsuitable(job.geometry, job.material, job.lambda_um(), job.scene.coherenceLength_um / 6.0,
+                                          std::holds_alternative<DiskGrid>(job.gridLayout), job.components.has(Component::Lost));
+    if (!why.empty()) samp.fail("wave_estimator", "\"fft\" " + why);
+  }
 
   root.reportUnused();
   return job;
@@ -404,8 +410,14 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
 std::string Job::resolvedWaveEstimator() const {
   if (waveEstimator != "auto") return waveEstimator;
   const double sigma = scene.coherenceLength_um / 6.0;
-  const double L = std::max(geometry.sizeX, geometry.sizeY);
-  if (geometry.periodic && sigma > 0 && 2 * kPi * sigma / L >= 4.0) return "orders";
+  if (geometry.periodic && orderLobesSeparate(sigma, geometry.sizeX, geometry.sizeY)) return "orders";
+  // Overlapping lobes (speckle) on a heightfield: the deterministic Fourier-domain evaluator, where
+  // it applies (disk grid, no masked field); Monte Carlo over such speckle needs far more samples
+  // (README "What accuracy costs in time").
+  if (fftUnsuitable(geometry, material, lambda_um(), sigma, std::holds_alternative<DiskGrid>(gridLayout),
+                    components.has(Component::Lost))
+          .empty())
+    return "fft";
   return "area";
 }
 

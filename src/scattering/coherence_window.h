@@ -6,6 +6,7 @@
 // W2 = ∫ w² dA_xy over the same copies normalises the power (PHYSICS.md §5). Without a window
 // (σ <= 0), w = 1 over exactly one copy and W2 = Lx Ly.
 #pragma once
+#include <algorithm>
 #include <cmath>
 
 #include "core/vecmath.h"
@@ -27,6 +28,13 @@ inline constexpr double kSunAngularDiameter_deg = 0.533;
 inline double coherenceLengthOfDiskSource(double angularDiameter_rad, double meanLambda_um) {
   const double sigma = std::sqrt(2.0) * meanLambda_um / (kPi * angularDiameter_rad);
   return 6.0 * sigma;
+}
+
+// Whether the grating orders' lobes (standard deviation 1/(√2 σ n k0) in the xy plane of ωo) stay
+// apart: 2πσ/L >= 4 puts neighbouring lobes >= 5.7 standard deviations apart (the `orders`
+// regime); below it they overlap into speckle.
+inline bool orderLobesSeparate(double sigma, double sizeX, double sizeY) {
+  return sigma > 0 && 2 * kPi * sigma / std::max(sizeX, sizeY) >= 4.0;
 }
 
 class CoherenceWindow {

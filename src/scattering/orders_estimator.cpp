@@ -8,8 +8,8 @@
 #include <functional>
 #include <stdexcept>
 
-#include "core/quadrature.h"
 #include "core/rng.h"
+#include "scattering/heightfield_spectrum.h"
 #include "scattering/triangle_fourier.h"
 #include "scattering/wave_common.h"
 
@@ -22,6 +22,8 @@ constexpr uint32_t kOrdersStream = 0x0D0E5;
 constexpr int kGroups = 8;  // jackknife groups of points
 
 struct Order {
+  long a, b;    // G = 2π (a/Lx, b/Ly)
+  bool below;   // a conductor's reflected order below the horizon (masked field only)
   int lambda;
   Vec3 wo;      // order direction
   bool transmission;
@@ -135,13 +137,103 @@ void exactAmplitude(const WaveContext& ctx, const Order& ord, const Vec3& wi, bo
   }
 }
 
+// fft (header): Ĥ_G of every order from the heightfield's FFT tables, one group of orders per
+// wavelength and side; then the sparse masking correction below the steepest slope.
+void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectrum, const std::vector<Order>& orders,
+                       const Vec3& wi, bool fromAbove, const wave::Media& media, bool masked, Complex* H, uint64_t* rays) {
+  const std::vector<uint8_t> lit = spectrum.lit(wi, fromAbove, rays);
+  const int nL = int(ctx.lambda_um.size());
+  for (int l = 0; l < nL; ++l)
+    for (int trans = 0; trans < 2; ++trans) {
+      std::vector<size_t> group, below;
+      for (size_t o = 0; o < orders.size(); ++o)
+        if (orders[o].lambda == l && orders[o].transmission == bool(trans)) (orders[o].below ? below : group).push_back(o);
+      if (group.empty() && below.empty()) continue;
+      const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
+      const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
+      const auto fields = spectrum.fields(wi, fromAbove, l, k0, nI, nO, bool(trans), media, lit);
+      auto qzOf = [&](const Order& ord) { return -nI * k0 * wi.z - nO * k0 * ord.wo.z; };
+      if (!group.empty()) {
+        long a0 = orders[group[0]].a, a1 = a0, b0 = orders[group[0]].b, b1 = b0;
+        double qMin = qzOf(orders[group[0]]), qMax = qMin;
+        for (size_t o : group) {
+          a0 = std::min(a0, orders[o].a), a1 = std::max(a1, orders[o].a);
+          b0 = std::min(b0, orders[o].b), b1 = std::max(b1, orders[o].b);
+          qMin = std::min(qMin, qzOf(orders[o])), qMax = std::max(qMax, qzOf(orders[o]));
+        }
+        const auto nodes = spectrum.qzNodes(qMin, qMax);
+        const size_t N = nodes.q.size(), na = size_t(a1 - a0 + 1), nb = size_t(b1 - b0 + 1);
+        std::vector<Complex> w(group.size() * N);
+        for (size_t g = 0; g < group.size(); ++g) nodes.weights(qzOf(orders[group[g]]), &w[g * N]);
+        std::vector<Complex> tab;
+        for (size_t n = 0; n < N; ++n) {
+          spectrum.nodeTables(fields, nodes.q[n], a0, a1, b0, b1, &tab);
+          tbb::parallel_for(size_t(0), group.size(), [&](size_t g) {
+            const Order& ord = orders[group[g]];
+            const Vec3 k2 = ord.wo * (nO * k0);
+            const size_t cell = size_t(ord.a - a0) * nb + size_t(ord.b - b0);
+            for (int pol = 0; pol < 2; ++pol) {
+              const Complex* T = &tab[size_t(pol) * 4 * na * nb + cell];
+              const size_t f = na * nb;
+              H[4 * group[g] + size_t(pol)] += w[g * N + n] * (T[0] + k2.x * T[f] + k2.y * T[2 * f] + k2.z * T[3 * f]);
+            }
+          });
+        }
+      }
+      // Masking: only order directions below the steepest slope can have masked or back-facing
+      // facets; their terms leave the visible field (and form the masked one).
+      std::vector<size_t> grazing = below;
+      for (size_t o : group) {
+        const Vec3& wo = orders[o].wo;
+        if (std::abs(wo.z) <= spectrum.maxSlope() * std::hypot(wo.x, wo.y)) grazing.push_back(o);
+      }
+      std::vector<uint64_t> grazingRays(grazing.size(), 0);
+      tbb::parallel_for(size_t(0), grazing.size(), [&](size_t g) {
+        const Order& ord = orders[grazing[g]];
+        const Vec3 k2 = ord.wo * (nO * k0), q = wi * (-nI * k0) - k2;
+        Complex* h = H + 4 * grazing[g];
+        for (size_t t = 0; t < spectrum.facets(); ++t) {
+          if (!lit[t]) continue;
+          const Vec3 m = fromAbove ? spectrum.normal(t) : -spectrum.normal(t);
+          const ExitVisibility v =
+              wave::visibleExit(ctx.scene, spectrum.centroid(t), m, ord.wo, spectrum.parent(t), fromAbove, ord.transmission,
+                            &grazingRays[g]);
+          if (v == ExitVisibility::Visible) continue;
+          const auto term = spectrum.facetTerm(fields, t, q, k2);
+          if (!ord.below) h[0] -= term[0], h[1] -= term[1];
+          if (v == ExitVisibility::Blocked && masked) h[2] += term[0], h[3] += term[1];
+        }
+      });
+      for (uint64_t r : grazingRays) *rays += r;
+    }
+}
+
 }  // namespace
 
-OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx, bool exact)
-    : ctx_(ctx), sampler_(ctx.geometry), exact_(exact) {
+OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx, OrderAmplitudes amplitudes)
+    : ctx_(ctx), sampler_(ctx.geometry), amplitudes_(amplitudes) {
   if (!ctx.scene.periodic() || !ctx.window.active())
-    throw std::invalid_argument(std::string("the ") + (exact ? "exact" : "orders") +
-                                " estimator needs a periodic patch and a coherence window");
+    throw std::invalid_argument("the " + name() + " estimator needs a periodic patch and a coherence window");
+  if (amplitudes == OrderAmplitudes::Fourier) {
+    const std::optional<HeightGrid> hg = heightGridOf(ctx.geometry);
+    if (!hg) throw std::invalid_argument("the fft estimator needs a heightfield (a gaussian, noise or heightmap patch)");
+    spectrum_ = std::make_unique<HeightfieldSpectrum>(ctx.geometry, *hg, ctx.scene, fourierMaxTexel(ctx.material, ctx.lambda_um));
+  }
+}
+
+OrdersWaveEstimator::~OrdersWaveEstimator() = default;
+
+std::string OrdersWaveEstimator::notes() const {
+  if (amplitudes_ == OrderAmplitudes::MonteCarlo) return "";
+  std::string s = "deterministic (no sampling error; incidence bins by Gauss-Legendre)";
+  if (spectrum_)
+    s += "; " + std::to_string(spectrum_->nx()) + " x " + std::to_string(spectrum_->ny()) + " FFT of the facets (texels split " +
+         std::to_string(spectrum_->refinement()) + " x " + std::to_string(spectrum_->refinement()) + ")";
+  return s;
+}
+
+std::string OrdersWaveEstimator::name() const {
+  return amplitudes_ == OrderAmplitudes::Exact ? "exact" : amplitudes_ == OrderAmplitudes::Fourier ? "fft" : "orders";
 }
 
 WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
@@ -155,13 +247,14 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   const PeriodicScene& scene = ctx_.scene;
   const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();
   const int N = std::max(2 * kGroups, ctx_.settings.samplesPerBin);
-  // Incidence directions: one collimated beam; else K random ones (orders), or the nodes of an
-  // n x n and an (n−1) x (n−1) Gauss–Legendre rule over the incidence bin (exact).
-  const int nRule = std::max(2, int(std::ceil(std::sqrt(double(std::max(1, ctx_.settings.incidenceDirections))))));
-  const QuadratureRule ruleHi = gaussLegendre(nRule, 0.0, 1.0), ruleLo = gaussLegendre(nRule - 1, 0.0, 1.0);
-  const bool quadrature = exact_ && !exactDirection;
-  const int K = exactDirection ? 1 : quadrature ? nRule * nRule + (nRule - 1) * (nRule - 1)
-                                                : std::max(2, ctx_.settings.incidenceDirections);
+  // Incidence directions: one collimated beam; else K random ones (orders), or the nodes of the
+  // Gauss–Legendre rules over the incidence bin (exact, fft: wave::incidenceRule).
+  const bool deterministic = amplitudes_ != OrderAmplitudes::MonteCarlo;
+  const std::vector<wave::IncidenceNode> rule =
+      deterministic ? wave::incidenceRule(grid, incidenceBin, exactDirection, ctx_.settings.incidenceDirections)
+                    : std::vector<wave::IncidenceNode>{};
+  const bool quadrature = deterministic && !exactDirection;
+  const int K = deterministic ? int(rule.size()) : exactDirection ? 1 : std::max(2, ctx_.settings.incidenceDirections);
   const bool masked = ctx_.settings.computeMasked;
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   bool transmissionWanted = exitMask.empty();
@@ -177,18 +270,11 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   std::atomic<uint64_t> rays{0};
   uint64_t pointOrderPairs = 0;
 
-  std::vector<double> weight(size_t(K), 1.0 / K);  // of each incidence direction in its rule
   auto incidence = [&](int k) {
+    if (deterministic) return rule[size_t(k)].wi;
     if (exactDirection) return normalize(*exactDirection);
-    if (!quadrature) {
-      Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(k), kOrdersStream);
-      return grid.sampleCosine(incidenceBin, s.get1D(), s.get1D()).w;
-    }
-    const bool hi = k < nRule * nRule;
-    const QuadratureRule& q = hi ? ruleHi : ruleLo;
-    const int n = hi ? nRule : nRule - 1, j = hi ? k : k - nRule * nRule;
-    weight[size_t(k)] = q.w[size_t(j / n)] * q.w[size_t(j % n)];
-    return grid.sampleCosine(incidenceBin, q.x[size_t(j / n)], q.x[size_t(j % n)]).w;
+    Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(k), kOrdersStream);
+    return grid.sampleCosine(incidenceBin, s.get1D(), s.get1D()).w;
   };
   for (int k = 0; k < K; ++k) {
     const Vec3 wi = incidence(k);
@@ -215,6 +301,9 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
             double cz = std::sqrt(1 - r2);
             bool up = fromAbove != (trans || side == 1);
             Order o;
+            o.a = a;
+            o.b = b;
+            o.below = side == 1;
             o.lambda = l;
             o.wo = {x, y, up ? cz : -cz};
             o.transmission = trans;
@@ -226,15 +315,19 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       }
     }
     const size_t nO = orders.size();
-    pointOrderPairs += uint64_t(exact_ ? ctx_.geometry.triangles.size() : size_t(N)) * nO;
+    pointOrderPairs += uint64_t(deterministic ? ctx_.geometry.triangles.size() : size_t(N)) * nO;
     // Accumulators per order, polarisation, group and visible/masked: Σ X.
     std::vector<Complex> S(nO * 2 * kGroups * 2, 0.0);
     auto idx = [&](size_t o, int pol, int g, int msk) { return ((o * 2 + pol) * kGroups + g) * 2 + msk; };
     const int blocks = kGroups;
     std::vector<uint64_t> blockRays(blocks, 0);
     // exact: Ĥ_G (s, p; visible, masked) per order, summed over facets in closed form.
-    std::vector<Complex> H(exact_ ? nO * 4 : 0, 0.0);
-    if (exact_) {
+    std::vector<Complex> H(deterministic ? nO * 4 : 0, 0.0);
+    if (amplitudes_ == OrderAmplitudes::Fourier) {
+      uint64_t fourierRays = 0;
+      fourierAmplitudes(ctx_, *spectrum_, orders, wi, fromAbove, media, masked, H.data(), &fourierRays);
+      rays += fourierRays;
+    } else if (amplitudes_ == OrderAmplitudes::Exact) {
       std::vector<uint64_t> orderRays(nO, 0);
       tbb::parallel_for(size_t(0), nO, [&](size_t o) {
         exactAmplitude(ctx_, orders[o], wi, fromAbove, media, masked, &H[4 * o], &orderRays[o]);
@@ -294,7 +387,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       const Order& ord = orders[o];
       bool any = false;
       for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
-        if (exact_) {
+        if (deterministic) {
           const double P = 0.5 * (std::norm(H[4 * o + 2 * msk]) + std::norm(H[4 * o + 2 * msk + 1])) * ord.scale;
           if (P == 0) continue;
           op[o].P[msk] = P;
@@ -358,7 +451,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       const double toF = 1.0 / grid.projectedSolidAngle(b);
       if (quadrature) {
         double hi = 0, lo = 0;
-        for (int k = 0; k < K; ++k) (k < nRule * nRule ? hi : lo) += weight[size_t(k)] * p[k][i];
+        for (int k = 0; k < K; ++k) (rule[size_t(k)].high ? hi : lo) += rule[size_t(k)].weight * p[k][i];
         f[i] = hi * toF;
         e[i] = std::abs(hi - lo) * toF;
         continue;

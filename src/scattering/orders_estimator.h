@@ -25,16 +25,29 @@
 // result has no sampling noise (standard error 0); with bin-averaged incidence the incidence bin is
 // integrated by an n x n Gauss–Legendre rule in its cosine-weighted sample space (n² >=
 // wave_incidence_directions) and the standard error is estimated as |Q_n − Q_{n−1}| per bin.
+//
+// `fft` on a heightfield (heightfield_spectrum.h): the same lobes and incidence rule as `exact`,
+// with Ĥ_G of every order from FFTs of the facet fields (one-point rule per facet), and the facets
+// masked from (or facing away from) an order direction below the steepest slope subtracted one by
+// one (the sparse masking correction; their sum is the masked field for `lost`).
 #pragma once
+#include <memory>
+
 #include "geometry/surface_sampler.h"
 #include "scattering/wave_estimator.h"
 
 namespace mbsdf {
 
+class HeightfieldSpectrum;
+enum class OrderAmplitudes { MonteCarlo, Exact, Fourier };
+
 class OrdersWaveEstimator : public WaveEstimator {
  public:
-  explicit OrdersWaveEstimator(const WaveContext& ctx, bool exact = false);
-  std::string name() const override { return exact_ ? "exact" : "orders"; }
+  // Fourier needs a heightfield (heightGridOf); throws std::invalid_argument otherwise.
+  explicit OrdersWaveEstimator(const WaveContext& ctx, OrderAmplitudes amplitudes = OrderAmplitudes::MonteCarlo);
+  ~OrdersWaveEstimator() override;
+  std::string name() const override;
+  std::string notes() const override;
   WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
                      const std::function<void(uint64_t)>& progress = {},
                      const std::vector<uint8_t>& exitMask = {}) const override;
@@ -42,7 +55,8 @@ class OrdersWaveEstimator : public WaveEstimator {
  private:
   WaveContext ctx_;
   SurfaceSampler sampler_;
-  bool exact_ = false;
+  OrderAmplitudes amplitudes_;
+  std::unique_ptr<HeightfieldSpectrum> spectrum_;
 };
 
 }  // namespace mbsdf

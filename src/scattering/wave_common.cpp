@@ -1,5 +1,9 @@
 #include "scattering/wave_common.h"
 
+#include <cmath>
+
+#include "core/quadrature.h"
+
 namespace mbsdf::wave {
 
 Media::Media(const WaveContext& ctx)
@@ -31,6 +35,21 @@ std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielec
     if (reflection || dielectric || masked) bins.push_back(b);
   }
   return bins;
+}
+
+std::vector<IncidenceNode> incidenceRule(const DirectionGrid& grid, int incidenceBin, const std::optional<Vec3>& exactDirection,
+                                         int directions) {
+  if (exactDirection) return {{normalize(*exactDirection), 1.0, true}};
+  const int n = std::max(2, int(std::ceil(std::sqrt(double(std::max(1, directions))))));
+  std::vector<IncidenceNode> nodes;
+  for (int rule = n; rule >= n - 1; --rule) {
+    const QuadratureRule q = gaussLegendre(rule, 0.0, 1.0);
+    for (int i = 0; i < rule; ++i)
+      for (int j = 0; j < rule; ++j)
+        nodes.push_back({grid.sampleCosine(incidenceBin, q.x[size_t(i)], q.x[size_t(j)]).w, q.w[size_t(i)] * q.w[size_t(j)],
+                         rule == n});
+  }
+  return nodes;
 }
 
 }  // namespace mbsdf::wave

@@ -1,6 +1,7 @@
 // Pieces shared by the wave estimators: media and Fresnel per wavelength, visibility rays, the list
 // of exit bins to compute. Internal to src/scattering.
 #pragma once
+#include <optional>
 #include <vector>
 
 #include "core/vecmath.h"
@@ -61,5 +62,17 @@ std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielec
 inline bool isTransmission(bool conductor, bool fromAbove, const Vec3& wo) {
   return !conductor && (wo.z >= 0) != fromAbove;
 }
+
+// The incidence directions of a tile for the deterministic evaluators (`exact`, `fft`): one
+// collimated beam (weight 1, high), or the nodes of an n x n (high) and an (n−1) x (n−1) (low)
+// Gauss–Legendre rule over the incidence bin in its cosine-weighted sample space, n² >=
+// `directions`. Σ weight over each rule is 1; |Q_high − Q_low| estimates the quadrature error.
+struct IncidenceNode {
+  Vec3 wi;
+  double weight;
+  bool high;
+};
+std::vector<IncidenceNode> incidenceRule(const DirectionGrid& grid, int incidenceBin, const std::optional<Vec3>& exactDirection,
+                                         int directions);
 
 }  // namespace mbsdf::wave

@@ -7,6 +7,7 @@
 #include "scattering/tile_result.h"
 
 #include "scattering/area_estimator.h"
+#include "scattering/fft_estimator.h"
 #include "scattering/orders_estimator.h"
 #include "scattering/paper_estimator.h"
 
@@ -16,7 +17,8 @@ std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx) {
   if (ctx.settings.estimator == "area") return std::make_unique<AreaWaveEstimator>(ctx);
   if (ctx.settings.estimator == "paper") return std::make_unique<PaperWaveEstimator>(ctx);
   if (ctx.settings.estimator == "orders") return std::make_unique<OrdersWaveEstimator>(ctx);
-  if (ctx.settings.estimator == "exact") return std::make_unique<OrdersWaveEstimator>(ctx, true);
+  if (ctx.settings.estimator == "exact") return std::make_unique<OrdersWaveEstimator>(ctx, OrderAmplitudes::Exact);
+  if (ctx.settings.estimator == "fft") return makeFftWaveEstimator(ctx);
   throw std::invalid_argument("unknown wave estimator '" + ctx.settings.estimator + "'");
 }
 

@@ -22,7 +22,7 @@
 namespace mbsdf {
 
 struct WaveSettings {
-  std::string estimator = "area";  // "area" | "paper" | "orders"
+  std::string estimator = "area";  // "area" | "paper" | "orders" | "exact" | "fft"
   int samplesPerBin = 256;         // area: points x directions per exit bin; paper: passes
   int pointsPerDirection = 64;     // area: points per exit direction; directions = samples / points (>= 2)
   int incidenceDirections = 4;     // orders: incidence directions per slice (bin-averaged incidence)
@@ -62,6 +62,8 @@ class WaveEstimator {
  public:
   virtual ~WaveEstimator() = default;
   virtual std::string name() const = 0;
+  // What a user should know about this estimator on this job (for the log), or "".
+  virtual std::string notes() const { return ""; }
   // exactDirection: a collimated beam (as in PathTracer::run); otherwise the incidence direction is
   // drawn cosine-weighted inside the incidence bin. exitMask (one entry per sphere bin, empty = all):
   // only the bins with a non-zero entry are estimated (estimators whose cost is not per exit bin
@@ -71,7 +73,7 @@ class WaveEstimator {
                              const std::vector<uint8_t>& exitMask = {}) const = 0;
 };
 
-// "area", "orders" or "paper"; throws std::invalid_argument.
+// "area", "orders", "exact", "fft" or "paper"; throws std::invalid_argument.
 std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx);
 
 // Adds the wave components to a path-traced tile (PHYSICS.md §3, §6):

@@ -81,8 +81,9 @@ TEST(ReciprocalPairs, MaskedEstimatorsComputeTheSameBins) {
         EXPECT_EQ(part.fws[size_t(b)], 0.0);
       }
     }
-    if (std::string(estimator) == "area")
+    if (std::string(estimator) == "area") {
       EXPECT_EQ(part.samples * uint64_t(sc.grid.binsPerHemisphere()), full.samples * uint64_t(computed));
+    }
   }
 }
 

@@ -1,0 +1,291 @@
+#include "scattering/fft_estimator.h"
+
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cmath>
+#include <stdexcept>
+#include <variant>
+
+#include "core/quadrature.h"
+#include "scattering/heightfield_spectrum.h"
+#include "scattering/orders_estimator.h"
+#include "scattering/wave_common.h"
+
+namespace mbsdf {
+
+namespace {
+
+constexpr double kWindowCut = 6.0;  // ŵ is dropped beyond σ|q − G| = 6 (e^{−18}: 1.5e-8)
+constexpr int kRuleHigh = 3;        // Gauss–Legendre nodes per pixel and axis (and kRuleHigh − 1)
+
+// One axis of the tensor grid of exit directions: the nodes of every pixel's n-point rule, their
+// weights (pixel width x GL weight), and per node the band of orders whose window term counts.
+struct Axis {
+  std::vector<double> x, w;
+  std::vector<int> pixel;
+  // Banded ŵ factor: for node i, orders [first[i], first[i] + count[i]) with values band[i][...].
+  std::vector<long> first;
+  std::vector<std::vector<double>> band;
+};
+
+Axis makeAxis(int pixels, int n, double qOffset, double nOk0, double sigma, double L) {
+  Axis ax;
+  const QuadratureRule q = gaussLegendre(n, 0.0, 1.0);
+  for (int p = 0; p < pixels; ++p)
+    for (int i = 0; i < n; ++i) {
+      ax.x.push_back(-1 + 2.0 * (p + q.x[size_t(i)]) / pixels);
+      ax.w.push_back(2.0 / pixels * q.w[size_t(i)]);
+      ax.pixel.push_back(p);
+    }
+  for (double x : ax.x) {
+    // q_xy = −n_i k0 ωi_xy − n_o k0 ωo_xy; orders G = 2π a / L with σ|q − G| <= kWindowCut.
+    const double qv = qOffset - nOk0 * x, reach = kWindowCut / sigma;
+    const long a0 = long(std::ceil((qv - reach) * L / (2 * kPi))), a1 = long(std::floor((qv + reach) * L / (2 * kPi)));
+    ax.first.push_back(a0);
+    std::vector<double> v;
+    for (long a = a0; a <= a1; ++a) {
+      const double d = sigma * (qv - 2 * kPi * double(a) / L);
+      v.push_back(std::exp(-0.5 * d * d));
+    }
+    ax.band.push_back(std::move(v));
+  }
+  return ax;
+}
+
+// The speckle regime (header): tensor grid of exit directions over a disk grid.
+class FftSpeckleEstimator : public WaveEstimator {
+ public:
+  explicit FftSpeckleEstimator(const WaveContext& ctx)
+      : ctx_(ctx), grid_(*heightGridOf(ctx.geometry)), spectrum_(ctx.geometry, grid_, ctx.scene, fourierMaxTexel(ctx.material, ctx.lambda_um)) {}
+  std::string name() const override { return "fft"; }
+  std::string notes() const override {
+    const double theta = 90.0 - std::atan(spectrum_.maxSlope()) * 180.0 / kPi;
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "deterministic (error: 3x3 vs 2x2 Gauss-Legendre per pixel); %d x %d FFT of the facets (texels split %d x %d); "
+                  "window narrower than the patch: masking not modelled, exact for exits below theta = %.1f deg "
+                  "(steepest facet slope %.3f)",
+                  spectrum_.nx(), spectrum_.ny(), spectrum_.refinement(), spectrum_.refinement(), theta, spectrum_.maxSlope());
+    return buf;
+  }
+  WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
+                     const std::function<void(uint64_t)>& progress = {},
+                     const std::vector<uint8_t>& exitMask = {}) const override;
+
+ private:
+  // Adds Σ_nodes w p / cos θo per bin of one exit hemisphere for one incidence direction and
+  // wavelength, for each rule n x n per pixel in `rules`, to (*out)[rule] (per bin, λ-major). The
+  // FFT tables of each q_z node are shared by the rules.
+  void exitIntegral(const HeightfieldSpectrum::FacetFields& fields, const Vec3& wi, int l, double nI, double nO,
+                    bool transmission, bool fromAbove, const std::vector<int>& rules,
+                    std::vector<std::vector<double>>* out) const;
+
+  WaveContext ctx_;
+  HeightGrid grid_;
+  HeightfieldSpectrum spectrum_;
+};
+
+void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& fields, const Vec3& wi, int l, double nI,
+                                       double nO, bool transmission, bool fromAbove, const std::vector<int>& rules,
+                                       std::vector<std::vector<double>>* out) const {
+  const DiskGrid disk = std::get<DiskGrid>(ctx_.grid.layout());
+  const double k0 = 2 * kPi / ctx_.lambda_um[size_t(l)], sigma = ctx_.window.sigma();
+  const double Lx = ctx_.scene.sizeX(), Ly = ctx_.scene.sizeY();
+  // The exit hemisphere: reflection on the incident side, transmission on the other.
+  const double zs = (fromAbove != transmission) ? 1.0 : -1.0;
+  // Per rule: the two axes, the interpolation weights of each exit node and the fields I_s, I_p.
+  struct Rule {
+    Axis X, Y;
+    std::vector<Complex> w, Is, Ip, C;
+    double cos2(size_t i, size_t j) const { return 1 - X.x[i] * X.x[i] - Y.x[j] * Y.x[j]; }
+  };
+  std::vector<Rule> R;
+  double qMin = 1e300, qMax = -1e300;
+  long a0 = 0, a1 = -1, b0 = 0, b1 = -1;
+  for (int n : rules) {
+    Rule r{makeAxis(disk.width, n, -nI * k0 * wi.x, nO * k0, sigma, Lx), makeAxis(disk.height, n, -nI * k0 * wi.y, nO * k0, sigma, Ly),
+           {}, {}, {}, {}};
+    for (size_t i = 0; i < r.X.x.size(); ++i)
+      for (size_t j = 0; j < r.Y.x.size(); ++j) {
+        const double c2 = r.cos2(i, j);
+        if (c2 <= 0) continue;
+        const double qz = -nI * k0 * wi.z - nO * k0 * zs * std::sqrt(c2);
+        qMin = std::min(qMin, qz), qMax = std::max(qMax, qz);
+      }
+    auto extend = [](const Axis& ax, long* lo, long* hi, bool first) {
+      for (size_t i = 0; i < ax.x.size(); ++i) {
+        const long e0 = ax.first[i], e1 = ax.first[i] + long(ax.band[i].size()) - 1;
+        if (first && i == 0) *lo = e0, *hi = e1;
+        *lo = std::min(*lo, e0), *hi = std::max(*hi, e1);
+      }
+    };
+    extend(r.X, &a0, &a1, R.empty());
+    extend(r.Y, &b0, &b1, R.empty());
+    R.push_back(std::move(r));
+  }
+  if (qMin > qMax) return;
+  const size_t na = size_t(a1 - a0 + 1), nb = size_t(b1 - b0 + 1);
+  const auto nodes = spectrum_.qzNodes(qMin, qMax);
+  const size_t N = nodes.q.size();
+  for (Rule& r : R) {
+    const size_t nx = r.X.x.size(), ny = r.Y.x.size();
+    r.w.assign(nx * ny * N, 0.0);  // 0 for evanescent nodes
+    tbb::parallel_for(size_t(0), nx, [&](size_t i) {
+      for (size_t j = 0; j < ny; ++j) {
+        const double c2 = r.cos2(i, j);
+        if (c2 > 0) nodes.weights(-nI * k0 * wi.z - nO * k0 * zs * std::sqrt(c2), &r.w[(i * ny + j) * N]);
+      }
+    });
+    r.Is.assign(nx * ny, 0.0);
+    r.Ip.assign(nx * ny, 0.0);
+    r.C.resize(8 * na * ny);
+  }
+  std::vector<Complex> tab;
+  for (size_t node = 0; node < N; ++node) {
+    spectrum_.nodeTables(fields, nodes.q[node], a0, a1, b0, b1, &tab);
+    for (Rule& r : R) {
+      const size_t nx = r.X.x.size(), ny = r.Y.x.size();
+      // First product, along y: C[t][a][j] = Σ_b T[t][a][b] ŵy(j, b).
+      tbb::parallel_for(size_t(0), 8 * na, [&](size_t ta) {
+        const Complex* row = &tab[ta * nb];
+        Complex* c = &r.C[ta * ny];
+        for (size_t j = 0; j < ny; ++j) {
+          Complex sum = 0;
+          const Complex* src = row + (r.Y.first[j] - b0);
+          const std::vector<double>& band = r.Y.band[j];
+          for (size_t k = 0; k < band.size(); ++k) sum += band[k] * src[k];
+          c[j] = sum;
+        }
+      });
+      // Second product, along x, and the combination X + k2·B at each node, weighted for q_z.
+      tbb::parallel_for(size_t(0), nx, [&](size_t i) {
+        std::vector<Complex> acc(8 * ny, 0.0);
+        const size_t off = size_t(r.X.first[i] - a0);
+        for (size_t k = 0; k < r.X.band[i].size(); ++k) {
+          const double wx = r.X.band[i][k];
+          for (size_t t = 0; t < 8; ++t) {
+            const Complex* c = &r.C[(t * na + off + k) * ny];
+            Complex* d = &acc[t * ny];
+            for (size_t j = 0; j < ny; ++j) d[j] += wx * c[j];
+          }
+        }
+        for (size_t j = 0; j < ny; ++j) {
+          const double c2 = r.cos2(i, j);
+          if (c2 <= 0) continue;
+          const Vec3 k2 = Vec3{r.X.x[i], r.Y.x[j], zs * std::sqrt(c2)} * (nO * k0);
+          const Complex wq = r.w[(i * ny + j) * N + node];
+          auto comb = [&](size_t t0) {
+            return acc[t0 * ny + j] + k2.x * acc[(t0 + 1) * ny + j] + k2.y * acc[(t0 + 2) * ny + j] +
+                   k2.z * acc[(t0 + 3) * ny + j];
+          };
+          r.Is[i * ny + j] += wq * comb(0);
+          r.Ip[i * ny + j] += wq * comb(4);
+        }
+      });
+    }
+  }
+  // p(ωo) = (n_o/n_i) |I|² / (16π² W2 cos θi), I = (2πσ²/A_fp) Σ_G ..., integrated as p/cos θo dx dy.
+  const double amp = 2 * kPi * sigma * sigma / (Lx * Ly);
+  const double scale = kirchhoffPowerScale(ctx_.window.w2(), std::abs(wi.z), nI, nO) * amp * amp;
+  const int hemi = zs > 0 ? 0 : 1;
+  for (size_t k = 0; k < R.size(); ++k) {
+    const Rule& r = R[k];
+    const size_t nx = r.X.x.size(), ny = r.Y.x.size();
+    for (size_t i = 0; i < nx; ++i)
+      for (size_t j = 0; j < ny; ++j) {
+        const double c2 = r.cos2(i, j);
+        if (c2 <= 0) continue;
+        const double p = scale * 0.5 * (std::norm(r.Is[i * ny + j]) + std::norm(r.Ip[i * ny + j]));
+        const int bin = hemi * ctx_.grid.binsPerHemisphere() + r.Y.pixel[j] * disk.width + r.X.pixel[i];
+        (*out)[k][size_t(l) * size_t(ctx_.grid.binCount()) + size_t(bin)] += r.X.w[i] * r.Y.w[j] * p / std::sqrt(c2);
+      }
+  }
+}
+
+WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::optional<Vec3> exactDirection,
+                                        const std::function<void(uint64_t)>& progress,
+                                        const std::vector<uint8_t>& exitMask) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  const DirectionGrid& grid = ctx_.grid;
+  const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();
+  const wave::Media media(ctx_);
+  const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
+  bool transmissionWanted = !media.conductor();
+  if (transmissionWanted && !exitMask.empty()) {
+    transmissionWanted = false;
+    for (int b = 0; b < nB; ++b) transmissionWanted = transmissionWanted || (grid.isUpper(b) != fromAbove && exitMask[size_t(b)]);
+  }
+  const auto rule = wave::incidenceRule(grid, incidenceBin, exactDirection, ctx_.settings.incidenceDirections);
+  WaveTileResult r(nL, nB, false);
+  const size_t n = size_t(nL) * size_t(nB);
+  // Per rule: incidence high/low x exit rule high/low.
+  std::vector<double> hiHi(n, 0.0), hiLo(n, 0.0), loHi(n, 0.0);
+  uint64_t rays = 0;
+  for (size_t k = 0; k < rule.size(); ++k) {
+    const Vec3& wi = rule[k].wi;
+    const auto lit = spectrum_.lit(wi, fromAbove, &rays);
+    for (int l = 0; l < nL; ++l)
+      for (int trans = 0; trans < (transmissionWanted ? 2 : 1); ++trans) {
+        const double k0 = 2 * kPi / ctx_.lambda_um[size_t(l)];
+        const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
+        const auto fields = spectrum_.fields(wi, fromAbove, l, k0, nI, nO, bool(trans), media, lit);
+        std::vector<std::vector<double>> q(rule[k].high ? 2 : 1, std::vector<double>(n, 0.0));
+        exitIntegral(fields, wi, l, nI, nO, bool(trans), fromAbove,
+                     rule[k].high ? std::vector<int>{kRuleHigh, kRuleHigh - 1} : std::vector<int>{kRuleHigh}, &q);
+        const std::vector<double>& hi = q[0];
+        for (size_t i = 0; i < n; ++i) {
+          if (rule[k].high) {
+            hiHi[i] += rule[k].weight * hi[i];
+            hiLo[i] += rule[k].weight * q[1][i];
+          } else
+            loHi[i] += rule[k].weight * hi[i];
+        }
+      }
+    if (progress) progress(uint64_t(k + 1));
+  }
+  const bool incidenceRule = rule.size() > 1;
+  for (size_t i = 0; i < n; ++i) {
+    const double omega = grid.projectedSolidAngle(int(i % size_t(nB)));
+    if (omega <= 0) continue;
+    r.fws[i] = hiHi[i] / omega;
+    const double eExit = std::abs(hiHi[i] - hiLo[i]), eInc = incidenceRule ? std::abs(hiHi[i] - loHi[i]) : 0.0;
+    r.fwsErr[i] = std::hypot(eExit, eInc) / omega;
+  }
+  r.samples = uint64_t(spectrum_.facets()) * uint64_t(grid.binsPerHemisphere()) * rule.size();
+  r.rays = rays;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+}  // namespace
+
+std::string fftUnsuitable(const Microgeometry& g, const Material& material, const std::vector<double>& lambda_um,
+                          double sigma, bool diskGrid, bool masked) {
+  if (!g.periodic || sigma <= 0) return "needs a periodic patch and a coherence window";
+  const std::optional<HeightGrid> hg = heightGridOf(g);
+  if (!hg) return "needs a heightfield geometry (gaussian, noise, flat or heightmap)";
+  const int r = fourierRefinement(std::max(g.sizeX / hg->nx, g.sizeY / hg->ny), fourierMaxTexel(material, lambda_um));
+  const double cells = double(hg->nx) * hg->ny * r * r;
+  if (cells > double(kMaxFourierCells))
+    return "would need " + std::to_string(hg->nx * r) + " x " + std::to_string(hg->ny * r) +
+           " texels (texels split " + std::to_string(r) + " x " + std::to_string(r) +
+           " for the shortest wavelength), above its limit of 2^22";
+  if (orderLobesSeparate(sigma, g.sizeX, g.sizeY)) return "";
+  if (!diskGrid)
+    return "with a coherence length below 12 L / π (overlapping order lobes) needs [directions] grid = \"disk\"";
+  if (masked) return "with a coherence length below 12 L / π does not model the masked field (the lost component)";
+  return "";
+}
+
+std::unique_ptr<WaveEstimator> makeFftWaveEstimator(const WaveContext& ctx) {
+  const std::string why = fftUnsuitable(ctx.geometry, ctx.material, ctx.lambda_um, ctx.window.active() ? ctx.window.sigma() : 0.0,
+                                        std::holds_alternative<DiskGrid>(ctx.grid.layout()), ctx.settings.computeMasked);
+  if (!why.empty() || !ctx.scene.periodic()) throw std::invalid_argument("the fft estimator " + (why.empty() ? "needs a periodic patch" : why));
+  if (orderLobesSeparate(ctx.window.sigma(), ctx.scene.sizeX(), ctx.scene.sizeY()))
+    return std::make_unique<OrdersWaveEstimator>(ctx, OrderAmplitudes::Fourier);
+  return std::make_unique<FftSpeckleEstimator>(ctx);
+}
+
+}  // namespace mbsdf
