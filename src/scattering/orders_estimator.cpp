@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -80,10 +81,42 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
     }
 }
 
+// The four first-level visibility points of a facet (its centroid and three points inset towards
+// the vertices), where `exact` decides whether to split it.
+std::array<Vec3, 4> firstLevelPoints(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ctr = (a + b + c) * (1.0 / 3.0);
+  return {ctr, ctr + (a - ctr) * 0.9, ctr + (b - ctr) * 0.9, ctr + (c - ctr) * 0.9};
+}
+
+// Shadowing of the first-level points of every facet towards ωi (bit k: point k is lit; 0 for a
+// facet facing away), computed once per incidence direction and shared by every order and
+// wavelength: the shared visibility table of issue 10 for the rays that do not depend on ωo.
+std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const Vec3& wi, bool fromAbove, uint64_t* rays) {
+  const Microgeometry& g = ctx.geometry;
+  std::vector<uint8_t> lit(g.triangles.size(), 0);
+  std::atomic<uint64_t> count{0};
+  tbb::parallel_for(size_t(0), g.triangles.size(), [&](size_t t) {
+    const Vec3 n = g.triangleNormal(t);
+    if (dot(n, n) == 0) return;
+    const Vec3 m = fromAbove ? normalize(n) : -normalize(n);
+    if (dot(m, wi) <= 0) return;
+    const auto& tri = g.triangles[t];
+    const auto pts = firstLevelPoints(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]]);
+    uint8_t bits = 0;
+    for (int k = 0; k < 4; ++k)
+      if (wave::escapes(ctx.scene, pts[size_t(k)], m, wi, unsigned(t), fromAbove)) bits |= uint8_t(1 << k);
+    lit[t] = bits;
+    count += 4;
+  });
+  *rays += count.load();
+  return lit;
+}
+
 // Ĥ_G = Σ_T V_T g_T ∫_T e^{i q·x} dA for one order (header): H[0..1] = visible s, p; H[2..3] = masked
-// s, p (only with `masked`). Facets are visited in index order: the sum is deterministic.
+// s, p (only with `masked`). Facets are visited in index order: the sum is deterministic. `lit`:
+// firstLevelShadowing for this ωi (deeper points cast their own shadow rays).
 void exactAmplitude(const WaveContext& ctx, const Order& ord, const Vec3& wi, bool fromAbove, const wave::Media& media,
-                    bool masked, Complex* H, uint64_t* rays) {
+                    bool masked, const std::vector<uint8_t>& lit, Complex* H, uint64_t* rays) {
   constexpr int kMaxDepth = 3;
   const Microgeometry& g = ctx.geometry;
   const int l = ord.lambda;
@@ -96,16 +129,20 @@ void exactAmplitude(const WaveContext& ctx, const Order& ord, const Vec3& wi, bo
     if (dot(n, n) == 0) continue;  // degenerate: no area
     const Vec3 m = fromAbove ? normalize(n) : -normalize(n);
     const double cosLocal = dot(m, wi);
-    if (cosLocal <= 0) continue;  // back-facing to the light
+    if (cosLocal <= 0 || lit[t] == 0) continue;  // back-facing to the light, or shadowed at every first-level point
     const double mo = dot(m, ord.wo);
     if (ord.transmission ? mo >= 0 : mo <= 0) continue;  // back-facing to the order direction
     // g (s, p) of the facet: the integrand without its phase.
     const KirchhoffValue g0 = kirchhoffIntegrand(Vec3{0, 0, 0}, m, wi, ord.wo, k0, nI, nO, media.fresnel(l, cosLocal, fromAbove),
                                                  ord.transmission);
-    // 0 shadowed, 1 visible, 2 masked, for a point of facet t.
-    auto state = [&](const Vec3& x) {
-      ++*rays;
-      if (!wave::escapes(ctx.scene, x, m, wi, unsigned(t), fromAbove)) return 0;
+    // 0 shadowed, 1 visible, 2 masked, for a point of facet t; `shadowKnown` >= 0: the point's
+    // shadowing from the shared table (1 lit).
+    auto state = [&](const Vec3& x, int shadowKnown) {
+      if (shadowKnown < 0) {
+        ++*rays;
+        if (!wave::escapes(ctx.scene, x, m, wi, unsigned(t), fromAbove)) return 0;
+      } else if (!shadowKnown)
+        return 0;
       const ExitVisibility v = wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(t), fromAbove, ord.transmission, rays);
       return v == ExitVisibility::Visible ? 1 : 2;
     };
@@ -119,10 +156,11 @@ void exactAmplitude(const WaveContext& ctx, const Order& ord, const Vec3& wi, bo
     // disagree.
     std::function<void(const Vec3&, const Vec3&, const Vec3&, int)> element = [&](const Vec3& a, const Vec3& b,
                                                                                     const Vec3& c, int depth) {
-      const Vec3 ctr = (a + b + c) * (1.0 / 3.0);
-      const int s0 = state(ctr);
+      const auto pts = firstLevelPoints(a, b, c);
+      auto known = [&](int k) { return depth == 0 ? int((lit[t] >> k) & 1) : -1; };
+      const int s0 = state(pts[0], known(0));
       bool agree = true;
-      for (const Vec3* v : {&a, &b, &c}) agree = agree && state(ctr + (*v - ctr) * 0.9) == s0;
+      for (int k = 1; k < 4; ++k) agree = agree && state(pts[size_t(k)], known(k)) == s0;
       if (agree || depth == kMaxDepth) {
         add(a, b, c, s0);
         return;
@@ -328,9 +366,12 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       fourierAmplitudes(ctx_, *spectrum_, orders, wi, fromAbove, media, masked, H.data(), &fourierRays);
       rays += fourierRays;
     } else if (amplitudes_ == OrderAmplitudes::Exact) {
+      uint64_t shadowRays = 0;
+      const std::vector<uint8_t> lit = firstLevelShadowing(ctx_, wi, fromAbove, &shadowRays);
+      rays += shadowRays;
       std::vector<uint64_t> orderRays(nO, 0);
       tbb::parallel_for(size_t(0), nO, [&](size_t o) {
-        exactAmplitude(ctx_, orders[o], wi, fromAbove, media, masked, &H[4 * o], &orderRays[o]);
+        exactAmplitude(ctx_, orders[o], wi, fromAbove, media, masked, lit, &H[4 * o], &orderRays[o]);
       });
       for (uint64_t v : orderRays) rays += v;
     } else {
