@@ -399,7 +399,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     samp.fail("wave_estimator", "\"" + job.waveEstimator + "\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
   if (job.waveEstimator == "fft" && !job.statistical) {
     const std::string why = fftUnsuitable(job.geometry, job.material, job.lambda_um(), job.scene.coherenceLength_um / 6.0,
-                                          std::holds_alternative<DiskGrid>(job.gridLayout), job.components.has(Component::Lost));
+                                          job.components.has(Component::Lost));
     if (!why.empty()) samp.fail("wave_estimator", "\"fft\" " + why);
   }
 
@@ -411,12 +411,13 @@ std::string Job::resolvedWaveEstimator() const {
   if (waveEstimator != "auto") return waveEstimator;
   const double sigma = scene.coherenceLength_um / 6.0;
   if (geometry.periodic && orderLobesSeparate(sigma, geometry.sizeX, geometry.sizeY)) return "orders";
-  // Overlapping lobes (speckle) on a heightfield: the deterministic Fourier-domain evaluator, where
-  // it applies (disk grid, no masked field); Monte Carlo over such speckle needs far more samples
-  // (README "What accuracy costs in time").
-  if (fftUnsuitable(geometry, material, lambda_um(), sigma, std::holds_alternative<DiskGrid>(gridLayout),
-                    components.has(Component::Lost))
-          .empty())
+  // Overlapping lobes (speckle) on a heightfield with a disk grid: the deterministic Fourier-domain
+  // evaluator (no masked field, size within its limit), whose separable evaluation there is fast;
+  // Monte Carlo over such speckle needs far more samples (README "What accuracy costs in time"). On
+  // other grids its direct sum over the orders in the window's reach can cost more than the Monte
+  // Carlo budget (large bins against a small speckle), so it is chosen explicitly there.
+  if (std::holds_alternative<DiskGrid>(gridLayout) &&
+      fftUnsuitable(geometry, material, lambda_um(), sigma, components.has(Component::Lost)).empty())
     return "fft";
   return "area";
 }

@@ -97,7 +97,7 @@ struct Job {
   bool needsWave() const { return components.has(Component::Incoherent) || components.has(Component::Lost); }
   // "auto": `orders` for a periodic patch under a coherence window wider than about one period
   // (2πσ/L >= 4: neighbouring order lobes are >= 5.7 standard deviations apart); `fft` for a periodic
-  // heightfield under a narrower window with a disk grid and no lost component; otherwise `area`.
+  // heightfield under a narrower window on a disk grid without the lost component; otherwise `area`.
   std::string resolvedWaveEstimator() const;
   // Why the wave term of this job is not halved by reciprocity (PHYSICS.md §8), or "" when it is:
   // it needs incidence = "all" with bin-averaged incidence (the bin-to-bin table is then exactly

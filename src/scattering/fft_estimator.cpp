@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cmath>
@@ -30,15 +31,17 @@ struct Axis {
   std::vector<std::vector<double>> band;
 };
 
-Axis makeAxis(int pixels, int n, double qOffset, double nOk0, double sigma, double L) {
+// `sub` cells per pixel, each with an n-point rule.
+Axis makeAxis(int pixels, int sub, int n, double qOffset, double nOk0, double sigma, double L) {
   Axis ax;
   const QuadratureRule q = gaussLegendre(n, 0.0, 1.0);
   for (int p = 0; p < pixels; ++p)
-    for (int i = 0; i < n; ++i) {
-      ax.x.push_back(-1 + 2.0 * (p + q.x[size_t(i)]) / pixels);
-      ax.w.push_back(2.0 / pixels * q.w[size_t(i)]);
-      ax.pixel.push_back(p);
-    }
+    for (int c = 0; c < sub; ++c)
+      for (int i = 0; i < n; ++i) {
+        ax.x.push_back(-1 + 2.0 * (p + (c + q.x[size_t(i)]) / sub) / pixels);
+        ax.w.push_back(2.0 / (pixels * sub) * q.w[size_t(i)]);
+        ax.pixel.push_back(p);
+      }
   for (double x : ax.x) {
     // q_xy = −n_i k0 ωi_xy − n_o k0 ωo_xy; orders G = 2π a / L with σ|q − G| <= kWindowCut.
     const double qv = qOffset - nOk0 * x, reach = kWindowCut / sigma;
@@ -64,7 +67,7 @@ class FftSpeckleEstimator : public WaveEstimator {
     const double theta = 90.0 - std::atan(spectrum_.maxSlope()) * 180.0 / kPi;
     char buf[256];
     std::snprintf(buf, sizeof buf,
-                  "deterministic (error: 3x3 vs 2x2 Gauss-Legendre per pixel); %d x %d FFT of the facets (texels split %d x %d); "
+                  "deterministic (error: 3x3 vs 2x2 Gauss-Legendre per cell, cells <= speckle size); %d x %d FFT of the facets (texels split %d x %d); "
                   "window narrower than the patch: masking not modelled, exact for exits below theta = %.1f deg "
                   "(steepest facet slope %.3f)",
                   spectrum_.nx(), spectrum_.ny(), spectrum_.refinement(), spectrum_.refinement(), theta, spectrum_.maxSlope());
@@ -81,6 +84,12 @@ class FftSpeckleEstimator : public WaveEstimator {
   void exitIntegral(const HeightfieldSpectrum::FacetFields& fields, const Vec3& wi, int l, double nI, double nO,
                     bool transmission, bool fromAbove, const std::vector<int>& rules,
                     std::vector<std::vector<double>>* out) const;
+  // The same for any grid: per bin, its cosine-weighted sample space (DirectionGrid::sampleCosine)
+  // cut into cells no wider than about two speckles 1/(σ n_o k0), with a 3 x 3 and a 2 x 2
+  // Gauss–Legendre rule in each; I(q) summed directly over the orders within the window's reach.
+  // (*out)[0], [1]: the two rules' ∫ p dω per bin.
+  void binIntegral(const HeightfieldSpectrum::FacetFields& fields, const Vec3& wi, int l, double nI, double nO,
+                   bool transmission, bool fromAbove, std::vector<std::vector<double>>* out) const;
 
   WaveContext ctx_;
   HeightGrid grid_;
@@ -104,9 +113,13 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
   std::vector<Rule> R;
   double qMin = 1e300, qMax = -1e300;
   long a0 = 0, a1 = -1, b0 = 0, b1 = -1;
+  // Pixels wider than the speckle 1/(σ n_o k0) are cut into that many cells per axis, each with the
+  // rule: the specular lobe of a wide window is narrower than a pixel.
+  const double speckle = 1.0 / (sigma * nO * k0);
+  const int subX = std::max(1, int(std::ceil(2.0 / disk.width / speckle))), subY = std::max(1, int(std::ceil(2.0 / disk.height / speckle)));
   for (int n : rules) {
-    Rule r{makeAxis(disk.width, n, -nI * k0 * wi.x, nO * k0, sigma, Lx), makeAxis(disk.height, n, -nI * k0 * wi.y, nO * k0, sigma, Ly),
-           {}, {}, {}, {}};
+    Rule r{makeAxis(disk.width, subX, n, -nI * k0 * wi.x, nO * k0, sigma, Lx),
+           makeAxis(disk.height, subY, n, -nI * k0 * wi.y, nO * k0, sigma, Ly), {}, {}, {}, {}};
     for (size_t i = 0; i < r.X.x.size(); ++i)
       for (size_t j = 0; j < r.Y.x.size(); ++j) {
         const double c2 = r.cos2(i, j);
@@ -204,6 +217,87 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
   }
 }
 
+void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fields, const Vec3& wi, int l, double nI,
+                                      double nO, bool transmission, bool fromAbove,
+                                      std::vector<std::vector<double>>* out) const {
+  const DirectionGrid& grid = ctx_.grid;
+  const double k0 = 2 * kPi / ctx_.lambda_um[size_t(l)], sigma = ctx_.window.sigma();
+  const double Lx = ctx_.scene.sizeX(), Ly = ctx_.scene.sizeY();
+  const double zs = (fromAbove != transmission) ? 1.0 : -1.0;
+  const int hemi = zs > 0 ? 0 : 1;
+  // Orders within the window's reach of the exit disk; q_z over the whole hemisphere.
+  const double reach = kWindowCut / sigma;
+  const double qx0 = -nI * k0 * wi.x, qy0 = -nI * k0 * wi.y, qr = nO * k0 + reach;
+  const long a0 = long(std::floor((qx0 - qr) * Lx / (2 * kPi))), a1 = long(std::ceil((qx0 + qr) * Lx / (2 * kPi)));
+  const long b0 = long(std::floor((qy0 - qr) * Ly / (2 * kPi))), b1 = long(std::ceil((qy0 + qr) * Ly / (2 * kPi)));
+  const size_t na = size_t(a1 - a0 + 1), nb = size_t(b1 - b0 + 1);
+  const auto nodes = spectrum_.qzNodes(std::min(-nI * k0 * wi.z, -nI * k0 * wi.z - zs * nO * k0),
+                                       std::max(-nI * k0 * wi.z, -nI * k0 * wi.z - zs * nO * k0));
+  const size_t N = nodes.q.size();
+  // All node tables, reordered per order: T[((a * nb + b) * N + n) * 8 + table].
+  std::vector<Complex> T(na * nb * N * 8), tab;
+  for (size_t n = 0; n < N; ++n) {
+    spectrum_.nodeTables(fields, nodes.q[n], a0, a1, b0, b1, &tab);
+    tbb::parallel_for(size_t(0), na * nb, [&](size_t ab) {
+      for (size_t t = 0; t < 8; ++t) T[(ab * N + n) * 8 + t] = tab[t * na * nb + ab];
+    });
+  }
+  const double speckle = 1.0 / (sigma * nO * k0);
+  const double amp = 2 * kPi * sigma * sigma / (Lx * Ly);
+  const double scale = kirchhoffPowerScale(ctx_.window.w2(), std::abs(wi.z), nI, nO) * amp * amp;
+  const int nBins = grid.binsPerHemisphere();
+  tbb::parallel_for(0, nBins, [&](int local) {
+    const int bin = hemi * nBins + local;
+    const double omegaP = grid.projectedSolidAngle(bin);
+    if (omegaP <= 0) return;
+    double x0, x1, y0, y1;
+    grid.xyBounds(bin, &x0, &x1, &y0, &y1);
+    // Cells of the bin's sample space no wider than about two speckles, a 3 x 3 (and 2 x 2) rule in each.
+    const int sub = std::max(1, int(std::ceil(std::max(x1 - x0, y1 - y0) / (2 * speckle))));
+    std::vector<Complex> w(N);
+    for (int ruleIndex = 0; ruleIndex < 2; ++ruleIndex) {
+      const QuadratureRule r = gaussLegendre(kRuleHigh - ruleIndex, 0.0, 1.0);
+      QuadratureRule q;  // the rule repeated over the cells of [0, 1]
+      for (int c = 0; c < sub; ++c)
+        for (size_t i = 0; i < r.x.size(); ++i) {
+          q.x.push_back((c + r.x[i]) / sub);
+          q.w.push_back(r.w[i] / sub);
+        }
+      double sum = 0;
+      for (size_t i = 0; i < q.x.size(); ++i)
+        for (size_t j = 0; j < q.x.size(); ++j) {
+          const Vec3 wo = grid.sampleCosine(bin, q.x[i], q.x[j]).w;
+          const double cosO = std::abs(wo.z);
+          if (cosO <= 0) continue;
+          const Vec3 k2 = wo * (nO * k0);
+          const double qx = qx0 - k2.x, qy = qy0 - k2.y, qz = -nI * k0 * wi.z - k2.z;
+          nodes.weights(qz, w.data());
+          Complex Is = 0, Ip = 0;
+          const long ia0 = std::max(a0, long(std::ceil((qx - reach) * Lx / (2 * kPi))));
+          const long ia1 = std::min(a1, long(std::floor((qx + reach) * Lx / (2 * kPi))));
+          const long ib0 = std::max(b0, long(std::ceil((qy - reach) * Ly / (2 * kPi))));
+          const long ib1 = std::min(b1, long(std::floor((qy + reach) * Ly / (2 * kPi))));
+          for (long a = ia0; a <= ia1; ++a) {
+            const double dx = sigma * (qx - 2 * kPi * double(a) / Lx), wx = std::exp(-0.5 * dx * dx);
+            for (long b = ib0; b <= ib1; ++b) {
+              const double dy = sigma * (qy - 2 * kPi * double(b) / Ly), wab = wx * std::exp(-0.5 * dy * dy);
+              const Complex* t = &T[(size_t(a - a0) * nb + size_t(b - b0)) * N * 8];
+              Complex s = 0, p = 0;
+              for (size_t m = 0; m < N; ++m, t += 8) {
+                s += w[m] * (t[0] + k2.x * t[1] + k2.y * t[2] + k2.z * t[3]);
+                p += w[m] * (t[4] + k2.x * t[5] + k2.y * t[6] + k2.z * t[7]);
+              }
+              Is += wab * s;
+              Ip += wab * p;
+            }
+          }
+          sum += q.w[i] * q.w[j] * scale * 0.5 * (std::norm(Is) + std::norm(Ip)) / cosO;
+        }
+      (*out)[size_t(ruleIndex)][size_t(l) * size_t(grid.binCount()) + size_t(bin)] += sum * omegaP;
+    }
+  });
+}
+
 WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::optional<Vec3> exactDirection,
                                         const std::function<void(uint64_t)>& progress,
                                         const std::vector<uint8_t>& exitMask) const {
@@ -231,9 +325,12 @@ WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::opt
         const double k0 = 2 * kPi / ctx_.lambda_um[size_t(l)];
         const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
         const auto fields = spectrum_.fields(wi, fromAbove, l, k0, nI, nO, bool(trans), media, lit);
-        std::vector<std::vector<double>> q(rule[k].high ? 2 : 1, std::vector<double>(n, 0.0));
-        exitIntegral(fields, wi, l, nI, nO, bool(trans), fromAbove,
-                     rule[k].high ? std::vector<int>{kRuleHigh, kRuleHigh - 1} : std::vector<int>{kRuleHigh}, &q);
+        std::vector<std::vector<double>> q(2, std::vector<double>(n, 0.0));
+        if (std::holds_alternative<DiskGrid>(grid.layout()))
+          exitIntegral(fields, wi, l, nI, nO, bool(trans), fromAbove,
+                       rule[k].high ? std::vector<int>{kRuleHigh, kRuleHigh - 1} : std::vector<int>{kRuleHigh}, &q);
+        else
+          binIntegral(fields, wi, l, nI, nO, bool(trans), fromAbove, &q);
         const std::vector<double>& hi = q[0];
         for (size_t i = 0; i < n; ++i) {
           if (rule[k].high) {
@@ -262,7 +359,7 @@ WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::opt
 }  // namespace
 
 std::string fftUnsuitable(const Microgeometry& g, const Material& material, const std::vector<double>& lambda_um,
-                          double sigma, bool diskGrid, bool masked) {
+                          double sigma, bool masked) {
   if (!g.periodic || sigma <= 0) return "needs a periodic patch and a coherence window";
   const std::optional<HeightGrid> hg = heightGridOf(g);
   if (!hg) return "needs a heightfield geometry (gaussian, noise, flat or heightmap)";
@@ -273,15 +370,13 @@ std::string fftUnsuitable(const Microgeometry& g, const Material& material, cons
            " texels (texels split " + std::to_string(r) + " x " + std::to_string(r) +
            " for the shortest wavelength), above its limit of 2^22";
   if (orderLobesSeparate(sigma, g.sizeX, g.sizeY)) return "";
-  if (!diskGrid)
-    return "with a coherence length below 12 L / π (overlapping order lobes) needs [directions] grid = \"disk\"";
   if (masked) return "with a coherence length below 12 L / π does not model the masked field (the lost component)";
   return "";
 }
 
 std::unique_ptr<WaveEstimator> makeFftWaveEstimator(const WaveContext& ctx) {
   const std::string why = fftUnsuitable(ctx.geometry, ctx.material, ctx.lambda_um, ctx.window.active() ? ctx.window.sigma() : 0.0,
-                                        std::holds_alternative<DiskGrid>(ctx.grid.layout()), ctx.settings.computeMasked);
+                                        ctx.settings.computeMasked);
   if (!why.empty() || !ctx.scene.periodic()) throw std::invalid_argument("the fft estimator " + (why.empty() ? "needs a periodic patch" : why));
   if (orderLobesSeparate(ctx.window.sigma(), ctx.scene.sizeX(), ctx.scene.sizeY()))
     return std::make_unique<OrdersWaveEstimator>(ctx, OrderAmplitudes::Fourier);

@@ -82,6 +82,13 @@ HeightfieldSpectrum::HeightfieldSpectrum(const Microgeometry& g, const HeightGri
     }
   zc_ = 0.5 * (zMin + zMax);
   zHalf_ = 0.5 * (zMax - zMin);
+  // Children of each original triangle (counting sort by parent).
+  childStart_.assign(g.triangles.size() + 1, 0);
+  for (uint32_t p : parent_) ++childStart_[p + 1];
+  for (size_t p = 0; p < g.triangles.size(); ++p) childStart_[p + 1] += childStart_[p];
+  children_.resize(n);
+  std::vector<uint32_t> next(childStart_.begin(), childStart_.end() - 1);
+  for (size_t t = 0; t < n; ++t) children_[next[parent_[t]]++] = uint32_t(t);
   const size_t cells = size_t(nx_) * ny_;
   auto scratch = fftw::allocate<fftw_complex>(cells);
   std::lock_guard<std::mutex> lock(fftw::planMutex());

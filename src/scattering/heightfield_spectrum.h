@@ -96,6 +96,10 @@ class HeightfieldSpectrum {
   const Vec3& centroid(size_t t) const { return centroid_[t]; }
   const Vec3& normal(size_t t) const { return normal_[t]; }  // unit, facing up
   unsigned parent(size_t t) const { return parent_[t]; }   // the geometry's triangle holding facet t
+  // The facets split from the geometry's triangle p (one when texels are not split).
+  const uint32_t* childrenBegin(size_t p) const { return children_.data() + childStart_[p]; }
+  const uint32_t* childrenEnd(size_t p) const { return children_.data() + childStart_[p + 1]; }
+  size_t parents() const { return childStart_.size() - 1; }
   int refinement() const { return refine_; }
   // The steepest facet slope |∇h|: exit directions with tan(elevation) above it are free of
   // masking and back-facing facets.
@@ -108,7 +112,7 @@ class HeightfieldSpectrum {
   int nx_ = 0, ny_ = 0, refine_ = 1;
   double sizeX_, sizeY_, zc_ = 0, zHalf_ = 0, maxSlope_ = 0;
   std::vector<Vec3> centroid_, normal_, area_;  // area_: a = m A (unit normal times area), facing up
-  std::vector<uint32_t> parent_;
+  std::vector<uint32_t> parent_, childStart_, children_;
   // The 2-D transform pruned to the orders asked for: in-place backward transforms of every row
   // (length nx), then of only the needed columns (length ny), copied out contiguously. Plans are
   // shared (new-array execution); the column plan per column count, made on first use.

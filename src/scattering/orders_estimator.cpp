@@ -219,27 +219,49 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
         }
       }
       // Masking: only order directions below the steepest slope can have masked or back-facing
-      // facets; their terms leave the visible field (and form the masked one).
+      // facets; their terms leave the visible field (and form the masked one). Visibility is decided
+      // per triangle of the geometry at its four first-level points (as `exact` does before
+      // splitting) for all the facets split from it, or per facet where those points disagree.
       std::vector<size_t> grazing = below;
       for (size_t o : group) {
         const Vec3& wo = orders[o].wo;
         if (std::abs(wo.z) <= spectrum.maxSlope() * std::hypot(wo.x, wo.y)) grazing.push_back(o);
       }
+      std::vector<uint8_t> anyLit(spectrum.parents(), 0);
+      for (size_t p = 0; p < spectrum.parents(); ++p)
+        for (const uint32_t* c = spectrum.childrenBegin(p); c != spectrum.childrenEnd(p) && !anyLit[p]; ++c) anyLit[p] = lit[*c];
       std::vector<uint64_t> grazingRays(grazing.size(), 0);
       tbb::parallel_for(size_t(0), grazing.size(), [&](size_t g) {
         const Order& ord = orders[grazing[g]];
         const Vec3 k2 = ord.wo * (nO * k0), q = wi * (-nI * k0) - k2;
         Complex* h = H + 4 * grazing[g];
-        for (size_t t = 0; t < spectrum.facets(); ++t) {
-          if (!lit[t]) continue;
-          const Vec3 m = fromAbove ? spectrum.normal(t) : -spectrum.normal(t);
-          const ExitVisibility v =
-              wave::visibleExit(ctx.scene, spectrum.centroid(t), m, ord.wo, spectrum.parent(t), fromAbove, ord.transmission,
-                            &grazingRays[g]);
-          if (v == ExitVisibility::Visible) continue;
-          const auto term = spectrum.facetTerm(fields, t, q, k2);
-          if (!ord.below) h[0] -= term[0], h[1] -= term[1];
-          if (v == ExitVisibility::Blocked && masked) h[2] += term[0], h[3] += term[1];
+        const Microgeometry& geo = ctx.geometry;
+        for (size_t p = 0; p < spectrum.parents(); ++p) {
+          if (!anyLit[p]) continue;
+          const auto& tri = geo.triangles[p];
+          const Vec3 n = spectrum.normal(*spectrum.childrenBegin(p));
+          const Vec3 m = fromAbove ? n : -n;
+          auto visibility = [&](const Vec3& x) {
+            return wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(p), fromAbove, ord.transmission, &grazingRays[g]);
+          };
+          // The triangle's four first-level points decide for all its facets when they agree;
+          // otherwise each facet by its own centroid.
+          const auto pts = firstLevelPoints(geo.vertices[tri[0]], geo.vertices[tri[1]], geo.vertices[tri[2]]);
+          const ExitVisibility v0 = visibility(pts[0]);
+          bool agree = true;
+          for (int k = 1; k < 4 && agree; ++k) agree = visibility(pts[size_t(k)]) == v0;
+          if (agree && v0 == ExitVisibility::Visible) continue;
+          Complex ts = 0, tp = 0, ms = 0, mp = 0;
+          for (const uint32_t* c = spectrum.childrenBegin(p); c != spectrum.childrenEnd(p); ++c) {
+            if (!lit[*c]) continue;
+            const ExitVisibility v = agree ? v0 : visibility(spectrum.centroid(*c));
+            if (v == ExitVisibility::Visible) continue;
+            const auto term = spectrum.facetTerm(fields, *c, q, k2);
+            ts += term[0], tp += term[1];
+            if (v == ExitVisibility::Blocked) ms += term[0], mp += term[1];
+          }
+          if (!ord.below) h[0] -= ts, h[1] -= tp;
+          if (masked) h[2] += ms, h[3] += mp;
         }
       });
       for (uint64_t r : grazingRays) *rays += r;

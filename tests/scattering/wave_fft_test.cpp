@@ -83,46 +83,52 @@ TEST(WaveFft, MatchesExactOnHeightfields) {
 }
 
 // Speckle regime (δc = 12 µm on an 8 µm patch: 2πσ/L = 1.6, the lobes overlap): a flat gold
-// mirror still reflects exactly R(θ) (the lobe is spread over several pixels of the disk grid),
-// and the reported quadrature error covers the difference.
+// mirror still reflects exactly R(θ) (the lobe is spread over several bins), on a disk grid (tensor
+// nodes per pixel) and on a theta-phi grid (nodes per bin in its own parametrisation).
 TEST(WaveFft, SpeckleRegimeFlatMirrorGivesFresnel) {
   WaveSettings ws;
   ws.estimator = "fft";
-  for (double theta : {0.0, 40.0}) {
-    WaveScenario sc(makeFlat(8, 8, 1.0), material("Au"), DiskGrid{64, 64}, {0.55}, 12.0, ws);
-    WaveTileResult r = sc.run(theta, 0.0, true);
-    const double ref = fresnelReflectance(std::cos(radians(theta)), 1.0, sc.mat.ior(0.55));
-    auto [R, se] = sc.integral(r.fws, r.fwsErr, 0, true);
-    EXPECT_NEAR(R / ref, 1.0, 2e-3) << theta << " (reported error " << se << ")";
-    RecordProperty("R_over_fresnel_" + std::to_string(int(theta)), std::to_string(R / ref));
-  }
+  for (const DirectionGrid::Layout& layout : {DirectionGrid::Layout{DiskGrid{64, 64}}, DirectionGrid::Layout{ThetaPhiGrid{30, 60}}})
+    for (double theta : {0.0, 40.0}) {
+      WaveScenario sc(makeFlat(8, 8, 1.0), material("Au"), layout, {0.55}, 12.0, ws);
+      WaveTileResult r = sc.run(theta, 0.0, true);
+      const double ref = fresnelReflectance(std::cos(radians(theta)), 1.0, sc.mat.ior(0.55));
+      auto [R, se] = sc.integral(r.fws, r.fwsErr, 0, true);
+      EXPECT_NEAR(R / ref, 1.0, 2e-3) << sc.grid.kind() << " " << theta << " (reported error " << se << ")";
+      RecordProperty("R_over_fresnel_" + sc.grid.kind() + "_" + std::to_string(int(theta)), std::to_string(R / ref));
+    }
 }
 
 // Speckle regime on a rough heightfield: `fft` against the `area` Monte Carlo estimator (which
 // makes no assumption on the window) within 4 of the latter's standard errors per resolved bin,
-// and the same total, at 20° where nothing is masked beyond the steep-slope cone's few bins.
+// and the same total, at 20°, on both grid layouts.
 TEST(WaveFft, SpeckleRegimeMatchesAreaMonteCarlo) {
   const Microgeometry g = makeGaussian(6, 6, 0.1, 1.0, 48, 48, 5);
   WaveSettings fs, as;
   fs.estimator = "fft";
   as.estimator = "area";
   as.samplesPerBin = 1 << 14;
-  WaveScenario f(g, material("Au"), DiskGrid{20, 20}, {0.6}, 9.0, fs), a(g, material("Au"), DiskGrid{20, 20}, {0.6}, 9.0, as);
-  const WaveTileResult rf = f.run(20.0, 0.0, true), ra = a.run(20.0, 0.0, true);
-  int tested = 0;
-  double z2 = 0;
-  for (int bin = 0; bin < f.grid.binsPerHemisphere(); ++bin) {
-    if (ra.fwsErr[size_t(bin)] <= 0 || ra.fws[size_t(bin)] < 3 * ra.fwsErr[size_t(bin)]) continue;
-    const double z = (rf.fws[size_t(bin)] - ra.fws[size_t(bin)]) / ra.fwsErr[size_t(bin)];
-    EXPECT_LT(std::abs(z), 4.0) << "bin " << bin << ": fft " << rf.fws[size_t(bin)] << " area " << ra.fws[size_t(bin)];
-    z2 += z * z;
-    ++tested;
+  for (const DirectionGrid::Layout& layout : {DirectionGrid::Layout{DiskGrid{20, 20}}, DirectionGrid::Layout{ThetaPhiGrid{10, 20}}}) {
+    WaveScenario f(g, material("Au"), layout, {0.6}, 9.0, fs), a(g, material("Au"), layout, {0.6}, 9.0, as);
+    const WaveTileResult rf = f.run(20.0, 0.0, true), ra = a.run(20.0, 0.0, true);
+    int tested = 0;
+    double z2 = 0;
+    for (int bin = 0; bin < f.grid.binsPerHemisphere(); ++bin) {
+      if (ra.fwsErr[size_t(bin)] <= 0 || ra.fws[size_t(bin)] < 3 * ra.fwsErr[size_t(bin)]) continue;
+      const double z = (rf.fws[size_t(bin)] - ra.fws[size_t(bin)]) / ra.fwsErr[size_t(bin)];
+      EXPECT_LT(std::abs(z), 4.0) << f.grid.kind() << " bin " << bin << ": fft " << rf.fws[size_t(bin)] << " area "
+                                  << ra.fws[size_t(bin)];
+      z2 += z * z;
+      ++tested;
+    }
+    EXPECT_GE(tested, 20) << f.grid.kind();
+    auto [ef, sf] = f.integral(rf.fws, rf.fwsErr, 0, true);
+    auto [ea, sa] = a.integral(ra.fws, ra.fwsErr, 0, true);
+    EXPECT_LT(std::abs(ef - ea), 4 * sa) << f.grid.kind() << ": " << ef << " vs " << ea << " +- " << sa;
+    const std::string k = f.grid.kind();
+    RecordProperty("bins_" + k, tested);
+    RecordProperty("mean_z2_" + k, std::to_string(z2 / std::max(1, tested)));
+    RecordProperty("energy_" + k, std::to_string(ef) + " fft (" + std::to_string(rf.seconds) + " s), " + std::to_string(ea) +
+                                      " area (" + std::to_string(ra.seconds) + " s)");
   }
-  EXPECT_GE(tested, 20);
-  auto [ef, sf] = f.integral(rf.fws, rf.fwsErr, 0, true);
-  auto [ea, sa] = a.integral(ra.fws, ra.fwsErr, 0, true);
-  EXPECT_LT(std::abs(ef - ea), 4 * sa) << ef << " vs " << ea << " +- " << sa;
-  RecordProperty("bins", tested);
-  RecordProperty("mean_z2", std::to_string(z2 / std::max(1, tested)));
-  RecordProperty("energy", std::to_string(ef) + " fft, " + std::to_string(ea) + " area");
 }
