@@ -77,15 +77,16 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   for (int t : pilots) pilotSeconds += transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t)).seconds / pilots.size();
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
   const double pathSeconds = pilotSeconds * double(job.pathsPerSlice) / double(pilotPaths);
-  double waveSeconds = 0;
+  double waveSeconds = 0, waveBytes = 0;
   if (job.needsWave()) {
     WaveSettings ws = waveSettingsOf(job);
     ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
                                      ws.estimator == "area" ? 2 * int(job.wavePointsPerDirection) : 16);
     auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
-    for (int t : pilots)
-      waveSeconds += est->run(t, job.incidence[size_t(t)].bin, exactOf(t)).seconds *
-                     double(job.waveSamplesPerBin) / double(ws.samplesPerBin) / pilots.size();
+    // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
+    const double scale = est->deterministic() ? 1.0 : double(job.waveSamplesPerBin) / double(ws.samplesPerBin);
+    for (int t : pilots) waveSeconds += est->run(t, job.incidence[size_t(t)].bin, exactOf(t)).seconds * scale / pilots.size();
+    waveBytes = est->memoryBytes();
   }
   // Reciprocity (PHYSICS.md §8): the wave term of each pair of incidence bins once. The pilot ran
   // the whole slice; on average a tile computes the pairs' fraction of it.
@@ -153,12 +154,13 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   // Output: float32 value + standard error per component, uncompressed upper bound.
   const double outBytes = double(nTiles) * nL * nB * 4.0 * 2.0 * double(comps.size());
   // Memory per rank: the scene (Embree + double copies), one tile result (doubles, value + error
-  // for up to five tallies) and the path tracer's batch of events.
+  // for up to five tallies), the path tracer's batch of events and the wave estimator's own
+  // (the fft estimator's facet fields, transforms and tables).
   const double sceneBytes = double(job.geometry.triangles.size()) * 150.0 + double(job.geometry.vertices.size()) * 60.0;
   const double tileBytes = double(nL) * nB * 8.0 * 2.0 * 5.0 * 2.0;
   const double batchBytes = 256.0 * 1024.0 * (32.0 + 8.0 * nL);
   p["output_bytes_uncompressed"] = outBytes;
-  p["memory_bytes_per_rank"] = sceneBytes + tileBytes + batchBytes;
+  p["memory_bytes_per_rank"] = sceneBytes + tileBytes + batchBytes + waveBytes;
   // Suggested Slurm resources: ranks of 8 cores, enough to finish in about 12 hours.
   const int cpusPerTask = 8;
   int ntasks = std::max(1, std::min(computedTiles, int(std::ceil(coreHours / (12.0 * cpusPerTask)))));
@@ -167,7 +169,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   std::ostringstream sb;
   sb << "#SBATCH --ntasks=" << ntasks << "\n#SBATCH --cpus-per-task=" << cpusPerTask << "\n#SBATCH --time="
      << minutes / 60 << ":" << (minutes % 60 < 10 ? "0" : "") << minutes % 60 << ":00\n#SBATCH --mem-per-cpu="
-     << std::max(1, int(std::ceil((sceneBytes + tileBytes + batchBytes) / cpusPerTask / 1e9 * 2))) << "G\n"
+     << std::max(1, int(std::ceil((sceneBytes + tileBytes + batchBytes + waveBytes) / cpusPerTask / 1e9 * 2))) << "G\n"
      << "#SBATCH --signal=B:USR1@300\n#SBATCH --requeue\n";
   p["sbatch"] = sb.str();
   return p;

@@ -73,6 +73,8 @@ class FftSpeckleEstimator : public WaveEstimator {
                   spectrum_.nx(), spectrum_.ny(), spectrum_.refinement(), spectrum_.refinement(), theta, spectrum_.maxSlope());
     return buf;
   }
+  bool deterministic() const override { return true; }
+  double memoryBytes() const override;
   WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
                      const std::function<void(uint64_t)>& progress = {},
                      const std::vector<uint8_t>& exitMask = {}) const override;
@@ -215,6 +217,31 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
         (*out)[k][size_t(l) * size_t(ctx_.grid.binCount()) + size_t(bin)] += r.X.w[i] * r.Y.w[j] * p / std::sqrt(c2);
       }
   }
+}
+
+double FftSpeckleEstimator::memoryBytes() const {
+  // Beyond the spectrum: the order tables of every q_z node (other grids) or of one node plus the
+  // exit nodes' interpolation weights and fields (disk grid), at the shortest wavelength.
+  double lambda = 1e300;
+  for (double l : ctx_.lambda_um) lambda = std::min(lambda, l);
+  const wave::Media media(ctx_);
+  double nSum = 2 * ctx_.material.outsideIor;
+  if (!media.conductor())
+    for (size_t l = 0; l < ctx_.lambda_um.size(); ++l) nSum = std::max(nSum, media.incident(int(l), true) + media.other(int(l), true));
+  const double k0 = 2 * kPi / lambda, sigma = ctx_.window.sigma(), nO = nSum / 2;
+  const double reach = kWindowCut / sigma;
+  const double na = 2 * (nO * k0 + reach) * ctx_.scene.sizeX() / (2 * kPi) + 2,
+               nb = 2 * (nO * k0 + reach) * ctx_.scene.sizeY() / (2 * kPi) + 2;
+  const double N = double(spectrum_.qzNodes(-2 * nO * k0, -nO * k0).q.size());
+  double extra = 8 * na * nb * sizeof(Complex);
+  if (const auto* disk = std::get_if<DiskGrid>(&ctx_.grid.layout())) {
+    const double speckle = 1.0 / (sigma * nO * k0);
+    const double nx = disk->width * std::max(1.0, std::ceil(2.0 / disk->width / speckle)) * kRuleHigh,
+                 ny = disk->height * std::max(1.0, std::ceil(2.0 / disk->height / speckle)) * kRuleHigh;
+    extra += nx * ny * (N + 2) * sizeof(Complex) * (1 + 4.0 / 9) + 8 * na * ny * sizeof(Complex) * 2;
+  } else
+    extra += 8 * na * nb * N * sizeof(Complex);
+  return spectrum_.memoryBytes() + extra;
 }
 
 void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fields, const Vec3& wi, int l, double nI,

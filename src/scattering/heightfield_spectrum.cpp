@@ -1,5 +1,6 @@
 #include "scattering/heightfield_spectrum.h"
 
+#include <tbb/info.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -108,6 +109,14 @@ fftw_plan HeightfieldSpectrum::columnPlan(int columns) const {
                                FFTW_ESTIMATE));
   }
   return p.get();
+}
+
+double HeightfieldSpectrum::memoryBytes() const {
+  const double facetsN = double(facets()), cells = double(nx_) * ny_;
+  const double facetData = facetsN * (3 * sizeof(Vec3) + 3 * sizeof(uint32_t));
+  const double fields = facetsN * 8 * sizeof(Complex) + facetsN * sizeof(Complex) + facetsN;  // + phases + lit
+  const double buffers = double(tbb::info::default_concurrency()) * 2 * cells * sizeof(Complex);
+  return facetData + fields + buffers;
 }
 
 std::vector<uint8_t> HeightfieldSpectrum::lit(const Vec3& wi, bool fromAbove, uint64_t* rays) const {

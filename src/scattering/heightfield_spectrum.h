@@ -104,6 +104,8 @@ class HeightfieldSpectrum {
   // The steepest facet slope |∇h|: exit directions with tan(elevation) above it are free of
   // masking and back-facing facets.
   double maxSlope() const { return maxSlope_; }
+  // Facet data, one wavelength's fields, the e^{i q z} phases and two transform buffers per thread.
+  double memoryBytes() const;
   int nx() const { return nx_; }
   int ny() const { return ny_; }
 

@@ -292,6 +292,11 @@ std::string OrdersWaveEstimator::notes() const {
   return s;
 }
 
+double OrdersWaveEstimator::memoryBytes() const {
+  // The FFT's facet data, fields and per-thread transforms; the order tables are small beside them.
+  return spectrum_ ? spectrum_->memoryBytes() : 0.0;
+}
+
 std::string OrdersWaveEstimator::name() const {
   return amplitudes_ == OrderAmplitudes::Exact ? "exact" : amplitudes_ == OrderAmplitudes::Fourier ? "fft" : "orders";
 }

@@ -48,6 +48,8 @@ class OrdersWaveEstimator : public WaveEstimator {
   ~OrdersWaveEstimator() override;
   std::string name() const override;
   std::string notes() const override;
+  bool deterministic() const override { return amplitudes_ != OrderAmplitudes::MonteCarlo; }
+  double memoryBytes() const override;
   WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
                      const std::function<void(uint64_t)>& progress = {},
                      const std::vector<uint8_t>& exitMask = {}) const override;

@@ -64,6 +64,10 @@ class WaveEstimator {
   virtual std::string name() const = 0;
   // What a user should know about this estimator on this job (for the log), or "".
   virtual std::string notes() const { return ""; }
+  // No samples: the cost does not scale with wave_samples_per_bin (exact, fft).
+  virtual bool deterministic() const { return false; }
+  // Memory it holds or allocates while running a tile, beyond the scene (bytes; for `plan`).
+  virtual double memoryBytes() const { return 0; }
   // exactDirection: a collimated beam (as in PathTracer::run); otherwise the incidence direction is
   // drawn cosine-weighted inside the incidence bin. exitMask (one entry per sphere bin, empty = all):
   // only the bins with a non-zero entry are estimated (estimators whose cost is not per exit bin
