@@ -109,7 +109,8 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
   // Per rule: the two axes, the interpolation weights of each exit node and the fields I_s, I_p.
   struct Rule {
     Axis X, Y;
-    std::vector<Complex> w, Is, Ip, C;
+    std::vector<HeightfieldSpectrum::QzNodes::State> w;  // per exit node (qz = NaN: evanescent)
+    std::vector<Complex> Is, Ip, C;
     double cos2(size_t i, size_t j) const { return 1 - X.x[i] * X.x[i] - Y.x[j] * Y.x[j]; }
   };
   std::vector<Rule> R;
@@ -146,11 +147,11 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
   const size_t N = nodes.q.size();
   for (Rule& r : R) {
     const size_t nx = r.X.x.size(), ny = r.Y.x.size();
-    r.w.assign(nx * ny * N, 0.0);  // 0 for evanescent nodes
+    r.w.assign(nx * ny, {});
     tbb::parallel_for(size_t(0), nx, [&](size_t i) {
       for (size_t j = 0; j < ny; ++j) {
         const double c2 = r.cos2(i, j);
-        if (c2 > 0) nodes.weights(-nI * k0 * wi.z - nO * k0 * zs * std::sqrt(c2), &r.w[(i * ny + j) * N]);
+        if (c2 > 0) r.w[i * ny + j] = nodes.state(-nI * k0 * wi.z - nO * k0 * zs * std::sqrt(c2));
       }
     });
     r.Is.assign(nx * ny, 0.0);
@@ -190,7 +191,7 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
           const double c2 = r.cos2(i, j);
           if (c2 <= 0) continue;
           const Vec3 k2 = Vec3{r.X.x[i], r.Y.x[j], zs * std::sqrt(c2)} * (nO * k0);
-          const Complex wq = r.w[(i * ny + j) * N + node];
+          const Complex wq = nodes.weight(node, r.w[i * ny + j]);
           auto comb = [&](size_t t0) {
             return acc[t0 * ny + j] + k2.x * acc[(t0 + 1) * ny + j] + k2.y * acc[(t0 + 2) * ny + j] +
                    k2.z * acc[(t0 + 3) * ny + j];
@@ -238,7 +239,8 @@ double FftSpeckleEstimator::memoryBytes() const {
     const double speckle = 1.0 / (sigma * nO * k0);
     const double nx = disk->width * std::max(1.0, std::ceil(2.0 / disk->width / speckle)) * kRuleHigh,
                  ny = disk->height * std::max(1.0, std::ceil(2.0 / disk->height / speckle)) * kRuleHigh;
-    extra += nx * ny * (N + 2) * sizeof(Complex) * (1 + 4.0 / 9) + 8 * na * ny * sizeof(Complex) * 2;
+    extra += nx * ny * (sizeof(HeightfieldSpectrum::QzNodes::State) + 2 * sizeof(Complex)) * (1 + 4.0 / 9) +
+             8 * na * ny * sizeof(Complex) * 2;
   } else
     extra += 8 * na * nb * N * sizeof(Complex);
   return spectrum_.memoryBytes() + extra;

@@ -190,17 +190,22 @@ HeightfieldSpectrum::QzNodes HeightfieldSpectrum::qzNodes(double qzMin, double q
   return nodes;
 }
 
-void HeightfieldSpectrum::QzNodes::weights(double qz, Complex* w) const {
-  const size_t N = q.size();
-  const Complex phase = std::polar(1.0, qz * zc);
-  for (size_t n = 0; n < N; ++n)
+HeightfieldSpectrum::QzNodes::State HeightfieldSpectrum::QzNodes::state(double qz) const {
+  State s;
+  s.qz = qz;
+  s.phase = std::polar(1.0, qz * zc);
+  for (size_t n = 0; n < q.size(); ++n)
     if (std::abs(qz - q[n]) <= 1e-14 * (1 + std::abs(qz))) {  // on a node
-      for (size_t k = 0; k < N; ++k) w[k] = k == n ? phase : 0.0;
-      return;
+      s.hit = int(n);
+      return s;
     }
-  double sum = 0;
-  for (size_t n = 0; n < N; ++n) sum += bw[n] / (qz - q[n]);
-  for (size_t n = 0; n < N; ++n) w[n] = phase * (bw[n] / (qz - q[n]) / sum);
+  for (size_t n = 0; n < q.size(); ++n) s.sum += bw[n] / (qz - q[n]);
+  return s;
+}
+
+void HeightfieldSpectrum::QzNodes::weights(double qz, Complex* w) const {
+  const State s = state(qz);
+  for (size_t n = 0; n < q.size(); ++n) w[n] = weight(n, s);
 }
 
 void HeightfieldSpectrum::nodeTables(const FacetFields& f, double qn, long a0, long a1, long b0, long b1,

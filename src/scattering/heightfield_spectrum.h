@@ -80,6 +80,18 @@ class HeightfieldSpectrum {
     std::vector<double> q, bw;
     // Weights w_n at qz (size q.size()), including the factor e^{i qz z̄}: Ĥ(qz) = Σ_n w_n Ĥ(q_n).
     void weights(double qz, Complex* w) const;
+    // The same one node at a time, from a compact state per qz (O(1) per weight; for the many
+    // exit nodes of the speckle path): state(qz) once, then weight(n, state).
+    struct State {
+      double qz = 0, sum = 0;
+      Complex phase;
+      int hit = -1;  // qz on node `hit`
+    };
+    State state(double qz) const;
+    Complex weight(size_t n, const State& s) const {
+      if (s.hit >= 0) return size_t(s.hit) == n ? s.phase : Complex(0.0);
+      return s.phase * (bw[n] / (s.qz - q[n]) / s.sum);
+    }
   };
   QzNodes qzNodes(double qzMin, double qzMax) const;
 
