@@ -393,9 +393,10 @@ std::string fftUnsuitable(const Microgeometry& g, const Material& material, cons
   const std::optional<HeightGrid> hg = heightGridOf(g);
   if (!hg) return "needs a heightfield geometry (gaussian, noise, flat or heightmap)";
   const int r = fourierRefinement(std::max(g.sizeX / hg->nx, g.sizeY / hg->ny), fourierMaxTexel(material, lambda_um));
-  const double cells = double(hg->nx) * hg->ny * r * r;
-  if (cells > double(kMaxFourierCells))
-    return "would need " + std::to_string(hg->nx * r) + " x " + std::to_string(hg->ny * r) +
+  const double cells = double(hg->nx) * hg->ny * double(r) * double(r);
+  if (cells > double(kMaxFourierCells) || std::max(g.sizeX / hg->nx, g.sizeY / hg->ny) / r > fourierMaxTexel(material, lambda_um))
+    return "would need " + std::to_string(static_cast<long long>(hg->nx) * r) + " x " +
+           std::to_string(static_cast<long long>(hg->ny) * r) +
            " texels (texels split " + std::to_string(r) + " x " + std::to_string(r) +
            " for the shortest wavelength), above its limit of 2^22";
   if (orderLobesSeparate(sigma, g.sizeX, g.sizeY)) return "";

@@ -31,7 +31,7 @@ double fourierMaxTexel(const Material& material, const std::vector<double>& lamb
 
 int fourierRefinement(double texel, double maxTexel) {
   int r = 1;
-  while (maxTexel > 0 && texel / r > maxTexel && r < 64) r *= 2;
+  while (maxTexel > 0 && texel / r > maxTexel && r < (1 << 16)) r *= 2;
   return r;
 }
 

@@ -73,6 +73,47 @@ TEST(HardCaseSuite, CriticalAnglePlusMinusOneMicroradian) {
   }
 }
 
+// The Fourier-domain evaluator at the same edges: from inside glass at the critical angle ± 1 µrad
+// (R + T = 1, R = Fresnel, no transmission beyond), 200 nm to 2 µm on one flat patch (its texels
+// split 512 × 512 for 200 nm: Fresnel within 1 %), and 89.9° incidence on a rough heightfield in both
+// window regimes (finite, energy within [0, 1]).
+TEST(HardCaseSuite, FftAtTheEdges) {
+  const double n = 1.5, thetaC = std::asin(1 / n);
+  WaveScenario wave(makeFlat(4, 4, 0), glass(n), ThetaPhiGrid{45, 8}, {0.5}, 50.0, waveSettings("fft"));
+  for (double d : {-1e-6, 0.0, 1e-6}) {
+    const double theta = 180.0 - degrees(thetaC + d);
+    WaveTileResult w = wave.run(theta, 0.0, true);
+    expectFinite(w);
+    const double F = fresnelReflectance(std::cos(thetaC + d), n, Complex(1.0, 0));
+    const double R = wave.integral(w.fws, w.fwsErr, 0, false).first, T = wave.integral(w.fws, w.fwsErr, 0, true).first;
+    EXPECT_NEAR(R + T, 1.0, 0.01) << d;
+    EXPECT_NEAR(R, F, 0.01) << d;
+    if (d > 0) {
+      EXPECT_EQ(T, 0.0);
+    }
+  }
+  const std::vector<double> lambdas = {0.2, 0.35, 0.7, 1.2, 2.0};
+  WaveScenario flat(makeFlat(10, 10, 0), conductor(1.3, 7.0), ThetaPhiGrid{30, 12}, lambdas, 100.0, waveSettings("fft"));
+  for (double theta : {0.0, 60.0}) {
+    WaveTileResult f = flat.run(theta, 0.0, true);
+    expectFinite(f);
+    const double F = fresnelReflectance(std::cos(radians(theta)), 1.0, Complex(1.3, 7.0));
+    for (size_t l = 0; l < lambdas.size(); ++l)
+      EXPECT_NEAR(flat.integral(f.fws, f.fwsErr, int(l), true).first, F, 0.01 * F) << lambdas[l] << " at " << theta;
+  }
+  const Microgeometry rough = makeGaussian(6, 6, 0.1, 1.0, 48, 48, 5);
+  for (double coherence : {60.0, 9.0})
+    for (const DirectionGrid::Layout& layout : {DirectionGrid::Layout{DiskGrid{24, 24}}, DirectionGrid::Layout{ThetaPhiGrid{12, 24}}}) {
+      WaveScenario sc(rough, material("Al"), layout, {0.5}, coherence, waveSettings("fft"));
+      WaveTileResult w = sc.run(89.9, 30.0, true);
+      expectFinite(w);
+      auto [e, se] = sc.integral(w.fws, w.fwsErr, 0, true);
+      EXPECT_GE(e, -4 * se) << coherence << " " << sc.grid.kind();
+      EXPECT_LE(e, 1.0 + 4 * se) << coherence << " " << sc.grid.kind();
+      RecordProperty("grazing_energy_" + sc.grid.kind() + "_" + std::to_string(int(coherence)), std::to_string(e));
+    }
+}
+
 TEST(HardCaseSuite, WavelengthsFrom200nmTo2umOnOnePatch) {
   const std::vector<double> lambdas = {0.2, 0.35, 0.7, 1.2, 2.0};
   Material m = conductor(1.3, 7.0);  // a constant index is defined at every λ
