@@ -242,27 +242,26 @@ int main(int argc, char** argv) {
   }
   // One cell of HEMISPHERES (5 µm, r = 2 µm, Al, 550 nm, θi = 50°: mutual shadowing) under a window
   // much wider than the cell (δc = 60 µm: the grating-order regime, where `exact` applies): the WS
-  // table of every estimator against `orders` at 16x its largest budget.
+  // table of the Monte Carlo estimators against `exact`'s.
   {
     Microgeometry g = makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25);
     PeriodicScene scene(g);
     Material al = named("Al");
     DirectionGrid grid(ThetaPhiGrid{15, 30});
     const WaveCase c{g, scene, al, grid, 60.0, sphericalDirection(radians(50), radians(20))};
-    auto ws = [&](const std::string& est, long samples, int seed) { return c.table(est, samples, seed); };
     // `exact` (deterministic; checked against `orders` bin by bin in tests/scattering/
     // wave_exact_test.cpp) is the reference; its own row is its distance to `orders` at 2^18
     // samples, the noise of that Monte Carlo table.
-    const auto [ref, refSec] = ws("exact", 64, 0);
+    const auto [ref, refSec] = c.table("exact", 64, 0);
     for (const std::string est : {"orders", "area"})
       for (long budget : {64L, 256L, 1024L, 4096L, 16384L, 65536L}) {
         if (est == "area" && budget > 4096) continue;
         for (int s = 0; s < seeds; ++s) {
-          auto [f, sec] = ws(est, budget, s);
+          auto [f, sec] = c.table(est, budget, s);
           row("hemisphere_cell_ws", est, budget, s, sec, relativeL1(grid, f, ref));
         }
       }
-    row("hemisphere_cell_ws", "exact", 64, 0, refSec, relativeL1(grid, ws("orders", 1 << 18, 1000).first, ref));
+    row("hemisphere_cell_ws", "exact", 64, 0, refSec, relativeL1(grid, c.table("orders", 1 << 18, 1000).first, ref));
   }
   // A rough Gaussian heightfield (10 µm, rms 0.1 µm, correlation 1 µm, Al, 550 nm, θi = 30°) under
   // a window narrower than the patch (δc = 15 µm: overlapping order lobes, speckle) on a 32 x 32
@@ -275,14 +274,13 @@ int main(int argc, char** argv) {
     Material al = named("Al");
     DirectionGrid grid(DiskGrid{32, 32});
     const WaveCase c{g, scene, al, grid, 15.0, sphericalDirection(radians(30), radians(10))};
-    auto ws = [&](const std::string& est, long samples, int seed) { return c.table(est, samples, seed); };
-    const auto [ref, refSec] = ws("fft", 64, 0);
+    const auto [ref, refSec] = c.table("fft", 64, 0);
     for (long budget : {64L, 256L, 1024L, 4096L})
       for (int s = 0; s < seeds; ++s) {
-        auto [f, sec] = ws("area", budget, s);
+        auto [f, sec] = c.table("area", budget, s);
         row("gaussian_speckle_ws", "area", budget, s, sec, relativeL1(grid, f, ref));
       }
-    row("gaussian_speckle_ws", "fft", 64, 0, refSec, relativeL1(grid, ws("area", 1 << 15, 1000).first, ref));
+    row("gaussian_speckle_ws", "fft", 64, 0, refSec, relativeL1(grid, c.table("area", 1 << 15, 1000).first, ref));
   }
   // HEMISPHERES (the paper's surface) against high-budget references.
   {

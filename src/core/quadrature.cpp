@@ -62,4 +62,15 @@ double tanhSinh(const std::function<double(double, double)>& f, double a, double
   return result;
 }
 
+QuadratureRule compositeGaussLegendre(int n, int cells) {
+  const QuadratureRule r = gaussLegendre(n, 0.0, 1.0);
+  QuadratureRule q;
+  for (int c = 0; c < cells; ++c)
+    for (size_t i = 0; i < r.x.size(); ++i) {
+      q.x.push_back((c + r.x[i]) / cells);
+      q.w.push_back(r.w[i] / cells);
+    }
+  return q;
+}
+
 }  // namespace mbsdf

@@ -16,6 +16,9 @@ struct QuadratureRule {
 // n-point Gauss–Legendre rule on [a, b] (exact for polynomials of degree 2n − 1).
 QuadratureRule gaussLegendre(int n, double a = -1.0, double b = 1.0);
 
+// The n-point Gauss–Legendre rule repeated over `cells` equal cells of [0, 1] (composite rule).
+QuadratureRule compositeGaussLegendre(int n, int cells);
+
 // ∫_a^b f(x) dx by tanh–sinh, halving the step until two levels agree to `relTol` (or level 12).
 // f is never evaluated at the endpoints; it receives (x, distance to the nearer endpoint) so that
 // an integrand with a singular endpoint can be evaluated without cancellation near it.

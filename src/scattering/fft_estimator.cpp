@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 #include <cstdio>
 #include <cmath>
 #include <stdexcept>
@@ -31,21 +32,25 @@ struct Axis {
   std::vector<std::vector<double>> band;
 };
 
+// The orders a (G = 2π a / L) with |q − G| <= reach along one axis.
+std::pair<long, long> ordersWithin(double q, double reach, double L) {
+  return {long(std::ceil((q - reach) * L / (2 * kPi))), long(std::floor((q + reach) * L / (2 * kPi)))};
+}
+
 // `sub` cells per pixel, each with an n-point rule.
 Axis makeAxis(int pixels, int sub, int n, double qOffset, double nOk0, double sigma, double L) {
   Axis ax;
-  const QuadratureRule q = gaussLegendre(n, 0.0, 1.0);
+  const QuadratureRule q = compositeGaussLegendre(n, sub);
   for (int p = 0; p < pixels; ++p)
-    for (int c = 0; c < sub; ++c)
-      for (int i = 0; i < n; ++i) {
-        ax.x.push_back(-1 + 2.0 * (p + (c + q.x[size_t(i)]) / sub) / pixels);
-        ax.w.push_back(2.0 / (pixels * sub) * q.w[size_t(i)]);
-        ax.pixel.push_back(p);
-      }
+    for (size_t i = 0; i < q.x.size(); ++i) {
+      ax.x.push_back(-1 + 2.0 * (p + q.x[i]) / pixels);
+      ax.w.push_back(2.0 / pixels * q.w[i]);
+      ax.pixel.push_back(p);
+    }
   for (double x : ax.x) {
     // q_xy = −n_i k0 ωi_xy − n_o k0 ωo_xy; orders G = 2π a / L with σ|q − G| <= kWindowCut.
-    const double qv = qOffset - nOk0 * x, reach = kWindowCut / sigma;
-    const long a0 = long(std::ceil((qv - reach) * L / (2 * kPi))), a1 = long(std::floor((qv + reach) * L / (2 * kPi)));
+    const double qv = qOffset - nOk0 * x;
+    const auto [a0, a1] = ordersWithin(qv, kWindowCut / sigma, L);
     ax.first.push_back(a0);
     std::vector<double> v;
     for (long a = a0; a <= a1; ++a) {
@@ -93,6 +98,14 @@ class FftSpeckleEstimator : public WaveEstimator {
   void binIntegral(const HeightfieldSpectrum::FacetFields& fields, const Vec3& wi, int l, double nI, double nO,
                    bool transmission, bool fromAbove, std::vector<std::vector<double>>* out) const;
 
+  // p(ωo) = (n_o/n_i) |I|² / (16π² W2 cos θi) with I = (2πσ²/A_fp) Σ_G ŵ-weights × Ĥ_G: the factor
+  // that turns |Σ_G e^{−σ²|q−G|²/2} Ĥ_G|² (mean of s and p) into p.
+  double powerScale(const Vec3& wi, double nI, double nO) const {
+    const double sigma = ctx_.window.sigma();
+    const double amp = 2 * kPi * sigma * sigma / (ctx_.scene.sizeX() * ctx_.scene.sizeY());
+    return kirchhoffPowerScale(ctx_.window.w2(), std::abs(wi.z), nI, nO) * amp * amp;
+  }
+
   WaveContext ctx_;
   HeightGrid grid_;
   HeightfieldSpectrum spectrum_;
@@ -115,7 +128,7 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
   };
   std::vector<Rule> R;
   double qMin = 1e300, qMax = -1e300;
-  long a0 = 0, a1 = -1, b0 = 0, b1 = -1;
+  long a0 = std::numeric_limits<long>::max(), a1 = std::numeric_limits<long>::min(), b0 = a0, b1 = a1;
   // Pixels wider than the speckle 1/(σ n_o k0) are cut into that many cells per axis, each with the
   // rule: the specular lobe of a wide window is narrower than a pixel.
   const double speckle = 1.0 / (sigma * nO * k0);
@@ -130,15 +143,12 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
         const double qz = -nI * k0 * wi.z - nO * k0 * zs * std::sqrt(c2);
         qMin = std::min(qMin, qz), qMax = std::max(qMax, qz);
       }
-    auto extend = [](const Axis& ax, long* lo, long* hi, bool first) {
-      for (size_t i = 0; i < ax.x.size(); ++i) {
-        const long e0 = ax.first[i], e1 = ax.first[i] + long(ax.band[i].size()) - 1;
-        if (first && i == 0) *lo = e0, *hi = e1;
-        *lo = std::min(*lo, e0), *hi = std::max(*hi, e1);
-      }
+    auto extend = [](const Axis& ax, long* lo, long* hi) {
+      for (size_t i = 0; i < ax.x.size(); ++i)
+        *lo = std::min(*lo, ax.first[i]), *hi = std::max(*hi, ax.first[i] + long(ax.band[i].size()) - 1);
     };
-    extend(r.X, &a0, &a1, R.empty());
-    extend(r.Y, &b0, &b1, R.empty());
+    extend(r.X, &a0, &a1);
+    extend(r.Y, &b0, &b1);
     R.push_back(std::move(r));
   }
   if (qMin > qMax) return;
@@ -192,19 +202,13 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
           if (c2 <= 0) continue;
           const Vec3 k2 = Vec3{r.X.x[i], r.Y.x[j], zs * std::sqrt(c2)} * (nO * k0);
           const Complex wq = nodes.weight(node, r.w[i * ny + j]);
-          auto comb = [&](size_t t0) {
-            return acc[t0 * ny + j] + k2.x * acc[(t0 + 1) * ny + j] + k2.y * acc[(t0 + 2) * ny + j] +
-                   k2.z * acc[(t0 + 3) * ny + j];
-          };
-          r.Is[i * ny + j] += wq * comb(0);
-          r.Ip[i * ny + j] += wq * comb(4);
+          r.Is[i * ny + j] += wq * HeightfieldSpectrum::combine(&acc[j], ny, k2);
+          r.Ip[i * ny + j] += wq * HeightfieldSpectrum::combine(&acc[4 * ny + j], ny, k2);
         }
       });
     }
   }
-  // p(ωo) = (n_o/n_i) |I|² / (16π² W2 cos θi), I = (2πσ²/A_fp) Σ_G ..., integrated as p/cos θo dx dy.
-  const double amp = 2 * kPi * sigma * sigma / (Lx * Ly);
-  const double scale = kirchhoffPowerScale(ctx_.window.w2(), std::abs(wi.z), nI, nO) * amp * amp;
+  const double scale = powerScale(wi, nI, nO);
   const int hemi = zs > 0 ? 0 : 1;
   for (size_t k = 0; k < R.size(); ++k) {
     const Rule& r = R[k];
@@ -223,12 +227,8 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
 double FftSpeckleEstimator::memoryBytes() const {
   // Beyond the spectrum: the order tables of every q_z node (other grids) or of one node plus the
   // exit nodes' interpolation weights and fields (disk grid), at the shortest wavelength.
-  double lambda = 1e300;
-  for (double l : ctx_.lambda_um) lambda = std::min(lambda, l);
-  const wave::Media media(ctx_);
-  double nSum = 2 * ctx_.material.outsideIor;
-  if (!media.conductor())
-    for (size_t l = 0; l < ctx_.lambda_um.size(); ++l) nSum = std::max(nSum, media.incident(int(l), true) + media.other(int(l), true));
+  double lambda = 1e300, nSum = 0;
+  for (double l : ctx_.lambda_um) lambda = std::min(lambda, l), nSum = std::max(nSum, indexSum(ctx_.material, l));
   const double k0 = 2 * kPi / lambda, sigma = ctx_.window.sigma(), nO = nSum / 2;
   const double reach = kWindowCut / sigma;
   const double na = 2 * (nO * k0 + reach) * ctx_.scene.sizeX() / (2 * kPi) + 2,
@@ -257,8 +257,8 @@ void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fi
   // Orders within the window's reach of the exit disk; q_z over the whole hemisphere.
   const double reach = kWindowCut / sigma;
   const double qx0 = -nI * k0 * wi.x, qy0 = -nI * k0 * wi.y, qr = nO * k0 + reach;
-  const long a0 = long(std::floor((qx0 - qr) * Lx / (2 * kPi))), a1 = long(std::ceil((qx0 + qr) * Lx / (2 * kPi)));
-  const long b0 = long(std::floor((qy0 - qr) * Ly / (2 * kPi))), b1 = long(std::ceil((qy0 + qr) * Ly / (2 * kPi)));
+  const auto [a0, a1] = ordersWithin(qx0, qr, Lx);
+  const auto [b0, b1] = ordersWithin(qy0, qr, Ly);
   const size_t na = size_t(a1 - a0 + 1), nb = size_t(b1 - b0 + 1);
   const auto nodes = spectrum_.qzNodes(std::min(-nI * k0 * wi.z, -nI * k0 * wi.z - zs * nO * k0),
                                        std::max(-nI * k0 * wi.z, -nI * k0 * wi.z - zs * nO * k0));
@@ -272,8 +272,7 @@ void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fi
     });
   }
   const double speckle = 1.0 / (sigma * nO * k0);
-  const double amp = 2 * kPi * sigma * sigma / (Lx * Ly);
-  const double scale = kirchhoffPowerScale(ctx_.window.w2(), std::abs(wi.z), nI, nO) * amp * amp;
+  const double scale = powerScale(wi, nI, nO);
   const int nBins = grid.binsPerHemisphere();
   tbb::parallel_for(0, nBins, [&](int local) {
     const int bin = hemi * nBins + local;
@@ -285,13 +284,7 @@ void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fi
     const int sub = std::max(1, int(std::ceil(std::max(x1 - x0, y1 - y0) / (2 * speckle))));
     std::vector<Complex> w(N);
     for (int ruleIndex = 0; ruleIndex < 2; ++ruleIndex) {
-      const QuadratureRule r = gaussLegendre(kRuleHigh - ruleIndex, 0.0, 1.0);
-      QuadratureRule q;  // the rule repeated over the cells of [0, 1]
-      for (int c = 0; c < sub; ++c)
-        for (size_t i = 0; i < r.x.size(); ++i) {
-          q.x.push_back((c + r.x[i]) / sub);
-          q.w.push_back(r.w[i] / sub);
-        }
+      const QuadratureRule q = compositeGaussLegendre(kRuleHigh - ruleIndex, sub);
       double sum = 0;
       for (size_t i = 0; i < q.x.size(); ++i)
         for (size_t j = 0; j < q.x.size(); ++j) {
@@ -302,19 +295,17 @@ void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fi
           const double qx = qx0 - k2.x, qy = qy0 - k2.y, qz = -nI * k0 * wi.z - k2.z;
           nodes.weights(qz, w.data());
           Complex Is = 0, Ip = 0;
-          const long ia0 = std::max(a0, long(std::ceil((qx - reach) * Lx / (2 * kPi))));
-          const long ia1 = std::min(a1, long(std::floor((qx + reach) * Lx / (2 * kPi))));
-          const long ib0 = std::max(b0, long(std::ceil((qy - reach) * Ly / (2 * kPi))));
-          const long ib1 = std::min(b1, long(std::floor((qy + reach) * Ly / (2 * kPi))));
-          for (long a = ia0; a <= ia1; ++a) {
+          const auto [ia0, ia1] = ordersWithin(qx, reach, Lx);
+          const auto [ib0, ib1] = ordersWithin(qy, reach, Ly);
+          for (long a = std::max(a0, ia0); a <= std::min(a1, ia1); ++a) {
             const double dx = sigma * (qx - 2 * kPi * double(a) / Lx), wx = std::exp(-0.5 * dx * dx);
-            for (long b = ib0; b <= ib1; ++b) {
+            for (long b = std::max(b0, ib0); b <= std::min(b1, ib1); ++b) {
               const double dy = sigma * (qy - 2 * kPi * double(b) / Ly), wab = wx * std::exp(-0.5 * dy * dy);
               const Complex* t = &T[(size_t(a - a0) * nb + size_t(b - b0)) * N * 8];
               Complex s = 0, p = 0;
               for (size_t m = 0; m < N; ++m, t += 8) {
-                s += w[m] * (t[0] + k2.x * t[1] + k2.y * t[2] + k2.z * t[3]);
-                p += w[m] * (t[4] + k2.x * t[5] + k2.y * t[6] + k2.z * t[7]);
+                s += w[m] * HeightfieldSpectrum::combine(t, 1, k2);
+                p += w[m] * HeightfieldSpectrum::combine(t + 4, 1, k2);
               }
               Is += wab * s;
               Ip += wab * p;
@@ -335,11 +326,7 @@ WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::opt
   const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();
   const wave::Media media(ctx_);
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
-  bool transmissionWanted = !media.conductor();
-  if (transmissionWanted && !exitMask.empty()) {
-    transmissionWanted = false;
-    for (int b = 0; b < nB; ++b) transmissionWanted = transmissionWanted || (grid.isUpper(b) != fromAbove && exitMask[size_t(b)]);
-  }
+  const bool transmissionWanted = !media.conductor() && wave::otherSideWanted(grid, fromAbove, exitMask);
   const auto rule = wave::incidenceRule(grid, incidenceBin, exactDirection, ctx_.settings.incidenceDirections);
   WaveTileResult r(nL, nB, false);
   const size_t n = size_t(nL) * size_t(nB);
@@ -392,9 +379,10 @@ std::string fftUnsuitable(const Microgeometry& g, const Material& material, cons
   if (!g.periodic || sigma <= 0) return "needs a periodic patch and a coherence window";
   const std::optional<HeightGrid> hg = heightGridOf(g);
   if (!hg) return "needs a heightfield geometry (gaussian, noise, flat or heightmap)";
-  const int r = fourierRefinement(std::max(g.sizeX / hg->nx, g.sizeY / hg->ny), fourierMaxTexel(material, lambda_um));
+  const double texel = std::max(g.sizeX / hg->nx, g.sizeY / hg->ny), maxTexel = fourierMaxTexel(material, lambda_um);
+  const int r = fourierRefinement(texel, maxTexel);
   const double cells = double(hg->nx) * hg->ny * double(r) * double(r);
-  if (cells > double(kMaxFourierCells) || std::max(g.sizeX / hg->nx, g.sizeY / hg->ny) / r > fourierMaxTexel(material, lambda_um))
+  if (cells > double(kMaxFourierCells) || texel / r > maxTexel)
     return "would need " + std::to_string(static_cast<long long>(hg->nx) * r) + " x " +
            std::to_string(static_cast<long long>(hg->ny) * r) +
            " texels (texels split " + std::to_string(r) + " x " + std::to_string(r) +

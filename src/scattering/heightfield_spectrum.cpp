@@ -19,13 +19,14 @@ constexpr double kLatticeOffset[2][2] = {{2.0 / 3.0, 1.0 / 3.0}, {1.0 / 3.0, 2.0
 constexpr double kInterpolationError = 1e-7;  // relative, on the amplitude
 }  // namespace
 
+double indexSum(const Material& material, double lambda_um) {
+  const double reflection = 2 * material.outsideIor;
+  return material.isConductor() ? reflection : std::max(reflection, material.outsideIor + material.ior(lambda_um).real());
+}
+
 double fourierMaxTexel(const Material& material, const std::vector<double>& lambda_um) {
   double texel = 1e300;
-  for (double l : lambda_um) {
-    // Reflection: n_i + n_o = 2 n_outside; a dielectric also transmits (either way round).
-    const double nSum = material.isConductor() ? 2 * material.outsideIor : material.outsideIor + material.ior(l).real();
-    texel = std::min(texel, l / (kFourierTexelsPerPeriod * std::max(nSum, 2 * material.outsideIor)));
-  }
+  for (double l : lambda_um) texel = std::min(texel, l / (kFourierTexelsPerPeriod * indexSum(material, l)));
   return texel;
 }
 

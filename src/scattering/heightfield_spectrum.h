@@ -48,6 +48,8 @@ namespace mbsdf {
 // the shortest period 2π/|G| among the propagating orders; and the power-of-2 split that gets a
 // heightfield's texel below it.
 inline constexpr double kFourierTexelsPerPeriod = 4.0;
+// n_i + n_o at its largest for one wavelength: reflection 2 n_outside; a dielectric also transmits.
+double indexSum(const Material& material, double lambda_um);
 double fourierMaxTexel(const Material& material, const std::vector<double>& lambda_um);
 int fourierRefinement(double texel, double maxTexel);
 
@@ -56,7 +58,7 @@ class HeightfieldSpectrum {
   // `grid` must describe `geometry` (heightGridOf); the scene is used for the shadow rays. Texels
   // larger than maxTexel_um are split (by powers of 2) into smaller facets of the same planes.
   HeightfieldSpectrum(const Microgeometry& geometry, const HeightGrid& grid, const PeriodicScene& scene,
-                      double maxTexel_um = 0);
+                      double maxTexel_um);
 
   // The facets lit from ωi (front-facing and unshadowed), one ray per centroid; counts rays.
   std::vector<uint8_t> lit(const Vec3& wi, bool fromAbove, uint64_t* rays) const;
@@ -100,6 +102,11 @@ class HeightfieldSpectrum {
   //   (*out)[((pol * 4 + field) * na + (a − a0)) * nb + (b − b0)],  field 0..3 = X, Bx, By, Bz.
   // 16 FFTs (4 fields x 2 polarisations x 2 facet lattices), in parallel.
   void nodeTables(const FacetFields& f, double qn, long a0, long a1, long b0, long b1, std::vector<Complex>* out) const;
+
+  // X + B·k2 from (X, Bx, By, Bz) stored `stride` apart: a facet's, or a table's Ĥ at one order.
+  static Complex combine(const Complex* t, size_t stride, const Vec3& k2) {
+    return t[0] + k2.x * t[stride] + k2.y * t[2 * stride] + k2.z * t[3 * stride];
+  }
 
   // The term of one facet in Ĥ_G (s, p), for the masking correction; q the full k1 − k2.
   std::array<Complex, 2> facetTerm(const FacetFields& f, size_t t, const Vec3& q, const Vec3& k2) const;

@@ -180,6 +180,10 @@ void exactAmplitude(const WaveContext& ctx, const Order& ord, const Vec3& wi, bo
 void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectrum, const std::vector<Order>& orders,
                        const Vec3& wi, bool fromAbove, const wave::Media& media, bool masked, Complex* H, uint64_t* rays) {
   const std::vector<uint8_t> lit = spectrum.lit(wi, fromAbove, rays);
+  // Triangles of the geometry with a lit facet (the masking correction visits only those).
+  std::vector<uint8_t> anyLit(spectrum.parents(), 0);
+  for (size_t p = 0; p < spectrum.parents(); ++p)
+    for (const uint32_t* c = spectrum.childrenBegin(p); c != spectrum.childrenEnd(p) && !anyLit[p]; ++c) anyLit[p] = lit[*c];
   const int nL = int(ctx.lambda_um.size());
   for (int l = 0; l < nL; ++l)
     for (int trans = 0; trans < 2; ++trans) {
@@ -211,9 +215,8 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
             const Vec3 k2 = ord.wo * (nO * k0);
             const size_t cell = size_t(ord.a - a0) * nb + size_t(ord.b - b0);
             for (int pol = 0; pol < 2; ++pol) {
-              const Complex* T = &tab[size_t(pol) * 4 * na * nb + cell];
-              const size_t f = na * nb;
-              H[4 * group[g] + size_t(pol)] += w[g * N + n] * (T[0] + k2.x * T[f] + k2.y * T[2 * f] + k2.z * T[3 * f]);
+              H[4 * group[g] + size_t(pol)] +=
+                  w[g * N + n] * HeightfieldSpectrum::combine(&tab[size_t(pol) * 4 * na * nb + cell], na * nb, k2);
             }
           });
         }
@@ -227,9 +230,6 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
         const Vec3& wo = orders[o].wo;
         if (std::abs(wo.z) <= spectrum.maxSlope() * std::hypot(wo.x, wo.y)) grazing.push_back(o);
       }
-      std::vector<uint8_t> anyLit(spectrum.parents(), 0);
-      for (size_t p = 0; p < spectrum.parents(); ++p)
-        for (const uint32_t* c = spectrum.childrenBegin(p); c != spectrum.childrenEnd(p) && !anyLit[p]; ++c) anyLit[p] = lit[*c];
       std::vector<uint64_t> grazingRays(grazing.size(), 0);
       tbb::parallel_for(size_t(0), grazing.size(), [&](size_t g) {
         const Order& ord = orders[grazing[g]];
@@ -322,9 +322,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   const int K = deterministic ? int(rule.size()) : exactDirection ? 1 : std::max(2, ctx_.settings.incidenceDirections);
   const bool masked = ctx_.settings.computeMasked;
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
-  bool transmissionWanted = exitMask.empty();
-  for (int b = 0; b < nB && !transmissionWanted; ++b)
-    transmissionWanted = grid.isUpper(b) != fromAbove && exitMask[size_t(b)];
+  const bool transmissionWanted = wave::otherSideWanted(grid, fromAbove, exitMask);
   const wave::Media media(ctx_);
   const double Lx = scene.sizeX(), Ly = scene.sizeY(), area = sampler_.totalArea();
   const double sigma = ctx_.window.sigma();

@@ -57,6 +57,15 @@ inline ExitVisibility visibleExit(const PeriodicScene& scene, const Vec3& x, con
 std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielectric, bool masked,
                           const std::vector<uint8_t>& mask = {});
 
+// Whether any exit bin on the other side of the surface from the light is wanted (an empty mask
+// wants every bin): the transmitted orders and directions can be skipped otherwise.
+inline bool otherSideWanted(const DirectionGrid& grid, bool fromAbove, const std::vector<uint8_t>& mask) {
+  if (mask.empty()) return true;
+  for (int b = 0; b < grid.binCount(); ++b)
+    if (grid.isUpper(b) != fromAbove && mask[size_t(b)]) return true;
+  return false;
+}
+
 // Whether an exit direction is transmitted (the Kirchhoff transmission integrand) or reflected:
 // only a dielectric transmits; a conductor's directions on the other side are reflected (masked).
 inline bool isTransmission(bool conductor, bool fromAbove, const Vec3& wo) {

@@ -116,7 +116,9 @@ TEST(TriangleFourier, TrianglesAnyOrderSliversDegenerate) {
                      referenceUnitFourier(dot(q, e1), dot(q, e2));
       EXPECT_LT(relError(abc, ref), 1e-10) << "qe " << qe << " sliver " << (k % 3 == 1);
       // Small |q|: the integral tends to the area.
-      if (qe <= 1e-3) EXPECT_NEAR(std::abs(abc), 0.5 * length(cross(e1, e2)), 1e-3 * 0.5 * length(cross(e1, e2)) + 1e-300);
+      if (qe <= 1e-3) {
+        EXPECT_NEAR(std::abs(abc), 0.5 * length(cross(e1, e2)), 1e-3 * 0.5 * length(cross(e1, e2)) + 1e-300);
+      }
     }
   }
   const Vec3 a{0, 0, 0}, b{1, 1, 1};
