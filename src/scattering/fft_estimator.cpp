@@ -257,8 +257,9 @@ void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fi
   // Orders within the window's reach of the exit disk; q_z over the whole hemisphere.
   const double reach = kWindowCut / sigma;
   const double qx0 = -nI * k0 * wi.x, qy0 = -nI * k0 * wi.y, qr = nO * k0 + reach;
-  const auto [a0, a1] = ordersWithin(qx0, qr, Lx);
-  const auto [b0, b1] = ordersWithin(qy0, qr, Ly);
+  // Plain variables, not structured bindings: the lambdas below capture them (clang 14).
+  const std::pair<long, long> aRange = ordersWithin(qx0, qr, Lx), bRange = ordersWithin(qy0, qr, Ly);
+  const long a0 = aRange.first, a1 = aRange.second, b0 = bRange.first, b1 = bRange.second;
   const size_t na = size_t(a1 - a0 + 1), nb = size_t(b1 - b0 + 1);
   const auto nodes = spectrum_.qzNodes(std::min(-nI * k0 * wi.z, -nI * k0 * wi.z - zs * nO * k0),
                                        std::max(-nI * k0 * wi.z, -nI * k0 * wi.z - zs * nO * k0));
