@@ -17,7 +17,8 @@ namespace mbsdf {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-// The `exact` pilot costs ∝ facets × propagating orders (π sizeX sizeY / λ² above the surface):
+// The `exact` pilot costs ∝ facets × propagating orders (π sizeX sizeY / λ² above the surface; for a
+// patch that repeats a cell, the cell's facets and orders):
 // 8.2e6 took 28 s for the 10 µm hemispheres (Monte Carlo: 0.85 s), 2.5e3 for a flat 10 µm patch
 // 0.14 s. Above this product the Monte Carlo pilot is used.
 constexpr double kExactPilotMaxWork = 2e5;
@@ -276,8 +277,9 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   {
     const std::vector<double> lambdas = job.lambda_um();
     const double lambdaMin = *std::min_element(lambdas.begin(), lambdas.end());
-    const double work = double(job.geometry.triangles.size()) * kPi * job.geometry.sizeX * job.geometry.sizeY /
-                        (lambdaMin * lambdaMin);
+    // One cell's facets over the cell's orders (lattice_cell.h).
+    const double work = double(job.geometry.triangles.size()) / (job.cellNx * job.cellNy) * kPi * job.cellSizeX() *
+                        job.cellSizeY() / (lambdaMin * lambdaMin);
     if (ws.estimator == "orders" && work <= kExactPilotMaxWork) ws.estimator = "exact";
   }
   ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "geometry/lattice_cell.h"
 #include "job/geometry_factory.h"
 #include "job/params.h"
 #include "job/symmetry.h"
@@ -394,6 +395,12 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       job.symmetryReason = symmetry == "none" ? "none ([directions] symmetry = \"none\")" : "none declared or detected";
   }
 
+  // The lattice cell, where a windowed wave term could use it (it maps every facet a few times).
+  if (!job.statistical && job.geometry.periodic && job.scene.coherenceLength_um > 0 && (job.needsWave() || job.autoComponents)) {
+    const LatticeCell cell = latticeCellOf(job.geometry);
+    job.cellNx = cell.nx;
+    job.cellNy = cell.ny;
+  }
   if ((job.waveEstimator == "orders" || job.waveEstimator == "exact" || job.waveEstimator == "fft") && !job.statistical &&
       !(job.geometry.periodic && job.scene.coherenceLength_um > 0))
     samp.fail("wave_estimator", "\"" + job.waveEstimator + "\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
@@ -410,7 +417,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
 std::string Job::resolvedWaveEstimator() const {
   if (waveEstimator != "auto") return waveEstimator;
   const double sigma = scene.coherenceLength_um / 6.0;
-  if (geometry.periodic && orderLobesSeparate(sigma, geometry.sizeX, geometry.sizeY)) return "orders";
+  if (geometry.periodic && orderLobesSeparate(sigma, cellSizeX(), cellSizeY())) return "orders";
   // Overlapping lobes (speckle) on a heightfield with a disk grid: the deterministic Fourier-domain
   // evaluator (no masked field, size within its limit), whose separable evaluation there is fast;
   // Monte Carlo over such speckle needs far more samples (README "What accuracy costs in time"). On

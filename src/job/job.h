@@ -94,9 +94,15 @@ struct Job {
   std::string outputPath = "out.h5";
   bool previews = false;
 
+  // The cell the periodic patch repeats, nx x ny times (geometry/lattice_cell.h; 1 x 1 when it does
+  // not, or when the job has no windowed wave term to use it for): its order lobes are 2π/L_cell
+  // apart, which decides the grating-order regime.
+  int cellNx = 1, cellNy = 1;
+  double cellSizeX() const { return geometry.sizeX / cellNx; }
+  double cellSizeY() const { return geometry.sizeY / cellNy; }
   bool needsWave() const { return components.has(Component::Incoherent) || components.has(Component::Lost); }
-  // "auto": `orders` for a periodic patch under a coherence window wider than about one period
-  // (2πσ/L >= 4: neighbouring order lobes are >= 5.7 standard deviations apart); `fft` for a periodic
+  // "auto": `orders` for a periodic patch under a coherence window wider than about one period of
+  // its cell (2πσ/L_cell >= 4: neighbouring order lobes are >= 5.7 standard deviations apart); `fft` for a periodic
   // heightfield under a narrower window on a disk grid without the lost component; otherwise `area`.
   std::string resolvedWaveEstimator() const;
   // Why the wave term of this job is not halved by reciprocity (PHYSICS.md §8), or "" when it is:

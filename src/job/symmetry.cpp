@@ -1,6 +1,7 @@
 #include "job/symmetry.h"
 
 #include "geometry/embree_scene.h"
+#include "geometry/facet_index.h"
 
 #include <algorithm>
 #include <array>
@@ -31,101 +32,13 @@ bool mirrorOfSurface(const Microgeometry& g, const std::vector<std::pair<Vec3, V
 }  // namespace
 
 PatchSymmetry patchSymmetryOf(const Microgeometry& g) {
-  if (g.triangles.empty() || !(g.sizeX > 0 && g.sizeY > 0)) return {};
-  // Centroids match within 1e-6 of the patch size along each axis (a long thin patch needs the
-  // tolerance of its short side: with the long side's, a mirrored centroid of a 5000 × 1 µm grating
-  // "matched" another facet a third of a row away).
-  const Vec3 tol{1e-6 * g.sizeX, 1e-6 * g.sizeY, 1e-6 * std::max(g.sizeX, g.sizeY)}, cell = tol * 2.0;
-  // Facets by centroid (wrapped into the periodic cell) and unit normal, hashed by the cell of
-  // 2 tol that holds the centroid: a cell holds only facets whose centroids nearly coincide, so a
-  // lookup costs O(1) for any patch shape (a grid of cells of 1e-3 L held thousands of facets each
-  // on a 5000 × 1 µm grating of 1e7 facets: `check` took 227 s, now 11 s, most of it the mirror's
-  // ray test).
-  auto wrap = [&](double v, double size) { return g.periodic && size > 0 ? v - size * std::floor(v / size + 0.5) : v; };
-  using Key = std::array<int32_t, 3>;
-  std::vector<std::pair<Vec3, Vec3>> facets;
-  facets.reserve(g.triangles.size());
-  // Cell indices fit in int32 for centroids within 4e3 patch sizes of the centre; a patch with
-  // facets beyond that (or with 2^32 of them) is not checked.
-  constexpr double kMaxIndex = 2e9;
-  auto indexable = [&](const Vec3& c) {
-    return std::abs(c.x) < 0.5 * kMaxIndex * cell.x && std::abs(c.y) < 0.5 * kMaxIndex * cell.y &&
-           std::abs(c.z) < 0.5 * kMaxIndex * cell.z;
-  };
-  if (g.triangles.size() >= std::numeric_limits<uint32_t>::max()) return {};
-  for (size_t t = 0; t < g.triangles.size(); ++t) {
-    const auto& tri = g.triangles[t];
-    Vec3 c = (g.vertices[tri[0]] + g.vertices[tri[1]] + g.vertices[tri[2]]) * (1.0 / 3.0);
-    c = {wrap(c.x, g.sizeX), wrap(c.y, g.sizeY), c.z};
-    if (!indexable(c)) return {};
-    facets.push_back({c, normalize(g.triangleNormal(t))});
-  }
-  auto keyOf = [&](const Vec3& c) {
-    return Key{int32_t(std::floor(c.x / cell.x)), int32_t(std::floor(c.y / cell.y)), int32_t(std::floor(c.z / cell.z))};
-  };
-  // An open-addressing hash table (linear probing, load ≤ 1/2) from cell to the facets in it.
-  size_t capacity = 1;
-  while (capacity < 2 * facets.size()) capacity *= 2;
-  const size_t mask = capacity - 1;
-  constexpr uint32_t kEmpty = std::numeric_limits<uint32_t>::max();
-  std::vector<uint32_t> table(capacity, kEmpty);
-  auto slotOf = [&](const Key& k) {
-    // splitmix64's finaliser over the three indices: short probe chains whatever the mesh's layout.
-    auto mix = [](uint64_t z) {
-      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-      z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-      return z ^ (z >> 31);
-    };
-    return size_t(mix(mix(mix(uint32_t(k[0])) + uint32_t(k[1])) + uint32_t(k[2]))) & mask;
-  };
-  // More than 64 facets whose centroids coincide within 2e-6 L: a degenerate mesh whose
-  // symmetries this test cannot tell apart (and whose lookups would no longer be cheap).
-  constexpr int kMaxPerCell = 64;
-  for (size_t f = 0; f < facets.size(); ++f) {
-    const Key k = keyOf(facets[f].first);
-    size_t pos = slotOf(k);
-    int same = 0;
-    for (; table[pos] != kEmpty; pos = (pos + 1) & mask) same += keyOf(facets[table[pos]].first) == k;
-    if (same >= kMaxPerCell) return {};
-    table[pos] = uint32_t(f);
-  }
-  // Is there a facet at centroid c with normal n? The match lies in c's cell or a neighbour; near
-  // the edge of a periodic cell it may sit on the other side: the point is also looked up shifted
-  // by one period.
-  auto foundNear = [&](const Vec3& c, const Vec3& n) {
-    if (!indexable(c)) return false;
-    const Key k = keyOf(c);
-    auto matchIn = [&](int dx, int dy, int dz) {
-      const Key cellKey{k[0] + dx, k[1] + dy, k[2] + dz};
-      for (size_t pos = slotOf(cellKey); table[pos] != kEmpty; pos = (pos + 1) & mask) {
-        const auto& [fc, fn] = facets[table[pos]];
-        const Vec3 d = fc - c;
-        if (std::abs(d.x) <= tol.x && std::abs(d.y) <= tol.y && std::abs(d.z) <= tol.z && dot(fn, n) > 1 - 1e-9) return true;
-      }
-      return false;
-    };
-    if (matchIn(0, 0, 0)) return true;
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz)
-          if ((dx || dy || dz) && matchIn(dx, dy, dz)) return true;
-    return false;
-  };
-  auto found = [&](const Vec3& c, const Vec3& n) {
-    if (foundNear(c, n)) return true;
-    if (!g.periodic) return false;
-    const bool edgeX = std::abs(c.x) > 0.5 * g.sizeX - 2 * cell.x, edgeY = std::abs(c.y) > 0.5 * g.sizeY - 2 * cell.y;
-    for (int sx = edgeX ? -1 : 0; sx <= (edgeX ? 1 : 0); ++sx)
-      for (int sy = edgeY ? -1 : 0; sy <= (edgeY ? 1 : 0); ++sy)
-        if ((sx || sy) && foundNear(c + Vec3{sx * g.sizeX, sy * g.sizeY, 0}, n)) return true;
-    return false;
-  };
+  const FacetIndex index(g);
+  if (!index.usable()) return {};
+  auto wrap = [&](double v, double size) { return index.wrap(v, size); };
   // Invariance under the map (x, y) -> (a x + b y, c x + d y) of centroids and normals.
   auto invariantUnder = [&](double a, double b, double c, double d) {
-    for (const auto& [p, n] : facets) {
-      const Vec3 rp{wrap(a * p.x + b * p.y, g.sizeX), wrap(c * p.x + d * p.y, g.sizeY), p.z};
-      if (!found(rp, {a * n.x + b * n.y, c * n.x + d * n.y, n.z})) return false;
-    }
+    for (const auto& [p, n] : index.facets())
+      if (!index.find({a * p.x + b * p.y, c * p.x + d * p.y, p.z}, {a * n.x + b * n.y, c * n.x + d * n.y, n.z})) return false;
     return true;
   };
   auto rotation = [&](int order) {
@@ -133,9 +46,9 @@ PatchSymmetry patchSymmetryOf(const Microgeometry& g) {
     return invariantUnder(std::cos(t), -std::sin(t), std::sin(t), std::cos(t));
   };
   PatchSymmetry s;
-  if (std::abs(g.sizeX - g.sizeY) <= tol.x && rotation(4)) s.rotationOrder = 4;
+  if (std::abs(g.sizeX - g.sizeY) <= 1e-6 * g.sizeX && rotation(4)) s.rotationOrder = 4;
   else if (rotation(2)) s.rotationOrder = 2;
-  s.mirror = invariantUnder(1, 0, 0, -1) || mirrorOfSurface(g, facets, wrap);
+  s.mirror = invariantUnder(1, 0, 0, -1) || mirrorOfSurface(g, index.facets(), wrap);
   return s;
 }
 

@@ -91,11 +91,14 @@ std::array<Vec3, 4> firstLevelPoints(const Vec3& a, const Vec3& b, const Vec3& c
 // Shadowing of the first-level points of every facet towards ωi (bit k: point k is lit; 0 for a
 // facet facing away), computed once per incidence direction and shared by every order and
 // wavelength: the shared visibility table of issue 10 for the rays that do not depend on ωo.
-std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const Vec3& wi, bool fromAbove, uint64_t* rays) {
+// Only the facets of `cell` (one cell of a patch that repeats it) are visited.
+std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCell& cell, const Vec3& wi, bool fromAbove,
+                                         uint64_t* rays) {
   const Microgeometry& g = ctx.geometry;
   std::vector<uint8_t> lit(g.triangles.size(), 0);
   std::atomic<uint64_t> count{0};
-  tbb::parallel_for(size_t(0), g.triangles.size(), [&](size_t t) {
+  tbb::parallel_for(size_t(0), cell.facets.size(), [&](size_t f) {
+    const size_t t = cell.facets[f];
     const Vec3 n = g.triangleNormal(t);
     if (dot(n, n) == 0) return;
     const Vec3 m = fromAbove ? normalize(n) : -normalize(n);
@@ -114,16 +117,18 @@ std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const Vec3& wi,
 
 // Ĥ_G = Σ_T V_T g_T ∫_T e^{i q·x} dA for one order (header): H[0..1] = visible s, p; H[2..3] = masked
 // s, p (only with `masked`). Facets are visited in index order: the sum is deterministic. `lit`:
-// firstLevelShadowing for this ωi (deeper points cast their own shadow rays).
-void exactAmplitude(const WaveContext& ctx, const Order& ord, const Vec3& wi, bool fromAbove, const wave::Media& media,
-                    bool masked, const std::vector<uint8_t>& lit, Complex* H, uint64_t* rays) {
+// firstLevelShadowing for this ωi (deeper points cast their own shadow rays). The order lies on
+// the reciprocal lattice of `cell`, so the patch's sum is nx ny times the cell's (lattice_cell.h).
+void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Order& ord, const Vec3& wi, bool fromAbove,
+                    const wave::Media& media, bool masked, const std::vector<uint8_t>& lit, Complex* H, uint64_t* rays) {
   constexpr int kMaxDepth = 3;
   const Microgeometry& g = ctx.geometry;
   const int l = ord.lambda;
   const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
   const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
   const Vec3 q = wi * (-nI * k0) - ord.wo * (nO * k0);  // k1 − k2, as in kirchhoffIntegrand
-  for (size_t t = 0; t < g.triangles.size(); ++t) {
+  Complex Hc[4] = {0, 0, 0, 0};
+  for (const uint32_t t : cell.facets) {
     const auto& tri = g.triangles[t];
     const Vec3 n = g.triangleNormal(t);
     if (dot(n, n) == 0) continue;  // degenerate: no area
@@ -149,8 +154,8 @@ void exactAmplitude(const WaveContext& ctx, const Order& ord, const Vec3& wi, bo
     auto add = [&](const Vec3& a, const Vec3& b, const Vec3& c, int st) {
       if (st == 0 || (st == 2 && !masked)) return;
       const Complex f = triangleFourier(a, b, c, q);
-      H[st == 1 ? 0 : 2] += g0.s * f;
-      H[st == 1 ? 1 : 3] += g0.p * f;
+      Hc[st == 1 ? 0 : 2] += g0.s * f;
+      Hc[st == 1 ? 1 : 3] += g0.p * f;
     };
     // Visibility by the centroid and three points inset towards the vertices; split where they
     // disagree.
@@ -173,6 +178,7 @@ void exactAmplitude(const WaveContext& ctx, const Order& ord, const Vec3& wi, bo
     };
     element(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0);
   }
+  for (int i = 0; i < 4; ++i) H[i] += double(cell.copies()) * Hc[i];
 }
 
 // fft (header): Ĥ_G of every order from the heightfield's FFT tables, one group of orders per
@@ -271,7 +277,7 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
 }  // namespace
 
 OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx, OrderAmplitudes amplitudes)
-    : ctx_(ctx), sampler_(ctx.geometry), amplitudes_(amplitudes) {
+    : ctx_(ctx), sampler_(ctx.geometry), amplitudes_(amplitudes), cell_(latticeCellOf(ctx.geometry)) {
   if (!ctx.scene.periodic() || !ctx.window.active())
     throw std::invalid_argument("the " + name() + " estimator needs a periodic patch and a coherence window");
   if (amplitudes == OrderAmplitudes::Fourier) {
@@ -286,6 +292,9 @@ OrdersWaveEstimator::~OrdersWaveEstimator() = default;
 std::string OrdersWaveEstimator::notes() const {
   if (amplitudes_ == OrderAmplitudes::MonteCarlo) return "";
   std::string s = "deterministic (no sampling error; incidence bins by Gauss-Legendre)";
+  if (cell_.copies() > 1 && amplitudes_ == OrderAmplitudes::Exact)
+    s += "; the facets of one cell summed (" + std::to_string(cell_.facets.size()) + " of " +
+         std::to_string(ctx_.geometry.triangles.size()) + ")";
   if (spectrum_)
     s += "; " + std::to_string(spectrum_->nx()) + " x " + std::to_string(spectrum_->ny()) + " FFT of the facets (texels split " +
          std::to_string(spectrum_->refinement()) + " x " + std::to_string(spectrum_->refinement()) + ")";
@@ -354,9 +363,11 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         if (side == 1 && !(masked && media.conductor())) continue;
         const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
         const double reach = nO * k0 + nI * k0;  // |G| can be at most this for a propagating order
-        const long amax = long(std::ceil(reach * Lx / (2 * kPi))), bmax = long(std::ceil(reach * Ly / (2 * kPi)));
-        for (long a = -amax; a <= amax; ++a)
-          for (long b = -bmax; b <= bmax; ++b) {
+        // Only the orders of the cell's lattice carry power (lattice_cell.h): a = nx a', b = ny b'.
+        const long amax = long(std::ceil(reach * cell_.sizeX / (2 * kPi))), bmax = long(std::ceil(reach * cell_.sizeY / (2 * kPi)));
+        for (long ac = -amax; ac <= amax; ++ac)
+          for (long bc = -bmax; bc <= bmax; ++bc) {
+            const long a = ac * cell_.nx, b = bc * cell_.ny;
             double x = -(2 * kPi * a / Lx + nI * k0 * wi.x) / (nO * k0);
             double y = -(2 * kPi * b / Ly + nI * k0 * wi.y) / (nO * k0);
             double r2 = x * x + y * y;
@@ -378,7 +389,9 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       }
     }
     const size_t nO = orders.size();
-    pointOrderPairs += uint64_t(deterministic ? ctx_.geometry.triangles.size() : size_t(N)) * nO;
+    pointOrderPairs += uint64_t(amplitudes_ == OrderAmplitudes::Exact ? cell_.facets.size()
+                                : deterministic                     ? ctx_.geometry.triangles.size()
+                                                                    : size_t(N)) * nO;
     // Accumulators per order, polarisation, group and visible/masked: Σ X.
     std::vector<Complex> S(nO * 2 * kGroups * 2, 0.0);
     auto idx = [&](size_t o, int pol, int g, int msk) { return ((o * 2 + pol) * kGroups + g) * 2 + msk; };
@@ -392,11 +405,11 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       rays += fourierRays;
     } else if (amplitudes_ == OrderAmplitudes::Exact) {
       uint64_t shadowRays = 0;
-      const std::vector<uint8_t> lit = firstLevelShadowing(ctx_, wi, fromAbove, &shadowRays);
+      const std::vector<uint8_t> lit = firstLevelShadowing(ctx_, cell_, wi, fromAbove, &shadowRays);
       rays += shadowRays;
       std::vector<uint64_t> orderRays(nO, 0);
       tbb::parallel_for(size_t(0), nO, [&](size_t o) {
-        exactAmplitude(ctx_, orders[o], wi, fromAbove, media, masked, lit, &H[4 * o], &orderRays[o]);
+        exactAmplitude(ctx_, cell_, orders[o], wi, fromAbove, media, masked, lit, &H[4 * o], &orderRays[o]);
       });
       for (uint64_t v : orderRays) rays += v;
     } else {

@@ -33,6 +33,7 @@
 #pragma once
 #include <memory>
 
+#include "geometry/lattice_cell.h"
 #include "geometry/surface_sampler.h"
 #include "scattering/wave_estimator.h"
 
@@ -58,6 +59,7 @@ class OrdersWaveEstimator : public WaveEstimator {
   WaveContext ctx_;
   SurfaceSampler sampler_;
   OrderAmplitudes amplitudes_;
+  LatticeCell cell_;  // the cell the patch repeats: orders on its lattice only
   std::unique_ptr<HeightfieldSpectrum> spectrum_;
 };
 

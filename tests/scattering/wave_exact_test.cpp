@@ -48,13 +48,13 @@ namespace {
 // `exact` against a Monte Carlo estimator with many samples on the same patch and collimated beam:
 // every bin the reference resolves (f > 3 SE) within 4 SE, and the hemisphere's energy within 4 SE.
 void expectExactMatchesMonteCarlo(const Microgeometry& g, const std::string& reference, int samples, double theta_deg,
-                                  double phi_deg) {
+                                  double phi_deg, double coherenceLength_um = 60.0) {
   WaveSettings ex, mc;
   ex.estimator = "exact";
   mc.estimator = reference;
   mc.samplesPerBin = samples;
-  WaveScenario a(g, material("mirror"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, ex);
-  WaveScenario b(g, material("mirror"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, mc);
+  WaveScenario a(g, material("mirror"), ThetaPhiGrid{12, 24}, {0.6}, coherenceLength_um, ex);
+  WaveScenario b(g, material("mirror"), ThetaPhiGrid{12, 24}, {0.6}, coherenceLength_um, mc);
   WaveTileResult ra = a.run(theta_deg, phi_deg, true), rb = b.run(theta_deg, phi_deg, true);
   int tested = 0;
   double z2 = 0;
@@ -105,4 +105,30 @@ TEST(WaveExact, OverhangMatchesMonteCarlo) {
 // 58 bins agree with mean z² 1.25.)
 TEST(WaveExact, NoiseHeightfieldMatchesMonteCarlo) {
   expectExactMatchesMonteCarlo(makeNoise(5, 5, 0.15, 0.8, 2.0, 48, 48, 7), "orders", 1 << 17, 30.0, 0.0);
+}
+
+// A patch of nx x ny copies of a cell (geometry/lattice_cell.h) has order amplitudes only on the
+// cell's lattice, nx ny times the cell's: `exact` on 2 x 2 hemisphere cells gives the single cell's
+// table (same window) from one cell's facets, to 1e-7 (measured 3e-9: the window's normalisation W2
+// sums the copies within ±4σ, which fall slightly differently for a 5 and a 10 µm patch).
+TEST(WaveExact, LatticeOfCellsGivesTheCellsTable) {
+  WaveSettings ws;
+  ws.estimator = "exact";
+  const WaveScenario one(makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, ws);
+  const WaveScenario four(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, ws);
+  const WaveTileResult a = one.run(50.0, 20.0, true), b = four.run(50.0, 20.0, true);
+  const double ea = one.integral(a.fws, a.fwsErr, 0, true).first, eb = four.integral(b.fws, b.fwsErr, 0, true).first;
+  EXPECT_NEAR(eb, ea, 1e-7 * ea);
+  for (size_t i = 0; i < a.fws.size(); ++i) EXPECT_NEAR(b.fws[i], a.fws[i], 1e-7 * (1 + std::abs(a.fws[i]))) << i;
+  EXPECT_EQ(b.samples, a.samples);  // facets x orders: one cell's of each
+  EXPECT_NE(four.estimator->notes().find("one cell"), std::string::npos) << four.estimator->notes();
+}
+
+// The window narrower than the patch but wide against its cell (2 x 2 hemisphere cells, 10 µm,
+// δc = 30 µm: 2πσ/L = 3.1 for the patch, 6.3 for the cell): the speckle of the patch's orders is
+// absent because only the cell's orders carry power, so `exact`'s separate lobes hold; against
+// `area` (the windowed integral by Monte Carlo, no order model) at 2^17 within 4 SE (2^15 resolves
+// only 5 bins on this patch).
+TEST(WaveExact, CellLobesUnderAWindowNarrowerThanThePatchMatchArea) {
+  expectExactMatchesMonteCarlo(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25), "area", 1 << 17, 40.0, 20.0, 30.0);
 }
