@@ -26,6 +26,10 @@
 // integrated by an n x n Gauss–Legendre rule in its cosine-weighted sample space (n² >=
 // wave_incidence_directions) and the standard error is estimated as |Q_n − Q_{n−1}| per bin.
 //
+// A patch made of nx x ny copies of a smaller cell (geometry/lattice_cell.h) has Ĥ_G = 0 off the
+// cell's lattice and nx ny times the cell's sum on it: only the cell's orders are enumerated (by
+// every variant), and `exact` sums one cell's facets.
+//
 // `fft` on a heightfield (heightfield_spectrum.h): the same lobes and incidence rule as `exact`,
 // with Ĥ_G of every order from FFTs of the facet fields (one-point rule per facet), and the facets
 // masked from (or facing away from) an order direction below the steepest slope subtracted one by
