@@ -91,6 +91,9 @@ struct Job {
   int64_t waveSamplesPerBin = 256;
   int64_t wavePointsPerDirection = 64;
   int64_t waveIncidenceDirections = 4;
+  // [sampling] visibility_table: "auto", "on" or "off" — the `exact` estimator's shared visibility
+  // table (scattering/visibility_table.h); see visibilityTableResolution().
+  std::string visibilityTable = "auto";
   std::string outputPath = "out.h5";
   bool previews = false;
 
@@ -110,6 +113,11 @@ struct Job {
   // reciprocal), the incoherent component without `lost` (the masked power is not reciprocal) and
   // an estimator whose cost is per exit bin (area, paper).
   std::string reciprocityOffReason() const;
+  // Directions per axis of `exact`'s shared visibility table, or 0 for none. "auto" builds it when
+  // it pays: its 4 (M+1)² rays per facet and hemisphere, cast once per rank, against the 4 rays per
+  // facet and order direction it saves in every tile (tiles x incidence nodes x orders, the orders
+  // π A_cell / λ² per wavelength), and when it fits in 1 GB. M = 128 (1.6° cells at the zenith).
+  int visibilityTableResolution() const;
   bool halvesWaveByReciprocity() const { return reciprocityOffReason().empty(); }
   // Sphere bin of each incidence direction, in incidence order.
   std::vector<int> incidenceBins() const {

@@ -77,7 +77,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   for (int t : pilots) pilotSeconds += transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t)).seconds / pilots.size();
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
   const double pathSeconds = pilotSeconds * double(job.pathsPerSlice) / double(pilotPaths);
-  double waveSeconds = 0, waveBytes = 0;
+  double waveSeconds = 0, waveBytes = 0, waveSetupSeconds = 0;
   if (job.needsWave()) {
     WaveSettings ws = waveSettingsOf(job);
     ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
@@ -85,7 +85,11 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
     // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
     const double scale = est->deterministic() ? 1.0 : double(job.waveSamplesPerBin) / double(ws.samplesPerBin);
-    for (int t : pilots) waveSeconds += est->run(t, job.incidence[size_t(t)].bin, exactOf(t)).seconds * scale / pilots.size();
+    for (int t : pilots) waveSeconds += est->run(t, job.incidence[size_t(t)].bin, exactOf(t)).seconds;
+    // What the first pilot built for every later tile (exact's visibility table) is paid once per
+    // rank, not per tile.
+    waveSetupSeconds = est->setupSeconds();
+    waveSeconds = (waveSeconds - waveSetupSeconds) * scale / double(pilots.size());
     waveBytes = est->memoryBytes();
   }
   // Reciprocity (PHYSICS.md §8): the wave term of each pair of incidence bins once. The pilot ran
@@ -129,7 +133,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     }
     for (const char* ext : {"", ".partial", ".journal"}) std::filesystem::remove(scratch + ext);
   }
-  const double coreHours = tileSeconds * computedTiles * cores / 3600.0;
+  const double coreHours = (tileSeconds * computedTiles + waveSetupSeconds) * cores / 3600.0;
   p["pilot"] = {{"tile", pilot},
                 {"tiles", pilots},
                 {"theta_deg", inc.theta_deg},
@@ -147,9 +151,11 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   p["estimate"] = {{"seconds_per_tile", tileSeconds},
                    {"path_seconds_per_tile", pathSeconds},
                    {"wave_seconds_per_tile", waveSeconds},
+                   {"wave_setup_seconds_per_rank", waveSetupSeconds},
                    {"write_seconds_per_slice", writeSeconds},
                    {"wall_seconds_on_these_cores",
-                    tileSeconds * computedTiles + writeSeconds * nTiles + sceneSeconds + (effects.is_null() ? 0.0 : effects["pilot_seconds"].get<double>())},
+                    tileSeconds * computedTiles + waveSetupSeconds + writeSeconds * nTiles + sceneSeconds +
+                        (effects.is_null() ? 0.0 : effects["pilot_seconds"].get<double>())},
                    {"core_hours", coreHours}};
   // Output: float32 value + standard error per component, uncompressed upper bound.
   const double outBytes = double(nTiles) * nL * nB * 4.0 * 2.0 * double(comps.size());
@@ -164,7 +170,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   // Suggested Slurm resources: ranks of 8 cores, enough to finish in about 12 hours.
   const int cpusPerTask = 8;
   int ntasks = std::max(1, std::min(computedTiles, int(std::ceil(coreHours / (12.0 * cpusPerTask)))));
-  double wallHours = tileSeconds * cores / cpusPerTask * std::ceil(double(computedTiles) / ntasks) / 3600.0;
+  double wallHours =
+      (tileSeconds * std::ceil(double(computedTiles) / ntasks) + waveSetupSeconds) * cores / cpusPerTask / 3600.0;
   int minutes = int(std::ceil(wallHours * 60 * 1.3)) + 10;
   std::ostringstream sb;
   sb << "#SBATCH --ntasks=" << ntasks << "\n#SBATCH --cpus-per-task=" << cpusPerTask << "\n#SBATCH --time="
@@ -210,7 +217,11 @@ std::string formatPlan(const nlohmann::json& p) {
     << " cores\n"
     << "per tile:       " << n(p["estimate"]["seconds_per_tile"]) << " s (paths " << n(p["estimate"]["path_seconds_per_tile"])
     << " s, wave " << n(p["estimate"]["wave_seconds_per_tile"]) << " s) on these cores; writing "
-    << n(p["estimate"]["write_seconds_per_slice"]) << " s per slice\n"
+    << n(p["estimate"]["write_seconds_per_slice"]) << " s per slice"
+    << (p["estimate"]["wave_setup_seconds_per_rank"].get<double>() > 0
+            ? "; once per rank " + n(p["estimate"]["wave_setup_seconds_per_rank"]) + " s (exact's visibility table)"
+            : std::string())
+    << "\n"
     << "total:          " << n(p["estimate"]["core_hours"]) << " core-hours; "
     << n(p["estimate"]["wall_seconds_on_these_cores"]) << " s on these cores\n"
     << (p.contains("progressive")

@@ -44,6 +44,7 @@ WaveSettings waveSettingsOf(const Job& job) {
   ws.incidenceDirections = int(job.waveIncidenceDirections);
   ws.seed = job.seed;
   ws.computeMasked = job.components.has(Component::Lost);
+  ws.visibilityTable = job.visibilityTableResolution();
   return ws;
 }
 

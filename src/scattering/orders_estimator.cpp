@@ -12,6 +12,7 @@
 #include "core/rng.h"
 #include "scattering/heightfield_spectrum.h"
 #include "scattering/triangle_fourier.h"
+#include "scattering/visibility_table.h"
 #include "scattering/wave_common.h"
 
 using mbsdf::wave::ExitVisibility;
@@ -81,19 +82,13 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
     }
 }
 
-// The four first-level visibility points of a facet (its centroid and three points inset towards
-// the vertices), where `exact` decides whether to split it.
-std::array<Vec3, 4> firstLevelPoints(const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ctr = (a + b + c) * (1.0 / 3.0);
-  return {ctr, ctr + (a - ctr) * 0.9, ctr + (b - ctr) * 0.9, ctr + (c - ctr) * 0.9};
-}
-
 // Shadowing of the first-level points of every facet towards ωi (bit k: point k is lit; 0 for a
 // facet facing away), computed once per incidence direction and shared by every order and
 // wavelength: the shared visibility table of issue 10 for the rays that do not depend on ωo.
-// Only the facets of `cell` (one cell of a patch that repeats it) are visited.
-std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCell& cell, const Vec3& wi, bool fromAbove,
-                                         uint64_t* rays) {
+// Only the facets of `cell` (one cell of a patch that repeats it) are visited; `table` (may be
+// null) answers where it can.
+std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
+                                         const Vec3& wi, bool fromAbove, uint64_t* rays) {
   const Microgeometry& g = ctx.geometry;
   std::vector<uint8_t> lit(g.triangles.size(), 0);
   std::atomic<uint64_t> count{0};
@@ -106,29 +101,44 @@ std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCe
     const auto& tri = g.triangles[t];
     const auto pts = firstLevelPoints(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]]);
     uint8_t bits = 0;
-    for (int k = 0; k < 4; ++k)
-      if (wave::escapes(ctx.scene, pts[size_t(k)], m, wi, unsigned(t), fromAbove)) bits |= uint8_t(1 << k);
+    for (int k = 0; k < 4; ++k) {
+      const std::optional<bool> known = table ? table->escapes(uint32_t(t), k, m, wi, fromAbove) : std::nullopt;
+      if (!known) ++count;
+      if (known ? *known : wave::escapes(ctx.scene, pts[size_t(k)], m, wi, unsigned(t), fromAbove)) bits |= uint8_t(1 << k);
+    }
     lit[t] = bits;
-    count += 4;
   });
   *rays += count.load();
   return lit;
 }
 
+// Shadowing towards ωi of the points below the first level of every facet of the cell (the
+// centroid and inset points of its sub-elements down to kMaxDepth: 16 + 64 + 256), found on first
+// use by any order and kept for the others of the same incidence direction: 0 unknown, 1 lit, 2
+// shadowed. Orders run in parallel; two threads may cast the same ray and store the same answer.
+constexpr int kMaxDepth = 3;
+constexpr int kSubPoints = 16 + 64 + 256;
+constexpr int kSubOffset[kMaxDepth + 1] = {0, 0, 16, 80};
+struct ShadowCache {
+  explicit ShadowCache(size_t facets) : state(facets * kSubPoints) {}
+  std::vector<std::atomic<uint8_t>> state;
+};
+
 // Ĥ_G = Σ_T V_T g_T ∫_T e^{i q·x} dA for one order (header): H[0..1] = visible s, p; H[2..3] = masked
 // s, p (only with `masked`). Facets are visited in index order: the sum is deterministic. `lit`:
 // firstLevelShadowing for this ωi (deeper points cast their own shadow rays). The order lies on
 // the reciprocal lattice of `cell`, so the patch's sum is nx ny times the cell's (lattice_cell.h).
-void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Order& ord, const Vec3& wi, bool fromAbove,
-                    const wave::Media& media, bool masked, const std::vector<uint8_t>& lit, Complex* H, uint64_t* rays) {
-  constexpr int kMaxDepth = 3;
+void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table, const Order& ord,
+                    const Vec3& wi, bool fromAbove, const wave::Media& media, bool masked, const std::vector<uint8_t>& lit,
+                    ShadowCache& shadow, Complex* H, uint64_t* rays) {
   const Microgeometry& g = ctx.geometry;
   const int l = ord.lambda;
   const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
   const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
   const Vec3 q = wi * (-nI * k0) - ord.wo * (nO * k0);  // k1 − k2, as in kirchhoffIntegrand
   Complex Hc[4] = {0, 0, 0, 0};
-  for (const uint32_t t : cell.facets) {
+  for (size_t slot = 0; slot < cell.facets.size(); ++slot) {
+    const uint32_t t = cell.facets[slot];
     const auto& tri = g.triangles[t];
     const Vec3 n = g.triangleNormal(t);
     if (dot(n, n) == 0) continue;  // degenerate: no area
@@ -140,14 +150,27 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Order
     // g (s, p) of the facet: the integrand without its phase.
     const KirchhoffValue g0 = kirchhoffIntegrand(Vec3{0, 0, 0}, m, wi, ord.wo, k0, nI, nO, media.fresnel(l, cosLocal, fromAbove),
                                                  ord.transmission);
-    // 0 shadowed, 1 visible, 2 masked, for a point of facet t; `shadowKnown` >= 0: the point's
-    // shadowing from the shared table (1 lit).
-    auto state = [&](const Vec3& x, int shadowKnown) {
-      if (shadowKnown < 0) {
-        ++*rays;
-        if (!wave::escapes(ctx.scene, x, m, wi, unsigned(t), fromAbove)) return 0;
-      } else if (!shadowKnown)
+    // 0 shadowed, 1 visible, 2 masked, for a point of facet t; `firstLevel` >= 0: the point is the
+    // facet's first-level point of that index, whose shadowing is known (`lit`) and whose masking
+    // the shared table may answer (the facet faces ω_G here, so visibleExit's answer is escapes');
+    // otherwise `sub` indexes its shadowing in the cache.
+    auto state = [&](const Vec3& x, int firstLevel, size_t sub) {
+      if (firstLevel < 0) {
+        std::atomic<uint8_t>& known = shadow.state[slot * kSubPoints + sub];
+        uint8_t st = known.load(std::memory_order_relaxed);
+        if (st == 0) {
+          st = wave::escapes(ctx.scene, x, m, wi, unsigned(t), fromAbove) ? 1 : 2;
+          // Counted by the thread that stores it (a ray two threads raced to cast counts once).
+          uint8_t unknown = 0;
+          if (known.compare_exchange_strong(unknown, st, std::memory_order_relaxed)) ++*rays;
+        }
+        if (st == 2) return 0;
+      } else if (!((lit[t] >> firstLevel) & 1))
         return 0;
+      if (table && firstLevel >= 0)
+        if (const auto e = ord.transmission ? table->escapes(t, firstLevel, -m, ord.wo, !fromAbove)
+                                            : table->escapes(t, firstLevel, m, ord.wo, fromAbove))
+          return *e ? 1 : 2;
       const ExitVisibility v = wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(t), fromAbove, ord.transmission, rays);
       return v == ExitVisibility::Visible ? 1 : 2;
     };
@@ -159,24 +182,27 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Order
     };
     // Visibility by the centroid and three points inset towards the vertices; split where they
     // disagree.
-    std::function<void(const Vec3&, const Vec3&, const Vec3&, int)> element = [&](const Vec3& a, const Vec3& b,
-                                                                                    const Vec3& c, int depth) {
-      const auto pts = firstLevelPoints(a, b, c);
-      auto known = [&](int k) { return depth == 0 ? int((lit[t] >> k) & 1) : -1; };
-      const int s0 = state(pts[0], known(0));
-      bool agree = true;
-      for (int k = 1; k < 4; ++k) agree = agree && state(pts[size_t(k)], known(k)) == s0;
-      if (agree || depth == kMaxDepth) {
-        add(a, b, c, s0);
-        return;
-      }
-      const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
-      element(a, ab, ca, depth + 1);
-      element(ab, b, bc, depth + 1);
-      element(ca, bc, c, depth + 1);
-      element(ab, bc, ca, depth + 1);
-    };
-    element(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0);
+    // `path`: the sub-element's index among the 4^depth of its depth.
+    std::function<void(const Vec3&, const Vec3&, const Vec3&, int, size_t)> element =
+        [&](const Vec3& a, const Vec3& b, const Vec3& c, int depth, size_t path) {
+          const auto pts = firstLevelPoints(a, b, c);
+          auto st = [&](int k) {
+            return state(pts[size_t(k)], depth == 0 ? k : -1, size_t(kSubOffset[depth]) + path * 4 + size_t(k));
+          };
+          const int s0 = st(0);
+          bool agree = true;
+          for (int k = 1; k < 4; ++k) agree = agree && st(k) == s0;
+          if (agree || depth == kMaxDepth) {
+            add(a, b, c, s0);
+            return;
+          }
+          const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
+          element(a, ab, ca, depth + 1, path * 4);
+          element(ab, b, bc, depth + 1, path * 4 + 1);
+          element(ca, bc, c, depth + 1, path * 4 + 2);
+          element(ab, bc, ca, depth + 1, path * 4 + 3);
+        };
+    element(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0, 0);
   }
   for (int i = 0; i < 4; ++i) H[i] += double(cell.copies()) * Hc[i];
 }
@@ -295,6 +321,10 @@ std::string OrdersWaveEstimator::notes() const {
   if (cell_.copies() > 1 && amplitudes_ == OrderAmplitudes::Exact)
     s += "; the facets of one cell summed (" + std::to_string(cell_.facets.size()) + " of " +
          std::to_string(ctx_.geometry.triangles.size()) + ")";
+  if (amplitudes_ == OrderAmplitudes::Exact && ctx_.settings.visibilityTable > 0)
+    s += "; a shared visibility table of " + std::to_string(ctx_.settings.visibilityTable) + " x " +
+         std::to_string(ctx_.settings.visibilityTable) + " directions per hemisphere (" +
+         std::to_string(int(std::lround(memoryBytes() / 1e6))) + " MB)";
   if (spectrum_)
     s += "; " + std::to_string(spectrum_->nx()) + " x " + std::to_string(spectrum_->ny()) + " FFT of the facets (texels split " +
          std::to_string(spectrum_->refinement()) + " x " + std::to_string(spectrum_->refinement()) + ")";
@@ -303,8 +333,27 @@ std::string OrdersWaveEstimator::notes() const {
 
 double OrdersWaveEstimator::memoryBytes() const {
   // The FFT's facet data, fields and per-thread transforms; the order tables are small beside them.
-  return spectrum_ ? spectrum_->memoryBytes() : 0.0;
+  // The visibility table: one bit per first-level point and direction (visibility_table.h).
+  double table = 0;
+  if (amplitudes_ == OrderAmplitudes::Exact && ctx_.settings.visibilityTable > 0) {
+    const double M1 = ctx_.settings.visibilityTable + 1.0;
+    table = double(cell_.facets.size()) * 4 * std::ceil(M1 * M1 / 64) * 8 * (ctx_.material.isConductor() ? 1 : 2);
+  }
+  return (spectrum_ ? spectrum_->memoryBytes() : 0.0) + table;
 }
+
+const VisibilityTable* OrdersWaveEstimator::visibilityTable() const {
+  if (amplitudes_ != OrderAmplitudes::Exact || ctx_.settings.visibilityTable <= 0) return nullptr;
+  // Built by the first tile that needs it, once per estimator (and so per rank), whichever thread
+  // gets there first; its contents do not depend on which.
+  std::call_once(tableOnce_, [&] {
+    table_ = std::make_unique<VisibilityTable>(ctx_.geometry, ctx_.scene, cell_, ctx_.settings.visibilityTable,
+                                               !ctx_.material.isConductor());
+  });
+  return table_.get();
+}
+
+double OrdersWaveEstimator::setupSeconds() const { return table_ ? table_->buildSeconds() : 0.0; }
 
 std::string OrdersWaveEstimator::name() const {
   return amplitudes_ == OrderAmplitudes::Exact ? "exact" : amplitudes_ == OrderAmplitudes::Fourier ? "fft" : "orders";
@@ -405,11 +454,13 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       rays += fourierRays;
     } else if (amplitudes_ == OrderAmplitudes::Exact) {
       uint64_t shadowRays = 0;
-      const std::vector<uint8_t> lit = firstLevelShadowing(ctx_, cell_, wi, fromAbove, &shadowRays);
+      const VisibilityTable* table = visibilityTable();
+      const std::vector<uint8_t> lit = firstLevelShadowing(ctx_, cell_, table, wi, fromAbove, &shadowRays);
       rays += shadowRays;
       std::vector<uint64_t> orderRays(nO, 0);
+      ShadowCache shadow(cell_.facets.size());
       tbb::parallel_for(size_t(0), nO, [&](size_t o) {
-        exactAmplitude(ctx_, cell_, orders[o], wi, fromAbove, media, masked, lit, &H[4 * o], &orderRays[o]);
+        exactAmplitude(ctx_, cell_, table, orders[o], wi, fromAbove, media, masked, lit, shadow, &H[4 * o], &orderRays[o]);
       });
       for (uint64_t v : orderRays) rays += v;
     } else {

@@ -36,6 +36,7 @@
 // one (the sparse masking correction; their sum is the masked field for `lost`).
 #pragma once
 #include <memory>
+#include <mutex>
 
 #include "geometry/lattice_cell.h"
 #include "geometry/surface_sampler.h"
@@ -44,6 +45,7 @@
 namespace mbsdf {
 
 class HeightfieldSpectrum;
+class VisibilityTable;
 enum class OrderAmplitudes { MonteCarlo, Exact, Fourier };
 
 class OrdersWaveEstimator : public WaveEstimator {
@@ -55,6 +57,7 @@ class OrdersWaveEstimator : public WaveEstimator {
   std::string notes() const override;
   bool deterministic() const override { return amplitudes_ != OrderAmplitudes::MonteCarlo; }
   double memoryBytes() const override;
+  double setupSeconds() const override;
   WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
                      const std::function<void(uint64_t)>& progress = {},
                      const std::vector<uint8_t>& exitMask = {}) const override;
@@ -65,6 +68,10 @@ class OrdersWaveEstimator : public WaveEstimator {
   OrderAmplitudes amplitudes_;
   LatticeCell cell_;  // the cell the patch repeats: orders on its lattice only
   std::unique_ptr<HeightfieldSpectrum> spectrum_;
+  // exact with settings.visibilityTable > 0: built on first use, then shared by every tile.
+  const VisibilityTable* visibilityTable() const;
+  mutable std::once_flag tableOnce_;
+  mutable std::unique_ptr<VisibilityTable> table_;
 };
 
 }  // namespace mbsdf

@@ -28,6 +28,9 @@ struct WaveSettings {
   int incidenceDirections = 4;     // orders: incidence directions per slice (bin-averaged incidence)
   uint64_t seed = 1;
   bool computeMasked = false;      // also estimate P_msk for the lost component
+  // exact: directions per axis of the shared visibility table (visibility_table.h); 0 casts every
+  // ray per order instead.
+  int visibilityTable = 0;
 };
 
 struct WaveTileResult {
@@ -68,6 +71,9 @@ class WaveEstimator {
   virtual bool deterministic() const { return false; }
   // Memory it holds or allocates while running a tile, beyond the scene (bytes; for `plan`).
   virtual double memoryBytes() const { return 0; }
+  // Seconds its runs so far spent building what every later tile shares (once per estimator, so
+  // once per rank; included in the first run's `seconds`; for `plan`).
+  virtual double setupSeconds() const { return 0; }
   // exactDirection: a collimated beam (as in PathTracer::run); otherwise the incidence direction is
   // drawn cosine-weighted inside the incidence bin. exitMask (one entry per sphere bin, empty = all):
   // only the bins with a non-zero entry are estimated (estimators whose cost is not per exit bin

@@ -252,3 +252,30 @@ TEST(Job, FftEstimatorConditions) {
   EXPECT_EQ(loadJobFromString(gauss + disk + "[scene]\ncoherence_length_um = 100.0\n", "t.toml", "").resolvedWaveEstimator(), "orders");
   EXPECT_EQ(loadJobFromString("[geometry]\nkind = \"hemispheres\"\n" + narrow + disk, "t.toml", "").resolvedWaveEstimator(), "area");
 }
+
+// The lattice cell decides the grating-order regime: the paper's HEMISPHERES (20 µm, 4 x 4 cells
+// of 5 µm) under δc = 50 µm resolve to `orders` (2πσ/L = 2.6 for the patch, 10.5 for the cell);
+// `exact`'s visibility table is built when the job's tiles pay for it, on request, never for
+// other estimators; a bad value names the key.
+TEST(Job, LatticeCellAndVisibilityTable) {
+  const std::string hemi = "[geometry]\nkind = \"hemispheres\"\n[scene]\ncoherence_length_um = 50.0\n"
+                           "[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n";
+  const Job j = loadJobFromString(hemi, "t.toml", "");
+  EXPECT_EQ(j.cellNx, 4);
+  EXPECT_EQ(j.cellNy, 4);
+  EXPECT_DOUBLE_EQ(j.cellSizeX(), 5.0);
+  EXPECT_EQ(j.resolvedWaveEstimator(), "orders");
+  EXPECT_EQ(j.visibilityTableResolution(), 0);  // not exact
+  const std::string all = "[directions]\nn_theta = 15\nn_phi = 30\nincidence = \"all\"\n";
+  const std::string one = "[directions]\nn_theta = 15\nn_phi = 30\nincidence = [[30.0, 0.0]]\nincidence_sampling = \"exact\"\n";
+  EXPECT_EQ(loadJobFromString(hemi + all + "[sampling]\nwave_estimator = \"exact\"\n", "t.toml", "").visibilityTableResolution(), 128);
+  EXPECT_EQ(loadJobFromString(hemi + one + "[sampling]\nwave_estimator = \"exact\"\n", "t.toml", "").visibilityTableResolution(), 0);
+  EXPECT_EQ(loadJobFromString(hemi + one + "[sampling]\nwave_estimator = \"exact\"\nvisibility_table = \"on\"\n", "t.toml", "")
+                .visibilityTableResolution(),
+            128);
+  EXPECT_EQ(loadJobFromString(hemi + all + "[sampling]\nwave_estimator = \"exact\"\nvisibility_table = \"off\"\n", "t.toml", "")
+                .visibilityTableResolution(),
+            0);
+  const std::string e = errorOf(hemi + "[sampling]\nvisibility_table = \"maybe\"\n");
+  EXPECT_NE(e.find("sampling.visibility_table"), std::string::npos) << e;
+}
