@@ -339,7 +339,9 @@ double OrdersWaveEstimator::memoryBytes() const {
     const double M1 = ctx_.settings.visibilityTable + 1.0;
     table = double(cell_.facets.size()) * 4 * std::ceil(M1 * M1 / 64) * 8 * (ctx_.material.isConductor() ? 1 : 2);
   }
-  return (spectrum_ ? spectrum_->memoryBytes() : 0.0) + table;
+  // The shadow cache of the split pieces' points (one byte each, per incidence direction).
+  const double shadow = amplitudes_ == OrderAmplitudes::Exact ? double(cell_.facets.size()) * kSubPoints : 0.0;
+  return (spectrum_ ? spectrum_->memoryBytes() : 0.0) + table + shadow;
 }
 
 const VisibilityTable* OrdersWaveEstimator::visibilityTable() const {
