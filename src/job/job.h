@@ -105,7 +105,8 @@ struct Job {
   double cellSizeY() const { return geometry.sizeY / cellNy; }
   bool needsWave() const { return components.has(Component::Incoherent) || components.has(Component::Lost); }
   // "auto": `orders` for a periodic patch under a coherence window wider than about one period of
-  // its cell (2πσ/L_cell >= 4: neighbouring order lobes are >= 5.7 standard deviations apart); `fft` for a periodic
+  // its cell (2πσ/L_cell >= 4: neighbouring order lobes are >= 5.7 standard deviations apart), or
+  // `exact` there when it costs no more (8 x the cell's facets <= wave_samples_per_bin); `fft` for a periodic
   // heightfield under a narrower window on a disk grid without the lost component; otherwise `area`.
   std::string resolvedWaveEstimator() const;
   // Why the wave term of this job is not halved by reciprocity (PHYSICS.md §8), or "" when it is:

@@ -266,6 +266,12 @@ TEST(Job, LatticeCellAndVisibilityTable) {
   EXPECT_DOUBLE_EQ(j.cellSizeX(), 5.0);
   EXPECT_EQ(j.resolvedWaveEstimator(), "orders");
   EXPECT_EQ(j.visibilityTableResolution(), 0);  // not exact
+  // exact where it costs no more than orders at the job's budget: a 4 µm flat patch (2 facets), or
+  // the hemisphere cell (6 136 facets) with 2^16 points.
+  EXPECT_EQ(loadJobFromString("[geometry]\nsize_um = [4.0, 4.0]\n[scene]\ncoherence_length_um = 50.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n", "t.toml", "")
+                .resolvedWaveEstimator(),
+            "exact");
+  EXPECT_EQ(loadJobFromString(hemi + "[sampling]\nwave_samples_per_bin = 65536\n", "t.toml", "").resolvedWaveEstimator(), "exact");
   const std::string all = "[directions]\nn_theta = 15\nn_phi = 30\nincidence = \"all\"\n";
   const std::string one = "[directions]\nn_theta = 15\nn_phi = 30\nincidence = [[30.0, 0.0]]\nincidence_sampling = \"exact\"\n";
   EXPECT_EQ(loadJobFromString(hemi + all + "[sampling]\nwave_estimator = \"exact\"\n", "t.toml", "").visibilityTableResolution(), 128);
