@@ -421,10 +421,10 @@ std::string Job::resolvedWaveEstimator() const {
   if (waveEstimator != "auto") return waveEstimator;
   const double sigma = scene.coherenceLength_um / 6.0;
   if (geometry.periodic && orderLobesSeparate(sigma, cellSizeX(), cellSizeY())) {
-    // The deterministic `exact` has no sampling error, and costs about as much as 8 points of
+    // The deterministic `exact` has no sampling error, and costs about as much as 8–12 points of
     // `orders` per facet of the cell (its first-level visibility points, the split pieces and the
     // facet integral; measured in the accuracy study: the 5 µm sine grating's 128 facets as about
-    // 2^9 points, the hemisphere cell's 1 624 as about 2^13.6): chosen where it costs no more than
+    // 2^9.5 points, the hemisphere cell's 1 624 as about 2^14): chosen where it costs no more than
     // `orders` at the job's own budget (wave_samples_per_bin points).
     const double facetsPerCell = double(geometry.triangles.size()) / (cellNx * cellNy);
     return 8 * facetsPerCell <= double(waveSamplesPerBin) ? "exact" : "orders";
