@@ -278,8 +278,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     const std::vector<double> lambdas = job.lambda_um();
     const double lambdaMin = *std::min_element(lambdas.begin(), lambdas.end());
     // One cell's facets over the cell's orders (lattice_cell.h).
-    const double work = double(job.geometry.triangles.size()) / (job.cellNx * job.cellNy) * kPi * job.cellSizeX() *
-                        job.cellSizeY() / (lambdaMin * lambdaMin);
+    const double work = job.facetsPerCell() * kPi * job.cellSizeX() * job.cellSizeY() / (lambdaMin * lambdaMin);
     if (ws.estimator == "orders" && work <= kExactPilotMaxWork) ws.estimator = "exact";
   }
   ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));

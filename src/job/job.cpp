@@ -15,6 +15,8 @@
 #include "job/symmetry.h"
 #include "scattering/coherence_window.h"
 #include "scattering/fft_estimator.h"
+#include "scattering/visibility_table.h"
+#include "scattering/wave_estimator.h"
 
 namespace mbsdf {
 namespace {
@@ -426,8 +428,7 @@ std::string Job::resolvedWaveEstimator() const {
     // facet integral; measured in the accuracy study: the 5 µm sine grating's 128 facets as about
     // 2^9.5 points, the hemisphere cell's 1 624 as about 2^14): chosen where it costs no more than
     // `orders` at the job's own budget (wave_samples_per_bin points).
-    const double facetsPerCell = double(geometry.triangles.size()) / (cellNx * cellNy);
-    return 8 * facetsPerCell <= double(waveSamplesPerBin) ? "exact" : "orders";
+    return 8 * facetsPerCell() <= double(waveSamplesPerBin) ? "exact" : "orders";
   }
   // Overlapping lobes (speckle) on a heightfield with a disk grid: the deterministic Fourier-domain
   // evaluator (no masked field, size within its limit), whose separable evaluation there is fast;
@@ -445,10 +446,8 @@ int Job::visibilityTableResolution() const {
   if (visibilityTable == "off" || statistical || resolvedWaveEstimator() != "exact") return 0;
   if (visibilityTable == "on") return M;
   const double hemispheres = material.isConductor() ? 1 : 2;
-  const double facets = double(geometry.triangles.size()) / (cellNx * cellNy);
-  const double bytes = facets * 4 * std::ceil((M + 1.0) * (M + 1.0) / 64) * 8 * hemispheres;
-  if (bytes > 1e9) return 0;
-  const int n = std::max(2, int(std::ceil(std::sqrt(double(waveIncidenceDirections)))));
+  if (VisibilityTable::bytesFor(size_t(facetsPerCell()), M, !material.isConductor()) > 1e9) return 0;
+  const int n = incidenceRuleOrder(int(waveIncidenceDirections));
   const double nodes = exactIncidence ? 1.0 : double(n * n + (n - 1) * (n - 1));
   double orders = 0;
   for (double l : lambda_um()) orders += kPi * cellSizeX() * cellSizeY() / (l * l);

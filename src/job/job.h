@@ -103,6 +103,7 @@ struct Job {
   int cellNx = 1, cellNy = 1;
   double cellSizeX() const { return geometry.sizeX / cellNx; }
   double cellSizeY() const { return geometry.sizeY / cellNy; }
+  double facetsPerCell() const { return double(geometry.triangles.size()) / (cellNx * cellNy); }
   bool needsWave() const { return components.has(Component::Incoherent) || components.has(Component::Lost); }
   // "auto": `orders` for a periodic patch under a coherence window wider than about one period of
   // its cell (2πσ/L_cell >= 4: neighbouring order lobes are >= 5.7 standard deviations apart), or
@@ -117,7 +118,7 @@ struct Job {
   // Directions per axis of `exact`'s shared visibility table, or 0 for none. "auto" builds it when
   // it pays: its 4 (M+1)² rays per facet and hemisphere, cast once per rank, against the 4 rays per
   // facet and order direction it saves in every tile (tiles x incidence nodes x orders, the orders
-  // π A_cell / λ² per wavelength), and when it fits in 1 GB. M = 128 (1.6° cells at the zenith).
+  // π A_cell / λ² per wavelength), and when it fits in 1 GB. M = 128 (0.9° apart at the zenith).
   int visibilityTableResolution() const;
   bool halvesWaveByReciprocity() const { return reciprocityOffReason().empty(); }
   // Sphere bin of each incidence direction, in incidence order.

@@ -4,10 +4,8 @@
 #include "geometry/facet_index.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <map>
 #include <stdexcept>
 

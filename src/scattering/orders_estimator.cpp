@@ -334,11 +334,9 @@ std::string OrdersWaveEstimator::notes() const {
 double OrdersWaveEstimator::memoryBytes() const {
   // The FFT's facet data, fields and per-thread transforms; the order tables are small beside them.
   // The visibility table: one bit per first-level point and direction (visibility_table.h).
-  double table = 0;
-  if (amplitudes_ == OrderAmplitudes::Exact && ctx_.settings.visibilityTable > 0) {
-    const double M1 = ctx_.settings.visibilityTable + 1.0;
-    table = double(cell_.facets.size()) * 4 * std::ceil(M1 * M1 / 64) * 8 * (ctx_.material.isConductor() ? 1 : 2);
-  }
+  const double table = amplitudes_ == OrderAmplitudes::Exact && ctx_.settings.visibilityTable > 0
+                           ? VisibilityTable::bytesFor(cell_.facets.size(), ctx_.settings.visibilityTable, !ctx_.material.isConductor())
+                           : 0.0;
   // The shadow cache of the split pieces' points (one byte each, per incidence direction).
   const double shadow = amplitudes_ == OrderAmplitudes::Exact ? double(cell_.facets.size()) * kSubPoints : 0.0;
   return (spectrum_ ? spectrum_->memoryBytes() : 0.0) + table + shadow;

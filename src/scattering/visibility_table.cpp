@@ -12,10 +12,10 @@ namespace mbsdf {
 
 VisibilityTable::VisibilityTable(const Microgeometry& g, const PeriodicScene& scene, const LatticeCell& cell, int M,
                                  bool lowerHemisphere)
-    : g_(g), M_(M), lower_(lowerHemisphere) {
+    : M_(M), lower_(lowerHemisphere) {
   const auto t0 = std::chrono::steady_clock::now();
-  const size_t C = size_t(M + 1) * size_t(M + 1), F = cell.facets.size();
-  words_ = (C + 63) / 64;
+  const size_t F = cell.facets.size();
+  words_ = wordsPerRow(M);
   slot_.assign(g.triangles.size(), -1);
   normal_.resize(F);
   for (size_t f = 0; f < F; ++f) {

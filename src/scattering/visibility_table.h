@@ -9,9 +9,10 @@
 // table answers only when the cell's four corners are all inside the disk, all front-facing for the
 // point's facet, and all agree — visibility is then taken to be the same at d. Otherwise (the
 // cell straddles a shadow boundary, the horizon or the facet's own horizon) it answers nothing and
-// the caller casts the ray. An occluder or gap that fits between four corners of a cell (1.8/M
-// radians at the zenith) is missed; tests/scattering/visibility_table_test.cpp measures the table's
-// effect on `exact`'s tables against casting every ray.
+// the caller casts the ray. An occluder or gap that fits between four corners of a cell (2/M in
+// direction cosines: 0.9° at the zenith for M = 128) is missed; tests/scattering/
+// visibility_table_test.cpp measures the table's effect on `exact`'s tables against casting every
+// ray.
 //
 // Memory: one bit per (point, corner, hemisphere), rows padded to 64 bits: 4 F ⌈(M+1)²/64⌉ 8 bytes
 // per hemisphere for F facets (the paper's HEMISPHERES cell, F = 6 136, M = 128: 51 MB). The
@@ -36,15 +37,19 @@ class VisibilityTable {
   // the caller must cast the ray. `side` is the facet's unit normal or its opposite.
   std::optional<bool> escapes(uint32_t t, int k, const Vec3& side, const Vec3& d, bool up) const;
   double memoryBytes() const { return double(bits_.size()) * sizeof(uint64_t); }
+  // What a table of `facets` facets at resolution M holds (for plans, before building one).
+  static double bytesFor(size_t facets, int M, bool lowerHemisphere) {
+    return double(lowerHemisphere ? 2 : 1) * double(facets) * 4 * double(wordsPerRow(M)) * sizeof(uint64_t);
+  }
   uint64_t raysCast() const { return rays_; }
   double buildSeconds() const { return seconds_; }
   int resolution() const { return M_; }
 
  private:
+  static size_t wordsPerRow(int M) { return (size_t(M + 1) * size_t(M + 1) + 63) / 64; }
   bool cornerInside(int i, int j) const;
   Vec3 corner(int i, int j, bool up) const;
 
-  const Microgeometry& g_;
   int M_;
   bool lower_;
   size_t words_;                      // per point row

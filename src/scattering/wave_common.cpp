@@ -4,6 +4,10 @@
 
 #include "core/quadrature.h"
 
+namespace mbsdf {
+int incidenceRuleOrder(int directions) { return std::max(2, int(std::ceil(std::sqrt(double(std::max(1, directions)))))); }
+}  // namespace mbsdf
+
 namespace mbsdf::wave {
 
 Media::Media(const WaveContext& ctx)
@@ -40,7 +44,7 @@ std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielec
 std::vector<IncidenceNode> incidenceRule(const DirectionGrid& grid, int incidenceBin, const std::optional<Vec3>& exactDirection,
                                          int directions) {
   if (exactDirection) return {{normalize(*exactDirection), 1.0, true}};
-  const int n = std::max(2, int(std::ceil(std::sqrt(double(std::max(1, directions))))));
+  const int n = incidenceRuleOrder(directions);
   std::vector<IncidenceNode> nodes;
   for (int rule = n; rule >= n - 1; --rule) {
     const QuadratureRule q = gaussLegendre(rule, 0.0, 1.0);

@@ -83,6 +83,10 @@ class WaveEstimator {
                              const std::vector<uint8_t>& exitMask = {}) const = 0;
 };
 
+// The order n of the deterministic estimators' n x n Gauss–Legendre rule over an incidence bin
+// (with its (n − 1) x (n − 1) companion for the error estimate): n² >= directions, n >= 2.
+int incidenceRuleOrder(int directions);
+
 // "area", "orders", "exact", "fft" or "paper"; throws std::invalid_argument.
 std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx);
 
