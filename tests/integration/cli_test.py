@@ -911,6 +911,7 @@ SchedulerType=sched/backfill
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core
 JobCompType=jobcomp/none
+KillWait=5
 AccountingStorageType=accounting_storage/none
 NodeName={host} CPUs=2 RealMemory=2000 State=UNKNOWN
 PartitionName=debug Nodes={host} Default=YES MaxTime=INFINITE State=UP
@@ -952,6 +953,16 @@ PartitionName=debug Nodes={host} Default=YES MaxTime=INFINITE State=UP
                 return info
             time.sleep(0.5)
         sys.exit(f"FAIL: Slurm job {jid} did not finish")
+
+    def diagnostics(self, jid):
+        """What a failed Slurm test needs to be understood: the job, the node and the daemons' logs."""
+        text = self.cmd("scontrol", "show", "job", jid, check=False).stdout
+        text += self.cmd("scontrol", "show", "node", check=False).stdout
+        for name in ("slurmctld.log", "slurmd.log"):
+            path = os.path.join(self.dir, name)
+            if os.path.exists(path):
+                text += f"--- {name} (tail)\n" + "".join(open(path).readlines()[-40:])
+        return text
 
     def stop(self):
         for daemon in ("slurmd", "slurmctld"):
@@ -1020,13 +1031,25 @@ def test_slurm_requeue():
         # at once, retrying while the requeue is still in progress. Wait for the restarted script's
         # first line rather than for a job state: while the requeue is in progress, the first run's
         # exit code 3 can show as a transient FAILED (CI caught one), which is not the job's end.
+        # A requeue whose relaunch fails is held (Reason=launch_failed_requeued_held), so a pending
+        # job is also released. Every state seen is kept for the failure message.
         log_path = os.path.join(TMP, f"microbsdf-{jid}.out")
         t0 = time.time()
+        seen = []
         while "(restart 1)" not in open(log_path).read():
-            assert time.time() - t0 < 120, "the requeued job did not start:\n" + open(log_path).read()
-            if slurm.job(jid).get("JobState") == "PENDING":
+            info = slurm.job(jid)
+            state = (info.get("JobState"), info.get("Reason"), info.get("StartTime"))
+            if not seen or seen[-1][1:] != state:
+                seen.append((round(time.time() - t0, 1),) + state)
+            if time.time() - t0 > 240:
+                raise AssertionError("the requeued job did not start:\n" + open(log_path).read()
+                                     + "\nstates (s, JobState, Reason, StartTime): " + repr(seen)
+                                     + "\n" + slurm.diagnostics(jid))
+            if info.get("JobState") == "PENDING":
+                slurm.cmd("scontrol", "release", jid, check=False)
                 slurm.cmd("scontrol", "update", f"JobId={jid}", "StartTime=now", check=False)
             time.sleep(0.5)
+        print("states while requeued (s, JobState, Reason, StartTime):", seen)
         info = slurm.wait(jid)
         log = open(log_path).read()
         assert info["JobState"] == "COMPLETED", log
