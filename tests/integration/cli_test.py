@@ -282,7 +282,8 @@ def test_reciprocity():
               f"wave samples {ws_on} vs {ws_off} ({ws_on / ws_off:.3f} = expected {expected:.3f}); 1 and 2 ranks identical")
 
 
-def effects_job(path, geometry, material, scene, components=None):
+def effects_job(path, geometry, material, scene, components=None,
+                incidence="[[0.0, 0.0], [40.0, 0.0], [70.0, 30.0]]"):
     with open(path, "w") as f:
         f.write(f"""[geometry]
 {geometry}
@@ -293,7 +294,7 @@ wavelengths_nm = [500.0, 600.0]
 [directions]
 n_theta = 8
 n_phi = 16
-incidence = [[0.0, 0.0], [40.0, 0.0], [70.0, 30.0]]
+incidence = {incidence}
 [scene]
 {scene}
 tolerance = 0.02
@@ -325,30 +326,37 @@ def test_effects_auto():
     """components = "auto": the effects planner's decisions (with reasons) for scenes with known
     physics, and the auto table against the WM model of the full table (every component, the same
     seeds): per slice sum|f_WM - f_auto| * proj. solid angle, less its expected noise L1 and 3
-    standard deviations, stays below the tolerance. Wall times of auto, the full table and WM alone
-    are printed (not asserted)."""
+    standard deviations, stays below the tolerance. Wall times of auto (its pilots included), the
+    full table and WM alone are printed (not asserted: speed is measured, not tested). The scenes
+    whose auto table keeps every costly effect (the gratings, the hemispheres) are the renderer's
+    whole table, every incidence up to 70 deg, as a real job would be: the pilots (three incidences)
+    are paid once per job, so the speed-up is what the skipped effects save (`lost`'s masked sums,
+    the transmitted bins), not three listed incidences against the pilots' fixed cost."""
+    every = '"all"'
     scenes = {
         "flat Al": ('kind = "flat"\nsize_um = [10.0, 10.0]', 'name = "Al"', "coherence_length_um = 50.0",
-                    {"coherent"}),
+                    {"coherent"}, None),
         "sine grating, period 2 um = 4 lambda, amplitude 30 nm": (
             'kind = "sine-grating"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.03', 'name = "Al"',
-            "coherence_length_um = 50.0", {"coherent", "incoherent"}),
+            "coherence_length_um = 50.0\nincidence_max_deg = 70.0", {"coherent", "incoherent"}, every),
         "mirror hemispheres under the sun": (
             'kind = "hemispheres"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\nspacing_um = 5.0\nresolution_um = 0.25',
-            'name = "mirror"', 'light = "sun"', {"coherent", "incoherent", "multiple"}),
+            'name = "mirror"', 'light = "sun"\nincidence_max_deg = 70.0', {"coherent", "incoherent", "multiple"}, every),
         "gentle large-scale noise (rms 0.5 um, correlation 5 um), delta_c = 20 um": (
             'kind = "gaussian"\nsize_um = [20.0, 20.0]\nrms_um = 0.5\ncorrelation_um = 5.0', 'name = "Al"',
-            "coherence_length_um = 20.0", {"coherent", "multiple"}),
+            "coherence_length_um = 20.0", {"coherent", "multiple"}, None),
         "glass sine grating, the renderer needs only the BRDF": (
             'kind = "sine-grating"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.03',
-            'kind = "dielectric"\nior = 1.5', 'coherence_length_um = 50.0\nneeds = ["brdf"]', {"coherent", "incoherent"}),
+            'kind = "dielectric"\nior = 1.5', 'coherence_length_um = 50.0\nneeds = ["brdf"]\nincidence_max_deg = 70.0',
+            {"coherent", "incoherent"}, every),
     }
-    for k, (name, (geo, mat, scene, expected)) in enumerate(scenes.items()):
-        auto = effects_job(os.path.join(TMP, f"auto{k}.toml"), geo, mat, scene)
+    for k, (name, (geo, mat, scene, expected, incidence)) in enumerate(scenes.items()):
+        inc = {"incidence": incidence} if incidence else {}
+        auto = effects_job(os.path.join(TMP, f"auto{k}.toml"), geo, mat, scene, **inc)
         # The full table (every component the file can hold, DESIGN.md) and the paper's WM alone.
         full = effects_job(os.path.join(TMP, f"full{k}.toml"), geo, mat, scene,
-                           ["coherent", "incoherent", "multiple", "lost"])
-        wm = effects_job(os.path.join(TMP, f"wm{k}.toml"), geo, mat, scene, ["coherent", "incoherent", "multiple"])
+                           ["coherent", "incoherent", "multiple", "lost"], **inc)
+        wm = effects_job(os.path.join(TMP, f"wm{k}.toml"), geo, mat, scene, ["coherent", "incoherent", "multiple"], **inc)
         plan = run(["plan", auto, "--json", f"plan{k}.json"]).stdout
         decisions = {d["effect"]: d for d in json.load(open(os.path.join(TMP, f"plan{k}.json")))["effects"]["decisions"]}
         r = run(["run", auto, "-o", f"auto{k}.h5"], mpi=2)
@@ -365,31 +373,46 @@ def test_effects_auto():
             assert ("only the BRDF" if brdf_only else "conductor transmits nothing") in decisions["btdf"]["reason"]
             op = a["/grid/projected_solid_angle"][:]
             nh = len(op) // 2
+            a_est, b_est = a.attrs.get("wave_estimator"), b.attrs.get("wave_estimator")
+            # Per incidence, the hemisphere it is reflected into (light from below, inside the
+            # dielectric, reflects into the lower half).
+            from_below = a["/incidence/theta_deg"][:] > 90
             if brdf_only:
                 # The wave term skipped the transmitted bins: they keep geometric optics, and the
                 # comparison is over the BRDF the renderer needs.
-                assert np.all(a["/bsdf/incoherent"][:, :, nh:] == 0)
-                assert a["/stats/wave_samples"][:].sum() < b["/stats/wave_samples"][:].sum()
-                op = np.where(np.arange(len(op)) < nh, op, 0)
+                assert np.all(a["/bsdf/incoherent"][~from_below, :, nh:] == 0)
+                assert np.all(a["/bsdf/incoherent"][from_below, :, :nh] == 0)
+                if a_est == b_est:
+                    assert a["/stats/wave_samples"][:].sum() < b["/stats/wave_samples"][:].sum()
             worst = -1e9
             for i in range(a["/bsdf/coherent"].shape[0]):
+                if brdf_only:
+                    reflected = np.arange(len(op)) >= nh if from_below[i] else np.arange(len(op)) < nh
+                    op_i = np.where(reflected, op, 0)
+                else:
+                    op_i = op
                 for l in range(a["/bsdf/coherent"].shape[1]):
-                    diff = np.zeros(len(op))
-                    var = np.zeros(len(op))
+                    diff = np.zeros(len(op_i))
+                    var = np.zeros(len(op_i))
                     for c in ("coherent", "incoherent", "multiple"):
                         full_c = b[f"/bsdf/{c}"][i, l].astype(float)
                         auto_c = a[f"/bsdf/{c}"][i, l].astype(float) if c in a["bsdf"] else 0 * full_c
                         diff += full_c - auto_c
                         if c not in a["bsdf"]:
                             var += b[f"/bsdf_stderr/{c}"][i, l].astype(float) ** 2
-                    l1 = np.sum(np.abs(diff) * op)
-                    sd = np.sqrt(var) * op
+                        elif c == "incoherent" and a_est != b_est:
+                            # Another wave estimator (the planner's choice): two independent errors.
+                            var += (b[f"/bsdf_stderr/{c}"][i, l].astype(float) ** 2
+                                    + a[f"/bsdf_stderr/{c}"][i, l].astype(float) ** 2)
+                    l1 = np.sum(np.abs(diff) * op_i)
+                    sd = np.sqrt(var) * op_i
                     excess = l1 - np.sqrt(2 / np.pi) * sd.sum() - 3 * np.sqrt(np.sum(sd ** 2))
                     worst = max(worst, excess)
             tol = 0.02
             assert worst < tol, f"{name}: auto differs from WM by {worst} beyond noise (tolerance {tol})"
         reasons = "; ".join(f"{e} {'on' if d['on'] else 'off'}" for e, d in decisions.items())
-        print(f"{name}: auto = {sorted(expected)}; |auto - WM| beyond noise {max(worst, 0):.4f} < {tol}; "
+        print(f"{name} ({'every incidence to 70 deg' if incidence else 'three incidences'}): "
+              f"auto = {sorted(expected)}; |auto - WM| beyond noise {max(worst, 0):.4f} < {tol}; "
               f"time auto {t_auto:.2f} s (pilots {t_pilots:.2f} s) vs full {t_full:.2f} s (speed-up {t_full / t_auto:.2f}x), "
               f"vs WM alone {t_wm:.2f} s ({t_wm / t_auto:.2f}x)")
         for e in ("multiple", "incoherent", "btdf"):

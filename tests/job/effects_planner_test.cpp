@@ -4,10 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 
 #include "core/direction_grid.h"
 #include "job/effects_planner.h"
+#include "job/transport.h"
 
 using namespace mbsdf;
 
@@ -57,4 +59,64 @@ TEST(EffectsPlanner, DiffractionJudgedAtTheRenderersResolution) {
   EXPECT_FALSE(coarse["on"].get<bool>()) << coarse.dump();
   EXPECT_LT(coarse["pilot_upper"].get<double>(), 0.05);
   EXPECT_NE(coarse["reason"].get<std::string>().find("pooled to the renderer's 30 deg"), std::string::npos);
+}
+
+// [sampling] wave_estimator = "auto" under components = "auto": the planner keeps the static pick
+// where it meets the tolerance or is deterministic, and otherwise takes the deterministic estimator
+// with the smaller error, from one pilot tile run as the job runs it. A rough periodic heightfield
+// (correlation 2 λ) under a 20 µm window on theta-phi bins: the static rule gives `area` (fft's
+// direct sum is not chosen statically off a disk grid), whose error at 1024 samples per bin is
+// hundreds of times fft's; the plan takes fft. The area pilot (about 1/8 of the bins, chosen from
+// fft's table) predicts area's error: checked against a whole area tile's distance from fft's table.
+TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
+  const std::string text =
+      "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.1\ncorrelation_um = 1.0\n[material]\nname = \"Al\"\n"
+      "[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\nincidence = [[20.0, 0.0]]\n"
+      "[scene]\ncoherence_length_um = 20.0\ntolerance = 0.02\n[sampling]\npaths_per_slice = 20000\n"
+      "wave_samples_per_bin = 1024\nseed = 5\n";
+  const Job job = loadJobFromString(text, "t.toml", "");
+  ASSERT_EQ(job.resolvedWaveEstimator(), "area");
+  const nlohmann::json p = planEffects(job);
+  nlohmann::json d;
+  for (const auto& x : p["decisions"])
+    if (x["effect"] == "estimator") d = x;
+  ASSERT_FALSE(d.is_null()) << p.dump();
+  EXPECT_EQ(d["estimator"], "fft") << d.dump();
+  EXPECT_EQ(p["wave_estimator"], "fft");
+  double fftError = -1, areaError = -1;
+  for (const auto& c : d["candidates"]) (c["estimator"] == "fft" ? fftError : areaError) = c["predicted_error"].get<double>();
+  ASSERT_GT(fftError, 0);
+  EXPECT_LT(fftError * 10, areaError) << d.dump();
+
+  // Whole tiles of both, as the job runs them: area's L1 distance from fft's table is its error
+  // (fft's is 1/10 of it or less); the pilot's prediction from 1/8 of the bins is within 2× of it.
+  const DirectionGrid grid(job.gridLayout);
+  GeometricTransport transport(job, grid, 1000);
+  auto table = [&](const std::string& name) {
+    Job j = job;
+    j.waveEstimator = name;
+    return makeJobWaveEstimator(j, grid, *transport.scene(), waveSettingsOf(j))->run(0, job.incidence[0].bin, std::nullopt);
+  };
+  const WaveTileResult fft = table("fft"), area = table("area");
+  double l1 = 0;
+  for (int b = 0; b < grid.binCount(); ++b) l1 += std::abs(area.fws[size_t(b)] - fft.fws[size_t(b)]) * grid.projectedSolidAngle(b);
+  std::printf("fft predicted error %.4g; area predicted %.4g, its tile's L1 distance from fft's %.4g\n", fftError,
+              areaError, l1);
+  EXPECT_GT(areaError, 0.5 * l1) << l1;
+  EXPECT_LT(areaError, 2.0 * l1) << l1;
+
+  // A deterministic static pick (a small sine-grating cell under a wide window: exact) runs no pilot.
+  const Job grating = loadJobFromString(
+      "[geometry]\nkind = \"sine-grating\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.03\n[material]\n"
+      "name = \"Al\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
+      "incidence = [[20.0, 0.0]]\n[scene]\ncoherence_length_um = 50.0\ntolerance = 0.02\n[sampling]\n"
+      "paths_per_slice = 20000\nwave_samples_per_bin = 1024\n",
+      "g.toml", "");
+  const nlohmann::json pg = planEffects(grating);
+  for (const auto& x : pg["decisions"])
+    if (x["effect"] == "estimator") {
+      EXPECT_EQ(x["estimator"], "exact");
+      EXPECT_FALSE(x.contains("candidates"));
+      EXPECT_NE(x["reason"].get<std::string>().find("deterministic; no estimator pilot"), std::string::npos) << x.dump();
+    }
 }
