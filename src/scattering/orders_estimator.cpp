@@ -2,13 +2,19 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <climits>
 #include <cmath>
+#include <cstdint>
 #include <functional>
+#include <map>
+#include <tuple>
 #include <stdexcept>
 
+#include "core/quadrature.h"
 #include "core/rng.h"
 #include "scattering/heightfield_spectrum.h"
 #include "scattering/triangle_fourier.h"
@@ -33,6 +39,32 @@ struct Order {
   double sd;     // lobe standard deviation in (x, y) of ωo
 };
 
+// The K-point stratified pattern of a unit normal: Φ⁻¹((i + ½)/K) (K = 8, 16 or 32).
+// exact/fft over an incidence bin: one order's Q = P_G · cos θ_G (the power without its 1/cos θ_G
+// obliquity, which is singular where the order grazes the horizon; P_G = Q / cos θ_G is restored at
+// each sub-direction) at every node of the incidence rule, visible and masked, and whether the
+// order propagates there.
+struct NodePowers {
+  Order ord;
+  std::vector<double> q;         // [node * 2 + msk], the high rule's n² nodes first
+  std::vector<uint8_t> present;  // [node]
+};
+
+const std::vector<double>& lobeNodes(int K) {
+  auto make = [](int k) {
+    std::vector<double> v(static_cast<size_t>(k));
+    for (int i = 0; i < k; ++i) {
+      const double p = (i + 0.5) / k;
+      double x = 0;  // Newton on erfc, enough for a stratified pattern
+      for (int it = 0; it < 40; ++it) x -= (0.5 * std::erfc(-x / std::sqrt(2.0)) - p) / (std::exp(-0.5 * x * x) / std::sqrt(2 * kPi));
+      v[size_t(i)] = x;
+    }
+    return v;
+  };
+  static const std::vector<double> n8 = make(8), n16 = make(16), n32 = make(32);
+  return K == 8 ? n8 : K == 16 ? n16 : n32;
+}
+
 // Fractions of a Gaussian lobe (centre (cx, cy), standard deviation sd in the xy plane of the
 // hemisphere `zs`) that fall in each bin: a fixed 16 x 16 stratified pattern through the inverse
 // normal CDF, deterministic. Directions outside the unit disk are evanescent and dropped.
@@ -54,20 +86,7 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
     return;
   }
   constexpr int K = 16;
-  auto invNormal = [](double p) {  // Acklam-free: Newton on erfc, enough for a stratified pattern
-    double x = 0;
-    for (int i = 0; i < 40; ++i) {
-      double f = 0.5 * std::erfc(-x / std::sqrt(2.0)) - p;
-      double d = std::exp(-0.5 * x * x) / std::sqrt(2 * kPi);
-      x -= f / d;
-    }
-    return x;
-  };
-  static const std::vector<double> nodes = [&] {
-    std::vector<double> v(K);
-    for (int i = 0; i < K; ++i) v[i] = invNormal((i + 0.5) / K);
-    return v;
-  }();
+  const std::vector<double>& nodes = lobeNodes(K);
   for (int i = 0; i < K; ++i)
     for (int j = 0; j < K; ++j) {
       int b = binAt(cx + sd * nodes[i], cy + sd * nodes[j]);
@@ -359,6 +378,159 @@ std::string OrdersWaveEstimator::name() const {
   return amplitudes_ == OrderAmplitudes::Exact ? "exact" : amplitudes_ == OrderAmplitudes::Fourier ? "fft" : "orders";
 }
 
+// exact and fft over an incidence bin. Each order's power P_G(ωi) is smooth across the bin, but
+// which exit bin its direction ωo(ωi) = −(G + n_i k0 ωi,xy)/(n_o k0) (+ its lobe) falls in jumps:
+// a Gauss–Legendre rule over the bin converges slowly there and not monotonically (Al grating,
+// Λ = 2 µm, 39.4°: rule orders 2…6 gave L1 errors of 0.17, 0.060, 0.073, 0.062, 0.047 per slice).
+// So the powers computed at the n × n nodes (the costly facet sums) are interpolated (Lagrange in
+// the bin's cosine-weighted (u, v) square) to M × M = 32 × 32 sub-directions, each paired with one
+// point of the lobe's 32 × 32 stratified pattern by a bijection of Z₃₂² (both marginals exact), and
+// the exit directions are binned there: the jumps cost only binOf calls. Error per bin: the
+// interpolation's, |B(P_n) − B(P_{n−1})| from the (n − 1) × (n − 1) companion nodes, plus the
+// binning's, |B_32 − B_16| with 16 × 16 sub-directions (both estimates of the coarser, on the safe
+// side). Measured on that grating (against `orders` with 4096 incidence draws, its own noise
+// 0.008–0.013): L1 0.019–0.042 at n = 2 as at n = 8 (they differ by 0.0002–0.019), reported
+// 0.022–0.027; 16 × 16 sub-directions were 0.014–0.019 from 32 × 32.
+static void binOverIncidenceBin(const WaveContext& ctx_, const DirectionGrid& grid, int incidenceBin, bool fromAbove,
+                                const wave::Media& media, const std::vector<NodePowers>& nodePower,
+                                bool masked, WaveTileResult* r) {
+  const int nB = grid.binCount();
+  const int n = incidenceRuleOrder(ctx_.settings.incidenceDirections);
+  const QuadratureRule qh = gaussLegendre(n, 0.0, 1.0), ql = gaussLegendre(n - 1, 0.0, 1.0);
+  auto lagrange = [](const std::vector<double>& x, double t) {
+    std::vector<double> w(x.size(), 1.0);
+    for (size_t i = 0; i < x.size(); ++i)
+      for (size_t j = 0; j < x.size(); ++j)
+        if (i != j) w[i] *= (t - x[j]) / (x[i] - x[j]);
+    return w;
+  };
+  struct Sub {
+    double u, v;
+    Vec3 wi;
+    std::vector<double> wh, wl;  // interpolation weights of the n² and (n − 1)² nodes
+    double lx, ly;               // the paired lobe offset (units of sd)
+  };
+  auto subDirections = [&](int M) {
+    std::vector<Sub> v;
+    const std::vector<double>& ln = lobeNodes(M);
+    std::vector<int> perm(size_t(M * M));
+    for (int i = 0; i < M * M; ++i) perm[size_t(i)] = i;
+    Sampler shuffle(0x10BE5EEDu, 0, uint64_t(M), 0);
+    for (int i = M * M - 1; i > 0; --i) std::swap(perm[size_t(i)], perm[size_t(std::min(i, int(shuffle.get1D() * (i + 1))))]);
+    for (int i = 0; i < M; ++i)
+      for (int j = 0; j < M; ++j) {
+        const double u = (i + 0.5) / M, w = (j + 0.5) / M;
+        Sub sub;
+        sub.u = u, sub.v = w;
+        sub.wi = grid.sampleCosine(incidenceBin, u, w).w;
+        const std::vector<double> hu = lagrange(qh.x, u), hv = lagrange(qh.x, w), lu = lagrange(ql.x, u), lv = lagrange(ql.x, w);
+        for (int a = 0; a < n; ++a)
+          for (int b = 0; b < n; ++b) sub.wh.push_back(hu[size_t(a)] * hv[size_t(b)]);
+        for (int a = 0; a < n - 1; ++a)
+          for (int b = 0; b < n - 1; ++b) sub.wl.push_back(lu[size_t(a)] * lv[size_t(b)]);
+        const int cell = perm[size_t(i * M + j)];
+        sub.lx = ln[size_t(cell / M)];
+        sub.ly = ln[size_t(cell % M)];
+        v.push_back(std::move(sub));
+      }
+    return v;
+  };
+  const std::vector<Sub> fine = subDirections(32), coarse = subDirections(16);
+  const double Lx = ctx_.scene.sizeX(), Ly = ctx_.scene.sizeY();
+  const int nMsk = masked ? 2 : 1;
+  // Per order: (table, msk, λ·nB + bin, value) contributions, accumulated below in order.
+  struct Part {
+    int table, msk;
+    size_t at;
+    double value;
+  };
+  std::vector<std::vector<Part>> parts(nodePower.size());
+  tbb::parallel_for(size_t(0), nodePower.size(), [&](size_t o) {
+    const Order& ord = nodePower[o].ord;
+    const std::vector<double>& Q = nodePower[o].q;
+    if (std::all_of(Q.begin(), Q.end(), [](double v) { return v == 0; })) return;  // no power at any node
+    const std::vector<uint8_t>& present = nodePower[o].present;
+    // Lagrange over a rule's nodes where the order propagates at all of them; else (it crosses the
+    // horizon inside the bin) the nearest node where it propagates.
+    auto complete = [&](size_t first, size_t count) {
+      for (size_t m = first; m < first + count; ++m)
+        if (!present[m]) return false;
+      return true;
+    };
+    const bool allHi = complete(0, size_t(n * n)), allLo = complete(size_t(n * n), size_t((n - 1) * (n - 1)));
+    auto nearest = [&](const Sub& sub, bool high) {
+      const int r = high ? n : n - 1;
+      const std::vector<double>& x = high ? qh.x : ql.x;
+      const size_t first = high ? 0 : size_t(n * n);
+      size_t best = SIZE_MAX;
+      double d2 = 1e300;
+      for (int a = 0; a < r; ++a)
+        for (int b = 0; b < r; ++b) {
+          const size_t m = first + size_t(a * r + b);
+          const double d = std::pow(x[size_t(a)] - sub.u, 2) + std::pow(x[size_t(b)] - sub.v, 2);
+          if (present[m] && d < d2) d2 = d, best = m;
+        }
+      return best;
+    };
+    const int l = ord.lambda;
+    const double k0 = 2 * kPi / ctx_.lambda_um[size_t(l)];
+    const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
+    const double zs = fromAbove != (ord.transmission || ord.below) ? 1.0 : -1.0;
+    auto bin = [&](const Sub& sub, int table, const std::vector<Sub>& set) {
+      const double x = -(2 * kPi * double(ord.a) / Lx + nI * k0 * sub.wi.x) / (nO * k0);
+      const double y = -(2 * kPi * double(ord.b) / Ly + nI * k0 * sub.wi.y) / (nO * k0);
+      if (x * x + y * y >= 1) return;  // evanescent here
+      const double cz = std::sqrt(1 - (x * x + y * y));
+      const double bx = x + ord.sd * sub.lx, by = y + ord.sd * sub.ly, r2 = bx * bx + by * by;
+      if (r2 >= 1) return;
+      const int b = grid.binOf({bx, by, zs * std::sqrt(1 - r2)});
+      if (b < 0) return;
+      const bool high = table != 1;
+      const size_t near = (high ? allHi : allLo) ? SIZE_MAX : nearest(sub, high);
+      if (!(high ? allHi : allLo) && near == SIZE_MAX) return;
+      for (int msk = 0; msk < nMsk; ++msk) {
+        double v = 0;
+        if (near != SIZE_MAX)
+          v = Q[near * 2 + size_t(msk)];
+        else if (high)
+          for (size_t m = 0; m < sub.wh.size(); ++m) v += sub.wh[m] * Q[m * 2 + size_t(msk)];
+        else
+          for (size_t m = 0; m < sub.wl.size(); ++m) v += sub.wl[m] * Q[(size_t(n * n) + m) * 2 + size_t(msk)];
+        if (v <= 0) continue;
+        // Merged per (table, bin): an order's image covers a few bins, so the list stays short.
+        const size_t at = size_t(l) * nB + size_t(b);
+        const double add = v / cz / double(set.size());
+        auto& list = parts[o];
+        auto hit = std::find_if(list.rbegin(), list.rend(),
+                                [&](const Part& q) { return q.at == at && q.table == table && q.msk == msk; });
+        if (hit != list.rend()) hit->value += add;
+        else list.push_back({table, msk, at, add});
+      }
+    };
+    for (const Sub& sub : fine) {
+      bin(sub, 0, fine);
+      bin(sub, 1, fine);
+    }
+    for (const Sub& sub : coarse) bin(sub, 2, coarse);
+  });
+  // table 0: the n-node interpolation on 16 × 16 sub-directions; 1: the (n − 1)-node one; 2: the
+  // n-node one on 8 × 8.
+  std::vector<std::vector<double>> acc(size_t(3 * nMsk), std::vector<double>(r->fws.size(), 0.0));
+  for (const auto& list : parts)
+    for (const Part& p : list) acc[size_t(p.table * nMsk + p.msk)][p.at] += p.value;
+  for (int msk = 0; msk < nMsk; ++msk) {
+    std::vector<double>& f = msk ? r->pmsk : r->fws;
+    std::vector<double>& e = msk ? r->pmskErr : r->fwsErr;
+    const std::vector<double>&hi = acc[size_t(msk)], &lo = acc[size_t(nMsk + msk)], &half = acc[size_t(2 * nMsk + msk)];
+    for (size_t i = 0; i < f.size(); ++i) {
+      const double op = grid.projectedSolidAngle(int(i % size_t(nB)));
+      if (op <= 0) continue;  // disk pixels outside the unit disk
+      f[i] = hi[i] / op;
+      e[i] = (std::abs(hi[i] - lo[i]) + std::abs(hi[i] - half[i])) / op;
+    }
+  }
+}
+
 WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
                                         const std::function<void(uint64_t)>& progress,
                                         const std::vector<uint8_t>& exitMask) const {
@@ -391,6 +563,10 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   std::atomic<uint64_t> rays{0};
   uint64_t pointOrderPairs = 0;
 
+  // exact/fft over an incidence bin: every order's power at every node (P at node k, visible and
+  // masked), keyed by (λ, side, a, b); binned after the loop.
+  std::map<std::tuple<int, int, long, long>, size_t> slotOf;
+  std::vector<NodePowers> nodePower;
   auto incidence = [&](int k) {
     if (deterministic) return rule[size_t(k)].wi;
     if (exactDirection) return normalize(*exactDirection);
@@ -500,9 +676,8 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     for (uint64_t b : blockRays) rays += b;
     // |Ĥ_G|² per order (pairwise, unbiased) with a delete-a-group jackknife error, then the lobe
     // is shared among the bins.
-    pv[k].assign(size_t(nL) * nB, 0.0);
-    vv[k].assign(size_t(nL) * nB, 0.0);
-    if (masked) {
+    if (!quadrature) pv[k].assign(size_t(nL) * nB, 0.0), vv[k].assign(size_t(nL) * nB, 0.0);
+    if (masked && !quadrature) {
       pm[k].assign(size_t(nL) * nB, 0.0);
       vm[k].assign(size_t(nL) * nB, 0.0);
     }
@@ -555,8 +730,24 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         op[o].var[msk] = var * double(kGroups - 1) / kGroups;
         any = true;
       }
-      if (any) lobeBins(grid, ord.wo.x, ord.wo.y, ord.sd, ord.wo.z >= 0 ? 1.0 : -1.0, &op[o].share);
+      if (any && !quadrature) lobeBins(grid, ord.wo.x, ord.wo.y, ord.sd, ord.wo.z >= 0 ? 1.0 : -1.0, &op[o].share);
     });
+    if (quadrature) {
+      // The node's order powers, binned after the loop over sub-directions (binOverIncidenceBin).
+      for (size_t o = 0; o < nO; ++o) {
+        const Order& ord = orders[o];
+        const auto key = std::make_tuple(ord.lambda, int(ord.transmission) + 2 * int(ord.below), ord.a, ord.b);
+        auto [it, fresh] = slotOf.emplace(key, nodePower.size());
+        if (fresh) nodePower.push_back({ord, std::vector<double>(size_t(K) * 2, 0.0), std::vector<uint8_t>(size_t(K), 0)});
+        NodePowers& np = nodePower[it->second];
+        const double cz = std::abs(ord.wo.z);
+        np.q[size_t(k) * 2] = op[o].P[0] * cz;
+        np.q[size_t(k) * 2 + 1] = op[o].P[1] * cz;
+        np.present[size_t(k)] = 1;
+      }
+      if (progress) progress(uint64_t(k + 1) * uint64_t(N));
+      continue;
+    }
     for (size_t o = 0; o < nO; ++o) {
       const Order& ord = orders[o];
       for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
@@ -572,20 +763,12 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     if (progress) progress(uint64_t(k + 1) * uint64_t(N));
   }
   // Average over the incidence samples; the error combines the point error and the spread over k.
-  // exact with a quadrature over the incidence bin: the n-point rule, its error |Q_n − Q_{n−1}|.
   auto combine = [&](const std::vector<std::vector<double>>& p, const std::vector<std::vector<double>>& v,
                      std::vector<double>& f, std::vector<double>& e) {
     for (size_t i = 0; i < f.size(); ++i) {
       const int b = int(i % size_t(nB));
       if (grid.projectedSolidAngle(b) <= 0) continue;  // disk pixels outside the unit disk
       const double toF = 1.0 / grid.projectedSolidAngle(b);
-      if (quadrature) {
-        double hi = 0, lo = 0;
-        for (int k = 0; k < K; ++k) (rule[size_t(k)].high ? hi : lo) += rule[size_t(k)].weight * p[k][i];
-        f[i] = hi * toF;
-        e[i] = std::abs(hi - lo) * toF;
-        continue;
-      }
       double mean = 0, var = 0;
       for (int k = 0; k < K; ++k) mean += p[k][i] / K;
       for (int k = 0; k < K; ++k) var += v[k][i] / (double(K) * K);
@@ -598,8 +781,12 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       e[i] = std::sqrt(var) * toF;
     }
   };
-  combine(pv, vv, r.fws, r.fwsErr);
-  if (masked) combine(pm, vm, r.pmsk, r.pmskErr);
+  if (quadrature) {
+    binOverIncidenceBin(ctx_, grid, incidenceBin, fromAbove, media, nodePower, masked, &r);
+  } else {
+    combine(pv, vv, r.fws, r.fwsErr);
+    if (masked) combine(pm, vm, r.pmsk, r.pmskErr);
+  }
   // Kirchhoff samples per wavelength: surface point x exit direction (an order).
   r.samples = pointOrderPairs / uint64_t(std::max(1, nL));
   r.rays = rays.load();
