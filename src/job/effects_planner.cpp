@@ -364,8 +364,9 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
   // The choice depends on the pilots' errors (seeded or deterministic), never on their times, so
   // every run of the job — and a resumed one, on any number of ranks and threads — makes the same:
   // the job's own estimator if it meets the tolerance; else the deterministic one with the smaller
-  // error (its estimate is on the safe side, a Monte Carlo one can only be too small where samples
-  // miss a lobe); else the job's own.
+  // error (its estimate is on the safe side; a Monte Carlo one can be too small: samples that miss a
+  // lobe, or `orders`' four incidence draws — on the Al grating of the effects test 0.17–0.30
+  // reported against 0.24–0.39 from 4096 draws); else the job's own.
   std::string choice = resolved, how;
   const Measured& own = measured[resolved == "orders" ? 0 : measured.size() - 1];
   if (own.error <= tol) {
