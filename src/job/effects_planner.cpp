@@ -11,7 +11,6 @@
 
 #include "core/colour.h"
 #include "job/transport.h"
-#include "scattering/coherence_window.h"
 #include "scattering/fft_estimator.h"
 #include "scattering/wave_estimator.h"
 
@@ -238,46 +237,38 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
 // picks by regime and measured cost ratios; a Monte Carlo pick (`orders`, `area`) gives way to a
 // deterministic estimator that applies (`exact` where the cell's order lobes stay apart and its
 // facet sums are cheap enough to pilot, kExactPilotMaxWork; `fft` on a periodic heightfield) when
-// its own error misses the tolerance and the other's (safe-side) estimate is smaller. A pilot tile runs as the job would
-// (its samples per bin, its incidence integration, the chosen components) and measures the tile's
-// time and its predicted L1 error of f_ws per slice: for Monte Carlo √(2/π) Σ_b s_b Ω⊥ (the
-// expected Σ|noise| Ω⊥ of Gaussian errors with standard errors s_b), for the deterministic ones
-// Σ_b e_b Ω⊥ of their quadrature-error estimates, the larger over the wavelengths. Every figure goes
-// in the plan (with the samples per bin `area` would need): what each accuracy costs on this job.
-// Where no pilot can change the pick, none is run.
+// its own error misses the tolerance and the other's (safe-side) estimate is smaller. A pilot tile
+// runs as the job would (its samples per bin, its incidence integration, the chosen components) and
+// measures the tile's time and its predicted L1 error of f_ws per slice: for Monte Carlo
+// √(2/π) Σ_b s_b Ω⊥ (the expected Σ|noise| Ω⊥ of Gaussian errors with standard errors s_b), for
+// the deterministic ones Σ_b e_b Ω⊥ of their quadrature-error estimates, the larger over the
+// wavelengths. Every figure goes in the plan (with the samples per bin `area` would need): what
+// each accuracy costs on this job. Where no pilot can change the pick, none is run.
 nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen, const DirectionGrid& grid,
                                      const PeriodicScene& scene, int pilot) {
   const std::string resolved = job.resolvedWaveEstimator();
   const double sigma = job.scene.coherenceLength_um / 6.0;
   const std::vector<double> lambdas = job.lambda_um();
   const double lambdaMin = *std::min_element(lambdas.begin(), lambdas.end());
-  std::vector<std::string> candidates;
-  std::vector<std::string> skipped;
-  if (job.geometry.periodic && orderLobesSeparate(sigma, job.cellSizeX(), job.cellSizeY())) {
-    candidates.push_back("orders");
+  // The deterministic estimator a Monte Carlo pick could give way to: `exact` for `orders` (the
+  // cell's order lobes stay apart) where its facet sums are cheap enough to pilot, `fft` for `area`
+  // on a periodic heightfield. Otherwise no pilot can change the pick, and none is run.
+  std::string alternative, skipped;
+  if (resolved == "orders") {
     const double work = job.facetsPerCell() * kPi * job.cellSizeX() * job.cellSizeY() / (lambdaMin * lambdaMin);
-    if (work <= kExactPilotMaxWork || resolved == "exact")
-      candidates.push_back("exact");
+    if (work <= kExactPilotMaxWork)
+      alternative = "exact";
     else
-      skipped.push_back("exact not piloted (facets x orders " + fmt3(work) + " > " + fmt3(kExactPilotMaxWork) + ")");
+      skipped = " (exact not piloted: facets x orders " + fmt3(work) + " > " + fmt3(kExactPilotMaxWork) + ")";
+  } else if (resolved == "area" && fftUnsuitable(job.geometry, job.material, lambdas, sigma, chosen.has(Component::Lost)).empty()) {
+    alternative = "fft";
   }
-  if (const std::string why = fftUnsuitable(job.geometry, job.material, lambdas, sigma, chosen.has(Component::Lost));
-      why.empty())
-    candidates.push_back("fft");
-  candidates.push_back("area");
-  // Only a Monte Carlo choice (orders, area) can give way, and only to a deterministic estimator
-  // that applies; otherwise no pilot can change the choice, and none is run (exact and fft share
-  // the incidence rule whose error dominates theirs).
-  const bool alternative = (resolved == "orders" || resolved == "area") &&
-                           std::any_of(candidates.begin(), candidates.end(),
-                                       [](const std::string& c) { return c == "exact" || c == "fft"; });
-  if (!alternative) {
+  if (alternative.empty()) {
     auto d = decision("estimator", true, resolved + ": the job's own estimator" +
                                              (resolved == "exact" || resolved == "fft"
                                                   ? std::string(" is deterministic")
                                                   : std::string(" has no deterministic alternative here")) +
-                                             (skipped.empty() ? std::string() : " (" + skipped.front() + ")") +
-                                             "; no estimator pilot");
+                                             skipped + "; no estimator pilot");
     d["estimator"] = resolved;
     return d;
   }
@@ -351,15 +342,12 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
   // sub-direction binning the node count is no longer what limits them.
   // `orders`: its pilot, then exact's if it misses. `area`: fft's first (its table tells the area
   // pilot where the lobes are), then area's.
-  auto pilotOf = [&](const std::string& c) {
-    if (std::find(candidates.begin(), candidates.end(), c) != candidates.end()) measured.push_back(measure(c));
-  };
   if (resolved == "orders") {
-    pilotOf("orders");
-    if (measured.back().error > tol) pilotOf("exact");
+    measured.push_back(measure("orders"));
+    if (measured.back().error > tol) measured.push_back(measure("exact"));
   } else {
-    pilotOf("fft");
-    pilotOf("area");
+    measured.push_back(measure("fft"));
+    measured.push_back(measure("area"));
   }
   // The choice depends on the pilots' errors (seeded or deterministic), never on their times, so
   // every run of the job — and a resumed one, on any number of ranks and threads — makes the same:
@@ -368,7 +356,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
   // lobe, or `orders`' four incidence draws — on the Al grating of the effects test 0.17–0.30
   // reported against 0.24–0.39 from 4096 draws); else the job's own.
   std::string choice = resolved, how;
-  const Measured& own = measured[resolved == "orders" ? 0 : measured.size() - 1];
+  const Measured& own = resolved == "orders" ? measured.front() : measured.back();
   if (own.error <= tol) {
     how = "the job's own estimator meets the tolerance";
   } else {
@@ -402,7 +390,6 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
     why += ";";
     figures.push_back(f);
   }
-  for (const std::string& s : skipped) why += " " + s + ";";
   why += " chosen: " + choice + (choice == resolved ? "" : " (the static rule gave " + resolved + ")");
   auto d = decision("estimator", true, why);
   d["estimator"] = choice;

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <initializer_list>
 #include <map>
 #include <tuple>
 #include <stdexcept>
@@ -48,7 +49,7 @@ struct NodePowers {
   std::vector<uint8_t> present;  // [node]
 };
 
-// The K-point stratified pattern of a unit normal: Φ⁻¹((i + ½)/K) (K = 8, 16 or 32).
+// The K-point stratified pattern of a unit normal: Φ⁻¹((i + ½)/K) (K = 16 or 32).
 const std::vector<double>& lobeNodes(int K) {
   auto make = [](int k) {
     std::vector<double> v(static_cast<size_t>(k));
@@ -60,8 +61,8 @@ const std::vector<double>& lobeNodes(int K) {
     }
     return v;
   };
-  static const std::vector<double> n8 = make(8), n16 = make(16), n32 = make(32);
-  return K == 8 ? n8 : K == 16 ? n16 : n32;
+  static const std::vector<double> n16 = make(16), n32 = make(32);
+  return K == 16 ? n16 : n32;
 }
 
 // Fractions of a Gaussian lobe (centre (cx, cy), standard deviation sd in the xy plane of the
@@ -476,7 +477,9 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
     const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
     const double zs = fromAbove != (ord.transmission || ord.below) ? 1.0 : -1.0;
-    auto bin = [&](const Sub& sub, int table, const std::vector<Sub>& set) {
+    // One sub-direction of `set`: its exit direction and bin once, then the power of each table
+    // in `tables` (0 and 1 share the fine sub-directions).
+    auto bin = [&](const Sub& sub, std::initializer_list<int> tables, const std::vector<Sub>& set) {
       const double x = -(2 * kPi * double(ord.a) / Lx + nI * k0 * sub.wi.x) / (nO * k0);
       const double y = -(2 * kPi * double(ord.b) / Ly + nI * k0 * sub.wi.y) / (nO * k0);
       if (x * x + y * y >= 1) return;  // evanescent here
@@ -485,33 +488,32 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
       if (r2 >= 1) return;
       const int b = grid.binOf({bx, by, zs * std::sqrt(1 - r2)});
       if (b < 0) return;
-      const bool high = table != 1;
-      const size_t near = (high ? allHi : allLo) ? SIZE_MAX : nearest(sub, high);
-      if (!(high ? allHi : allLo) && near == SIZE_MAX) return;
-      for (int msk = 0; msk < nMsk; ++msk) {
-        double v = 0;
-        if (near != SIZE_MAX)
-          v = Q[near * 2 + size_t(msk)];
-        else if (high)
-          for (size_t m = 0; m < sub.wh.size(); ++m) v += sub.wh[m] * Q[m * 2 + size_t(msk)];
-        else
-          for (size_t m = 0; m < sub.wl.size(); ++m) v += sub.wl[m] * Q[(size_t(n * n) + m) * 2 + size_t(msk)];
-        if (v <= 0) continue;
-        // Merged per (table, bin): an order's image covers a few bins, so the list stays short.
-        const size_t at = size_t(l) * nB + size_t(b);
-        const double add = v / cz / double(set.size());
-        auto& list = parts[o];
-        auto hit = std::find_if(list.rbegin(), list.rend(),
-                                [&](const Part& q) { return q.at == at && q.table == table && q.msk == msk; });
-        if (hit != list.rend()) hit->value += add;
-        else list.push_back({table, msk, at, add});
+      for (const int table : tables) {
+        const bool high = table != 1;
+        const size_t near = (high ? allHi : allLo) ? SIZE_MAX : nearest(sub, high);
+        if (!(high ? allHi : allLo) && near == SIZE_MAX) continue;
+        for (int msk = 0; msk < nMsk; ++msk) {
+          double v = 0;
+          if (near != SIZE_MAX)
+            v = Q[near * 2 + size_t(msk)];
+          else if (high)
+            for (size_t m = 0; m < sub.wh.size(); ++m) v += sub.wh[m] * Q[m * 2 + size_t(msk)];
+          else
+            for (size_t m = 0; m < sub.wl.size(); ++m) v += sub.wl[m] * Q[(size_t(n * n) + m) * 2 + size_t(msk)];
+          if (v <= 0) continue;
+          // Merged per (table, bin): an order's image covers a few bins, so the list stays short.
+          const size_t at = size_t(l) * nB + size_t(b);
+          const double add = v / cz / double(set.size());
+          auto& list = parts[o];
+          auto hit = std::find_if(list.rbegin(), list.rend(),
+                                  [&](const Part& q) { return q.at == at && q.table == table && q.msk == msk; });
+          if (hit != list.rend()) hit->value += add;
+          else list.push_back({table, msk, at, add});
+        }
       }
     };
-    for (const Sub& sub : fine) {
-      bin(sub, 0, fine);
-      bin(sub, 1, fine);
-    }
-    for (const Sub& sub : coarse) bin(sub, 2, coarse);
+    for (const Sub& sub : fine) bin(sub, {0, 1}, fine);
+    for (const Sub& sub : coarse) bin(sub, {2}, coarse);
   });
   // table 0: the n-node interpolation on 32 × 32 sub-directions; 1: the (n − 1)-node one; 2: the
   // n-node one on 16 × 16.
