@@ -22,6 +22,8 @@
 #include "geometry/generators.h"
 #include "optics/material.h"
 #include "scattering/path_tracer.h"
+#include "scattering/single_scattering.h"
+#include "job/transport.h"
 #include "microflake/microflake_walk.h"
 #include "scattering/wave_estimator.h"
 
@@ -237,6 +239,58 @@ void BM_FftHeightfieldSlice(benchmark::State& state, std::string estimator) {
 BENCHMARK_CAPTURE(BM_FftHeightfieldSlice, fft, std::string("fft"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 BENCHMARK_CAPTURE(BM_FftHeightfieldSlice, exact_crop, std::string("exact"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
+// The facet sum of single scattering (scattering/single_scattering.h) against the path tracer on the
+// same tile: the Al sine grating of integration.effects_auto (2 x 0.3 µm, 128 facets in 64
+// orientations, 2 wavelengths, 8 x 16 theta-phi bins), incidence bin at 20° (above the steepest
+// slope: no ray) and the job's 50 000 paths. Prints the facet sum's pairs per second against the
+// path tracer's rays per second — the exchange rate GeometricTransport::kPairsPerRay assumes — and
+// the tile's speed-up.
+struct GratingFixture {
+  Microgeometry geometry = makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0);
+  PeriodicScene scene{geometry};
+  Material al;
+  DirectionGrid grid{ThetaPhiGrid{8, 16}};
+  GratingFixture() { builtinMaterial("Al", &al); }
+};
+double gFacetPairsPerSecond = 0, gFacetTileSeconds = 0, gGratingRaysPerSecond = 0, gGratingPathTileSeconds = 0;
+
+void BM_FacetSumTile(benchmark::State& state) {
+  static GratingFixture f;
+  FacetSingleScattering sum(f.geometry, f.scene, f.al, {0.5, 0.6}, f.grid);
+  const int bin = f.grid.binOfAngles(20, 0);
+  const double pairs = sum.cost(bin, std::nullopt).pairs;
+  double seconds = 0;
+  int n = 0;
+  for (auto _ : state) {
+    seconds += sum.run(n, 0, bin, std::nullopt).seconds;
+    ++n;
+  }
+  gFacetPairsPerSecond = pairs * n / seconds;
+  gFacetTileSeconds = seconds / n;
+  state.counters["pairs_per_s"] = gFacetPairsPerSecond;
+}
+BENCHMARK(BM_FacetSumTile)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(20);
+
+void BM_GratingPathTile(benchmark::State& state) {
+  static GratingFixture f;
+  PathTracerSettings s;
+  s.paths = 50000;
+  PathTracer tracer(f.scene, f.al, {0.5, 0.6}, f.grid, s);
+  const int bin = f.grid.binOfAngles(20, 0);
+  double seconds = 0, rays = 0;
+  int n = 0;
+  for (auto _ : state) {
+    const TileResult r = tracer.run(n, 0, bin);
+    seconds += r.seconds;
+    rays += double(r.rays);
+    ++n;
+  }
+  gGratingRaysPerSecond = rays / seconds;
+  gGratingPathTileSeconds = seconds / n;
+  state.counters["rays_per_s"] = gGratingRaysPerSecond;
+}
+BENCHMARK(BM_GratingPathTile)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(20);
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -262,5 +316,11 @@ int main(int argc, char** argv) {
     std::printf("exact on a 128^2 crop: %.2f s, scaled to 512^2 (facets x orders, x%.0f): %.0f s; fft is %.0fx faster\n",
                 gExactCropSeconds, gExactScale, gExactCropSeconds * gExactScale,
                 gFftSeconds > 0 ? gExactCropSeconds * gExactScale / gFftSeconds : 0.0);
+  if (gFacetPairsPerSecond > 0 && gGratingRaysPerSecond > 0)
+    std::printf("Al sine grating tile at 20 deg: facet sum %.3g pairs/s, path tracer %.3g rays/s: %.2f pairs per ray "
+                "(GeometricTransport::kPairsPerRay = %.0f); tile %.2f ms vs %.2f ms at 50000 paths: %.1fx\n",
+                gFacetPairsPerSecond, gGratingRaysPerSecond, gFacetPairsPerSecond / gGratingRaysPerSecond,
+                GeometricTransport::kPairsPerRay, 1e3 * gFacetTileSeconds, 1e3 * gGratingPathTileSeconds,
+                gGratingPathTileSeconds / gFacetTileSeconds);
   return 0;
 }

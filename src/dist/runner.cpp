@@ -82,6 +82,9 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
                  job.material.describe(), job.lambda_nm.size(), grid.kind(), grid.binCount(), nTiles, mpi.size(),
                  job.pathsPerSlice);
 
+  if (mpi.rank() == 0 && transport.mayUseFacetSum())
+    spdlog::info("geometric optics: {}", transport.describe());
+
   // One tile: path tracing, then the wave estimator; the callback may abandon it (stop).
   double tileSecondsSum = 0, pathSecondsSum = 0, waveSecondsSum = 0;
   int tilesDone = 0;
@@ -97,7 +100,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     };
     auto ts = Clock::now();
     TileResult r = transport.run(t, t, inc.bin, exact, cb);
-    if (job.targetRelError > 0) {
+    if (job.targetRelError > 0 && r.samples > 0) {  // a facet-sum tile is deterministic
       // Progressive sampling: more rounds of fresh paths (the next path indices, so the result is
       // the same estimator as one run of all of them) until the geometric components reach the
       // target relative error or the budget is spent.

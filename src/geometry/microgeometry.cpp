@@ -173,6 +173,18 @@ std::optional<HeightGrid> heightGridOf(const Microgeometry& g) {
   return hg;
 }
 
+SlopeBound SlopeBound::of(const Microgeometry& g) {
+  SlopeBound b;
+  if (!g.periodic || !heightGridOf(g)) return b;
+  double s = 0;
+  for (size_t t = 0; t < g.triangles.size(); ++t) {
+    const Vec3 n = g.triangleNormal(t);
+    if (dot(n, n) > 0) s = std::max(s, std::hypot(n.x, n.y) / n.z);
+  }
+  b.maxSlope = s;
+  return b;
+}
+
 void writePly(const Microgeometry& g, const std::string& path) {
   std::ofstream f(path, std::ios::binary);
   if (!f) throw std::runtime_error("cannot write " + path);

@@ -57,6 +57,19 @@ struct HeightGrid {
 };
 std::optional<HeightGrid> heightGridOf(const Microgeometry& g);
 
+// Directions no point of a periodic heightfield can be shadowed or masked from: a ray leaving the
+// surface at an elevation whose tangent exceeds the steepest facet slope s rises faster than the
+// surface can (a piecewise-linear height rises at most s per unit of horizontal distance), so it
+// never meets it again. Empty (nothing is clear) for any other mesh.
+struct SlopeBound {
+  std::optional<double> maxSlope;
+  static SlopeBound of(const Microgeometry& g);
+  // tan(elevation) = |d_z| / |d_xy| > s, squared and without division (d_xy may vanish).
+  bool clear(const Vec3& d) const {
+    return maxSlope && d.z * d.z > *maxSlope * *maxSlope * (d.x * d.x + d.y * d.y);
+  }
+};
+
 // Write the patch as binary little-endian PLY (for looking at it in MeshLab/Blender).
 void writePly(const Microgeometry& g, const std::string& path);
 

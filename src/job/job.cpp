@@ -321,6 +321,9 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.wavePointsPerDirection = bounded("wave_points_per_direction", 64, 1000000000);
   if (job.wavePointsPerDirection < 2) samp.fail("wave_points_per_direction", "must be >= 2 (pairwise estimator)");
   job.waveIncidenceDirections = bounded("wave_incidence_directions", 4, 1000000);
+  job.singleScattering = samp.getString("single_scattering", "auto");
+  if (job.singleScattering != "auto" && job.singleScattering != "paths" && job.singleScattering != "facets")
+    samp.fail("single_scattering", "must be \"auto\", \"paths\" or \"facets\"");
   job.visibilityTable = samp.getString("visibility_table", "auto");
   if (job.visibilityTable != "auto" && job.visibilityTable != "on" && job.visibilityTable != "off")
     samp.fail("visibility_table", "must be \"auto\", \"on\" or \"off\"");
@@ -350,6 +353,14 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     }
   } else {
     job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind);
+  }
+  if (job.singleScattering == "facets") {
+    const bool autoComponents =
+        std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") != job.requestedComponents.end();
+    if (job.statistical || !job.geometry.periodic)
+      samp.fail("single_scattering", "\"facets\" needs explicit periodic geometry");
+    if (!autoComponents && (job.components.has(Component::Multiple) || job.components.has(Component::Lost)))
+      samp.fail("single_scattering", "\"facets\" computes single scattering only: multiple and lost need paths");
   }
 
   // Azimuthal symmetry (symmetry.h): declared, or detected for a statistical surface whose NDF is

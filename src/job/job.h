@@ -94,6 +94,10 @@ struct Job {
   // [sampling] visibility_table: "auto", "on" or "off" — the `exact` estimator's shared visibility
   // table (scattering/visibility_table.h); see visibilityTableResolution().
   std::string visibilityTable = "auto";
+  // [sampling] single_scattering: "auto", "paths" or "facets" — how the `coherent` component is
+  // computed where no path of depth >= 2 is wanted (scattering/single_scattering.h); see
+  // GeometricTransport.
+  std::string singleScattering = "auto";
   std::string outputPath = "out.h5";
   bool previews = false;
 

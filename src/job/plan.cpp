@@ -73,10 +73,16 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   const uint64_t pilotPaths = std::min<uint64_t>(job.pathsPerSlice, options.pilotPaths);
   GeometricTransport transport(job, grid, pilotPaths);
   const double sceneSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
-  double pilotSeconds = 0;
-  for (int t : pilots) pilotSeconds += transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t)).seconds / pilots.size();
+  // Paths scale with paths_per_slice; a facet-sum tile (no paths, transport.h) is the tile's cost.
+  double pathSeconds = 0, pilotSeconds = 0;
+  int facetTiles = 0;
+  for (int t : pilots) {
+    const TileResult r = transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t));
+    pilotSeconds += r.seconds / double(pilots.size());
+    pathSeconds += r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
+    facetTiles += r.samples == 0;
+  }
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
-  const double pathSeconds = pilotSeconds * double(job.pathsPerSlice) / double(pilotPaths);
   double waveSeconds = 0, waveBytes = 0, waveSetupSeconds = 0;
   if (job.needsWave()) {
     WaveSettings ws = waveSettingsOf(job);
@@ -141,6 +147,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
                 {"path_seconds", pilotSeconds},
                 {"path_seconds_per_wavelength_group", pilotSeconds / groups},
                 {"scene_build_seconds", sceneSeconds},
+                {"facet_sum_tiles", facetTiles},
                 {"cores", cores}};
   if (job.targetRelError > 0) {
     // Progressive sampling: the estimate above is the first round; the budget bounds the rest.

@@ -22,17 +22,43 @@ GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid
     s.seed = job.seed;
     s.tallyGeoMasked = job.components.has(Component::Lost);
     tracer_ = std::make_unique<PathTracer>(*scene_, job.material, job.lambda_um(), grid, s);
+    if (job.geometry.periodic && job.singleScattering != "paths" && !job.components.has(Component::Multiple) &&
+        !job.components.has(Component::Lost)) {
+      facets_ = std::make_unique<FacetSingleScattering>(job.geometry, *scene_, job.material, job.lambda_um(), grid);
+      singleScattering_ = job.singleScattering;
+      const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(job.lambda_nm.size());
+      pathRays_ = 2.0 * double(job.pathsPerSlice) * groups;
+    }
   }
+}
+
+bool GeometricTransport::facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection) const {
+  if (!facets_) return false;
+  if (singleScattering_ == "facets") return true;
+  const FacetSingleScattering::Cost c = facets_->cost(incidenceBin, exactDirection);
+  return c.pairs / kPairsPerRay + c.rays <= pathRays_;
 }
 
 TileResult GeometricTransport::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
                                    const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
   if (walk_) return walk_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath);
+  // A deterministic tile has nothing to add in later rounds (progressive sampling asks with firstPath > 0).
+  if (firstPath == 0 && facetSum(incidenceBin, exactDirection)) {
+    TileResult r = facets_->run(tile, incidenceIndex, incidenceBin, exactDirection);
+    if (progress) progress(0);
+    return r;
+  }
   return tracer_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath);
 }
 
 std::string GeometricTransport::describe() const {
   if (flakes_) return "microflake random walk, " + flakes_->describe();
+  if (facets_)
+    return std::string("path tracer through the explicit microgeometry; single scattering by the facet sum ") +
+           (singleScattering_ == "facets" ? "on every tile" : "on the tiles where it is cheaper") +
+           (facets_->maxSlope() ? fmt::format(" (heightfield, steepest slope {:.3g}: no ray above {:.3g} deg elevation)",
+                                              *facets_->maxSlope(), degrees(std::atan(*facets_->maxSlope())))
+                                : " (visibility by rays at 16 points per facet)");
   return "path tracer through the explicit microgeometry";
 }
 

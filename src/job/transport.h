@@ -2,6 +2,13 @@
 // (PHYSICS.md §4), or the microflake random walk for a statistical surface (§9). Both produce the
 // same TileResult (coherent = single scattering, multiple = the rest), so the runner, the planner
 // and the comparison tool treat them alike. Owns what each needs (Embree scene or NDF tables).
+//
+// Where the job wants no path of depth >= 2 (neither `multiple` nor `lost`) on explicit periodic
+// geometry, a tile's `coherent` may instead come from the deterministic facet sum
+// (scattering/single_scattering.h): [sampling] single_scattering = "facets" always, "auto" per tile
+// where its counted work is below the path tracer's — pairs / kPairsPerRay + rays against
+// 2 rays x paths_per_slice x wavelength groups (a path of depth 1 casts two) — so the choice
+// depends only on the job and the tile, never on timing.
 #pragma once
 #include <functional>
 #include <memory>
@@ -12,6 +19,7 @@
 #include "job/job.h"
 #include "microflake/microflake_walk.h"
 #include "scattering/path_tracer.h"
+#include "scattering/single_scattering.h"
 #include "scattering/wave_estimator.h"
 
 namespace mbsdf {
@@ -25,10 +33,20 @@ class GeometricTransport {
   // The Embree scene of explicit geometry (null for a statistical surface).
   const PeriodicScene* scene() const { return scene_.get(); }
   std::string describe() const;
+  // Whether tile `incidenceBin` / `exactDirection` is computed by the facet sum (no paths).
+  bool mayUseFacetSum() const { return facets_ != nullptr; }
+  bool facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection) const;
+  // Facet-direction pairs of the facet sum that cost one ray: measured by
+  // bench/bench_single_scattering (a pair is a reflection, a bin lookup and a Fresnel factor per
+  // wavelength; a ray is an Embree traversal of the periodic scene).
+  static constexpr double kPairsPerRay = 4.0;
 
  private:
   std::unique_ptr<PeriodicScene> scene_;
   std::unique_ptr<PathTracer> tracer_;
+  std::unique_ptr<FacetSingleScattering> facets_;
+  std::string singleScattering_;
+  double pathRays_ = 0;  // rays of the path tracer per tile at the job's paths_per_slice
   std::unique_ptr<MicroflakeDistribution> flakes_;
   std::unique_ptr<MicroflakeWalk> walk_;
 };

@@ -107,9 +107,10 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
 // Only the facets of `cell` (one cell of a patch that repeats it) are visited; `table` (may be
 // null) answers where it can.
 std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
-                                         const Vec3& wi, bool fromAbove, uint64_t* rays) {
+                                         const SlopeBound& slope, const Vec3& wi, bool fromAbove, uint64_t* rays) {
   const Microgeometry& g = ctx.geometry;
   std::vector<uint8_t> lit(g.triangles.size(), 0);
+  const bool clear = slope.clear(wi);  // above a heightfield's steepest slope: every facing point is lit
   std::atomic<uint64_t> count{0};
   tbb::parallel_for(size_t(0), cell.facets.size(), [&](size_t f) {
     const size_t t = cell.facets[f];
@@ -120,6 +121,10 @@ std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCe
     const auto& tri = g.triangles[t];
     const auto pts = firstLevelPoints(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]]);
     uint8_t bits = 0;
+    if (clear) {
+      lit[t] = 0xF;
+      return;
+    }
     for (int k = 0; k < 4; ++k) {
       const std::optional<bool> known = table ? table->escapes(uint32_t(t), k, m, wi, fromAbove) : std::nullopt;
       if (!known) ++count;
@@ -147,15 +152,21 @@ struct ShadowCache {
 // s, p (only with `masked`). Facets are visited in index order: the sum is deterministic. `lit`:
 // firstLevelShadowing for this ωi (deeper points cast their own shadow rays). The order lies on
 // the reciprocal lattice of `cell`, so the patch's sum is nx ny times the cell's (lattice_cell.h).
-void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table, const Order& ord,
-                    const Vec3& wi, bool fromAbove, const wave::Media& media, bool masked, const std::vector<uint8_t>& lit,
-                    ShadowCache& shadow, Complex* H, uint64_t* rays) {
+void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
+                    const SlopeBound& slope, const Order& ord, const Vec3& wi, bool fromAbove,
+                    const wave::Media& media, bool masked, const std::vector<uint8_t>& lit, ShadowCache& shadow,
+                    Complex* H, uint64_t* rays) {
   const Microgeometry& g = ctx.geometry;
   const int l = ord.lambda;
   const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
   const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
   const Vec3 q = wi * (-nI * k0) - ord.wo * (nO * k0);  // k1 − k2, as in kirchhoffIntegrand
   Complex Hc[4] = {0, 0, 0, 0};
+  // On a heightfield, directions above its steepest slope need no ray (SlopeBound): the light
+  // reaches every facing point, and an order leaving on its own side is seen from every point of a
+  // facet that faces it.
+  const bool litClear = slope.clear(wi);
+  const bool exitClear = ((ord.wo.z > 0) == (fromAbove != ord.transmission)) && slope.clear(ord.wo);
   for (size_t slot = 0; slot < cell.facets.size(); ++slot) {
     const uint32_t t = cell.facets[slot];
     const auto& tri = g.triangles[t];
@@ -174,7 +185,7 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
     // the shared table may answer (the facet faces ω_G here, so visibleExit's answer is escapes');
     // otherwise `sub` indexes its shadowing in the cache.
     auto state = [&](const Vec3& x, int firstLevel, size_t sub) {
-      if (firstLevel < 0) {
+      if (firstLevel < 0 && !litClear) {
         std::atomic<uint8_t>& known = shadow.state[slot * kSubPoints + sub];
         uint8_t st = known.load(std::memory_order_relaxed);
         if (st == 0) {
@@ -184,8 +195,9 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
           if (known.compare_exchange_strong(unknown, st, std::memory_order_relaxed)) ++*rays;
         }
         if (st == 2) return 0;
-      } else if (!((lit[t] >> firstLevel) & 1))
+      } else if (firstLevel >= 0 && !((lit[t] >> firstLevel) & 1))
         return 0;
+      if (exitClear) return 1;
       if (table && firstLevel >= 0)
         if (const auto e = ord.transmission ? table->escapes(t, firstLevel, -m, ord.wo, !fromAbove)
                                             : table->escapes(t, firstLevel, m, ord.wo, fromAbove))
@@ -322,7 +334,8 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
 }  // namespace
 
 OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx, OrderAmplitudes amplitudes)
-    : ctx_(ctx), sampler_(ctx.geometry), amplitudes_(amplitudes), cell_(latticeCellOf(ctx.geometry)) {
+    : ctx_(ctx), sampler_(ctx.geometry), amplitudes_(amplitudes), cell_(latticeCellOf(ctx.geometry)),
+      slope_(SlopeBound::of(ctx.geometry)) {
   if (!ctx.scene.periodic() || !ctx.window.active())
     throw std::invalid_argument("the " + name() + " estimator needs a periodic patch and a coherence window");
   if (amplitudes == OrderAmplitudes::Fourier) {
@@ -446,10 +459,17 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     double value;
   };
   std::vector<std::vector<Part>> parts(nodePower.size());
+  // Orders whose power stays below 1e-13 of the strongest order's at every node are left out (a flat
+  // patch's orders G != 0 carry rounding noise of 1e-30: binning each of them over 32 x 32
+  // sub-directions was the whole cost of a flat mirror's tile); they change no bin by more than
+  // 1e-13 of its value.
+  double strongest = 0;
+  for (const NodePowers& np : nodePower)
+    for (double q : np.q) strongest = std::max(strongest, q);
   tbb::parallel_for(size_t(0), nodePower.size(), [&](size_t o) {
     const Order& ord = nodePower[o].ord;
     const std::vector<double>& Q = nodePower[o].q;
-    if (std::all_of(Q.begin(), Q.end(), [](double v) { return v == 0; })) return;  // no power at any node
+    if (std::all_of(Q.begin(), Q.end(), [&](double v) { return v <= 1e-13 * strongest; })) return;  // negligible everywhere
     const std::vector<uint8_t>& present = nodePower[o].present;
     // Lagrange over a rule's nodes where the order propagates at all of them; else (it crosses the
     // horizon inside the bin) the nearest node where it propagates.
@@ -633,12 +653,13 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     } else if (amplitudes_ == OrderAmplitudes::Exact) {
       uint64_t shadowRays = 0;
       const VisibilityTable* table = visibilityTable();
-      const std::vector<uint8_t> lit = firstLevelShadowing(ctx_, cell_, table, wi, fromAbove, &shadowRays);
+      const std::vector<uint8_t> lit = firstLevelShadowing(ctx_, cell_, table, slope_, wi, fromAbove, &shadowRays);
       rays += shadowRays;
       std::vector<uint64_t> orderRays(nO, 0);
       ShadowCache shadow(cell_.facets.size());
       tbb::parallel_for(size_t(0), nO, [&](size_t o) {
-        exactAmplitude(ctx_, cell_, table, orders[o], wi, fromAbove, media, masked, lit, shadow, &H[4 * o], &orderRays[o]);
+        exactAmplitude(ctx_, cell_, table, slope_, orders[o], wi, fromAbove, media, masked, lit, shadow, &H[4 * o],
+                       &orderRays[o]);
       });
       for (uint64_t v : orderRays) rays += v;
     } else {

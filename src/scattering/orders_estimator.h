@@ -67,6 +67,7 @@ class OrdersWaveEstimator : public WaveEstimator {
   SurfaceSampler sampler_;
   OrderAmplitudes amplitudes_;
   LatticeCell cell_;  // the cell the patch repeats: orders on its lattice only
+  SlopeBound slope_;  // directions a heightfield cannot shadow or mask (no ray cast)
   std::unique_ptr<HeightfieldSpectrum> spectrum_;
   // exact with settings.visibilityTable > 0: built on first use, then shared by every tile.
   const VisibilityTable* visibilityTable() const;

@@ -1,0 +1,280 @@
+#include "scattering/single_scattering.h"
+
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <map>
+
+#include "optics/fresnel.h"
+#include "scattering/visibility_table.h"
+#include "scattering/wave_common.h"
+
+namespace mbsdf {
+
+namespace {
+
+// Fraction of triangle (a, b, c) whose points pass `test`, by splitting it into four (at the edge
+// midpoints) where its four first-level points — the centroid and three points inset towards the
+// vertices, as `exact` tests them — disagree, down to `depth` levels. A leaf whose points still
+// disagree counts the fraction of its points and adds to *uncertain its area share times the
+// largest possible deviation, max(f, 1 − f): the error bound of a partly lit or masked facet.
+template <class Test>
+double visibleFraction(const Vec3& a, const Vec3& b, const Vec3& c, const Test& test, int depth, double* uncertain) {
+  int n = 0;
+  for (const Vec3& x : firstLevelPoints(a, b, c)) n += test(x) ? 1 : 0;
+  if (n == 0 || n == 4) return n / 4.0;
+  if (depth == 0) {
+    const double f = n / 4.0;
+    *uncertain += std::max(f, 1 - f);
+    return f;
+  }
+  const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
+  double u = 0;
+  const double f = (visibleFraction(a, ab, ca, test, depth - 1, &u) + visibleFraction(ab, b, bc, test, depth - 1, &u) +
+                    visibleFraction(ca, bc, c, test, depth - 1, &u) + visibleFraction(ab, bc, ca, test, depth - 1, &u)) /
+                   4;
+  *uncertain += u / 4;
+  return f;
+}
+
+// Fixed blocks of sub-direction rows summed on their own and reduced in order: the result does not
+// depend on the thread count (non-negotiable 6).
+constexpr int kBlocks = 8;
+
+}  // namespace
+
+FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const PeriodicScene& scene, const Material& material,
+                                             std::vector<double> lambda_um, const DirectionGrid& grid)
+    : g_(g), scene_(scene), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid) {
+  for (double l : lambda_um_) ior_.push_back(material_.isPerfectConductor() ? Complex(0, 0) : material_.ior(l));
+  // Facets in one plane orientation reflect (and refract) into the same direction: where no ray is
+  // needed they are one term (a grating's texels, a flat patch's two triangles, a V-groove's faces).
+  // Normals equal to 1e-12 are one orientation (a direction error of 1e-12 rad).
+  std::map<std::array<long long, 3>, size_t> index;
+  for (size_t t = 0; t < g.triangles.size(); ++t) {
+    const Vec3 N = g.triangleNormal(t);
+    const double len = length(N);
+    if (!(len > 0)) continue;  // degenerate: no area, no light
+    const Vec3 n = N * (1.0 / len);
+    const std::array<long long, 3> key{std::llround(n.x * 1e12), std::llround(n.y * 1e12), std::llround(n.z * 1e12)};
+    auto [it, added] = index.emplace(key, planes_.size());
+    if (added) planes_.push_back(Plane{n, 0.0, {}, {}});
+    Plane& p = planes_[it->second];
+    p.area += 0.5 * len;
+    p.facets.push_back(uint32_t(t));
+    p.facetArea.push_back(0.5 * len);
+  }
+  facets_ = g.triangles.size();
+  footprint_ = g.sizeX * g.sizeY;
+  // A conductor's reflectance per wavelength, tabulated in cos θ: the complex square root and
+  // division of each Fresnel evaluation were a third of the sum's time. Linear interpolation on
+  // kFresnelTable intervals is off by at most h²/8 max|F''| (below 1e-6 for metals in the visible;
+  // a dielectric's critical angle has an infinite slope, so dielectrics are evaluated exactly).
+  if (material_.isConductor() && !material_.isPerfectConductor())
+    for (const Complex& n2 : ior_) {
+      std::vector<double> f(kFresnelTable + 1);
+      for (int i = 0; i <= kFresnelTable; ++i) f[size_t(i)] = fresnelReflectance(double(i) / kFresnelTable, material_.outsideIor, n2);
+      fresnel_.push_back(std::move(f));
+    }
+  slope_ = SlopeBound::of(g);
+}
+
+FacetSingleScattering::Rule FacetSingleScattering::rule(int incidenceBin, const std::optional<Vec3>& exactDirection,
+                                                        int s) const {
+  Rule r;
+  if (exactDirection) {
+    r.wi.push_back({normalize(*exactDirection), 1.0});
+    return r;
+  }
+  for (int i = 0; i < s; ++i)
+    for (int j = 0; j < s; ++j) {
+      DirectionSample d = grid_.sampleCosine(incidenceBin, (i + 0.5) / s, (j + 0.5) / s);
+      d.weight /= double(s) * s;
+      r.wi.push_back(d);
+    }
+  return r;
+}
+
+FacetSingleScattering::Cost FacetSingleScattering::cost(int incidenceBin, const std::optional<Vec3>& exactDirection) const {
+  Cost c;
+  const bool dielectric = !material_.isConductor();
+  const double nDir = material_.directionsIndependentOfLambda() ? 1.0 : double(lambda_um_.size());
+  // A facet that needs visibility: its four first-level points, a lit and an exit ray each, and
+  // half as many again for the splitting where they disagree (an estimate: only the run knows).
+  const double perFacet = 12;
+  for (int pass = 0; pass < (exactDirection ? 1 : 2); ++pass) {
+    const Rule r = rule(incidenceBin, exactDirection, pass == 0 ? kSubdirections : kSubdirections / 2);
+    c.pairs += double(r.wi.size()) * double(planes_.size()) * nDir;
+    if (!slope_.maxSlope) {
+      c.rays += double(r.wi.size()) * double(facets_) * perFacet * (dielectric ? 2 : 1) * nDir;
+      continue;
+    }
+    for (const auto& wi : r.wi) {
+      const bool fromAbove = wi.w.z >= 0;
+      const bool litClear = slope_.clear(wi.w);
+      for (const Plane& p : planes_) {
+        const Vec3 side = fromAbove ? p.n : -p.n;
+        if (dot(wi.w, side) <= 0) continue;
+        const Vec3 rf = reflect(wi.w, side);
+        // A reflection into the other half-space is blocked on a periodic surface: no ray.
+        if ((rf.z >= 0) == fromAbove && !(litClear && slope_.clear(rf))) c.rays += perFacet * nDir * double(p.facets.size());
+        if (dielectric && !litClear) c.rays += perFacet * nDir * double(p.facets.size());  // the refracted side
+      }
+    }
+  }
+  return c;
+}
+
+void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::vector<double>& uncertain, uint64_t* rays) const {
+  const int nL = int(lambda_um_.size()), nB = grid_.binCount();
+  const bool conductor = material_.isConductor(), perfect = material_.isPerfectConductor();
+  const bool shared = material_.directionsIndependentOfLambda();
+  const double n1 = material_.outsideIor;
+  const int rows = int(r.wi.size());
+  std::vector<std::vector<double>> block(kBlocks), blockU(kBlocks);
+  std::vector<uint64_t> blockRays(kBlocks, 0);
+  tbb::parallel_for(0, kBlocks, [&](int k) {
+    std::vector<double>& acc = block[size_t(k)];
+    std::vector<double>& accU = blockU[size_t(k)];
+    acc.assign(size_t(nL) * nB, 0.0);
+    accU.assign(size_t(nL) * nB, 0.0);
+    uint64_t nRays = 0;
+    for (int s = rows * k / kBlocks; s < rows * (k + 1) / kBlocks; ++s) {
+      const Vec3 wi = r.wi[size_t(s)].w;
+      const bool fromAbove = wi.z >= 0;
+      const double scale = r.wi[size_t(s)].weight / (footprint_ * std::abs(wi.z));
+      const bool litClear = slope_.clear(wi);
+      for (const Plane& p : planes_) {
+        const Vec3 side = fromAbove ? p.n : -p.n;
+        const double cosLocal = std::min(1.0, dot(wi, side));
+        if (cosLocal <= 0) continue;
+        // Area-weighted fraction of the plane lit from wi that also sees d (on the side `up`,
+        // leaving by the face `face`), and its uncertainty: 1 by the slope bound where it applies,
+        // else by rays (visibleFraction per facet).
+        struct Seen {
+          double f = 0, u = 0;
+        };
+        auto seen = [&](const Vec3& d, const Vec3& face, bool up) {
+          Seen v;
+          if ((d.z >= 0) != up) return v;  // into the surface (periodic: it must meet it again)
+          if (litClear && slope_.clear(d)) {
+            v.f = 1;
+            return v;
+          }
+          const bool dClear = slope_.clear(d);
+          for (size_t q = 0; q < p.facets.size(); ++q) {
+            const uint32_t t = p.facets[q];
+            auto test = [&](const Vec3& x) {
+              if (!litClear) {
+                ++nRays;
+                if (!wave::escapes(scene_, x, side, wi, t, fromAbove)) return false;
+              }
+              if (dClear) return true;
+              ++nRays;
+              return wave::escapes(scene_, x, face, d, t, up);
+            };
+            const auto& tri = g_.triangles[t];
+            double u = 0;
+            const double share = p.facetArea[q] / p.area;
+            v.f += share * visibleFraction(g_.vertices[tri[0]], g_.vertices[tri[1]], g_.vertices[tri[2]], test,
+                                           kVisibilityDepth, &u);
+            v.u += share * u;
+          }
+          return v;
+        };
+        const double power = p.area * cosLocal * scale;
+        const Vec3 rf = reflect(wi, side);
+        // Reflection: one direction for every wavelength.
+        const Seen vr = seen(rf, side, fromAbove);
+        const int binR = vr.f > 0 || vr.u > 0 ? grid_.binOf(rf) : -1;
+        if (conductor) {
+          if (binR < 0) continue;
+          for (int l = 0; l < nL; ++l) {
+            double F = 1.0;
+            if (!perfect) {
+              const double x = cosLocal * kFresnelTable;
+              const int i = std::min(int(x), kFresnelTable - 1);
+              const std::vector<double>& tab = fresnel_[size_t(l)];
+              F = tab[size_t(i)] + (x - i) * (tab[size_t(i) + 1] - tab[size_t(i)]);
+            }
+            acc[size_t(l) * nB + binR] += power * F * vr.f;
+            accU[size_t(l) * nB + binR] += power * F * vr.u;
+          }
+          continue;
+        }
+        // Dielectric (real index, as the path tracer takes it): reflected F, refracted 1 − F.
+        Seen vt;
+        bool refracted = false;
+        int binT = -1;
+        for (int l = 0; l < nL; ++l) {
+          const double n2 = ior_[size_t(l)].real();
+          const double etaI = fromAbove ? n1 : n2, etaT = fromAbove ? n2 : n1;
+          const double F = fresnelReflectance(cosLocal, etaI, Complex(etaT, 0));
+          if (binR >= 0) {
+            acc[size_t(l) * nB + binR] += power * F * vr.f;
+            accU[size_t(l) * nB + binR] += power * F * vr.u;
+          }
+          if (F >= 1) continue;
+          if (!shared || !refracted) {
+            Vec3 wt;
+            if (!refract(wi, side, etaI / etaT, &wt)) continue;
+            vt = seen(wt, -side, !fromAbove);
+            binT = vt.f > 0 || vt.u > 0 ? grid_.binOf(wt) : -1;
+            refracted = true;
+          }
+          if (binT >= 0) {
+            acc[size_t(l) * nB + binT] += power * (1 - F) * vt.f;
+            accU[size_t(l) * nB + binT] += power * (1 - F) * vt.u;
+          }
+        }
+      }
+    }
+    blockRays[size_t(k)] = nRays;
+  });
+  out.assign(size_t(nL) * nB, 0.0);
+  uncertain.assign(size_t(nL) * nB, 0.0);
+  for (int k = 0; k < kBlocks; ++k) {
+    for (size_t i = 0; i < out.size(); ++i) {
+      out[i] += block[size_t(k)][i];
+      uncertain[i] += blockU[size_t(k)][i];
+    }
+    *rays += blockRays[size_t(k)];
+  }
+  for (int l = 0; l < nL; ++l)
+    for (int bin = 0; bin < nB; ++bin) {
+      const double op = grid_.projectedSolidAngle(bin);
+      const size_t i = size_t(l) * nB + bin;
+      out[i] = op > 0 ? out[i] / op : 0.0;
+      uncertain[i] = op > 0 ? uncertain[i] / op : 0.0;
+    }
+}
+
+TileResult FacetSingleScattering::run(int tile, int incidenceIndex, int incidenceBin,
+                                      const std::optional<Vec3>& exactDirection) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  TileResult res;
+  res.tile = tile;
+  res.incidenceIndex = incidenceIndex;
+  res.incidenceBin = incidenceBin;
+  res.nLambda = int(lambda_um_.size());
+  res.nBins = grid_.binCount();
+  res.truncated = res.leaked = res.missed = std::vector<double>(size_t(res.nLambda), 0.0);
+  std::vector<double> fine, uncertain, coarse, coarseUncertain;
+  sum(rule(incidenceBin, exactDirection, kSubdirections), fine, uncertain, &res.rays);
+  auto& err = res.stdError[int(Component::Coherent)];
+  err = uncertain;
+  if (!exactDirection) {
+    // The incidence quadrature's error: the S/2 rule's distance (the coarser rule's error, so on
+    // the safe side for the S rule).
+    sum(rule(incidenceBin, exactDirection, kSubdirections / 2), coarse, coarseUncertain, &res.rays);
+    for (size_t i = 0; i < fine.size(); ++i) err[i] += std::abs(fine[i] - coarse[i]);
+  }
+  res.value[int(Component::Coherent)] = std::move(fine);
+  res.samples = 0;  // deterministic: no paths
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace mbsdf
