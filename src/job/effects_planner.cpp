@@ -535,33 +535,64 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       const int nCells = cellOf.empty() ? 0 : *std::max_element(cellOf.begin(), cellOf.end()) + 1;
       double upper = -1e300, lower = -1e300, worstL1 = 0, worstFloor = 0, worstTheta = 0;
       int wavePilotsRun = 0;
+      int replicas = 0;
       for (size_t k = 0; k < pilots.size(); ++k) {
         const auto& inc = job.incidence[size_t(pilots[k])];
         const std::optional<Vec3> dir = binAveraged ? std::nullopt : std::optional<Vec3>(beam(pilots[k]));
         const WaveTileResult w = est->run(pilots[k], inc.bin, dir);
         const TileResult r = binAveraged ? facetGs->run(pilots[k], pilots[k], inc.bin, std::nullopt) : geo[k];
-        for (int l = 0; l < nL; ++l) {
-          // Per cell: Σ (f_ws − f_coh) Ω⊥ and its variance Σ (s Ω⊥)².
-          std::vector<double> diff(size_t(nCells), 0.0), cellVar(size_t(nCells), 0.0);
+        // Per wavelength: L1 of the cells' Σ (f_ws − f_coh) Ω⊥, its expected noise (floor) and the
+        // variance Σ (s Ω⊥)². With a replica (a second Monte Carlo pilot of another seed) f_ws is the
+        // two's mean, and each cell's floor is at least the noise the two show, |Σ (w1 − w2) Ω⊥| / 2
+        // (the mean's noise has the distribution of the half-difference's): the standard errors
+        // of a heavy-tailed Kirchhoff estimate can be far too small.
+        struct Figures {
+          double l1, floor, var;
+        };
+        auto figures = [&](int l, const WaveTileResult* w2) {
+          std::vector<double> diff(size_t(nCells), 0.0), cellVar(size_t(nCells), 0.0), spread(size_t(nCells), 0.0);
           for (int b = 0; b < nB; ++b) {
             if (cellOf[size_t(b)] < 0) continue;
-            const size_t x = size_t(l) * nB + b;
+            const size_t x = size_t(l) * nB + b, c = size_t(cellOf[size_t(b)]);
             const double op = grid.projectedSolidAngle(b);
-            const double s = std::hypot(w.fwsErr[x], r.stdError[int(Component::Coherent)][x]);
-            diff[size_t(cellOf[size_t(b)])] += (w.fws[x] - r.at(Component::Coherent, l, b)) * op;
-            cellVar[size_t(cellOf[size_t(b)])] += s * op * s * op;
+            const double ws = w2 ? 0.5 * (w.fws[x] + w2->fws[x]) : w.fws[x];
+            const double wsErr = w2 ? 0.5 * std::hypot(w.fwsErr[x], w2->fwsErr[x]) : w.fwsErr[x];
+            const double sd = std::hypot(wsErr, r.stdError[int(Component::Coherent)][x]);
+            diff[c] += (ws - r.at(Component::Coherent, l, b)) * op;
+            cellVar[c] += sd * op * sd * op;
+            if (w2) spread[c] += 0.5 * (w.fws[x] - w2->fws[x]) * op;
           }
-          double l1 = 0, floor = 0, var = 0;
-          for (int c = 0; c < nCells; ++c) {
-            l1 += std::abs(diff[size_t(c)]);
-            floor += std::sqrt(2 / kPi) * std::sqrt(cellVar[size_t(c)]);
-            var += cellVar[size_t(c)];
+          Figures f{0, 0, 0};
+          for (size_t c = 0; c < size_t(nCells); ++c) {
+            f.l1 += std::abs(diff[c]);
+            f.floor += std::max(std::sqrt(2 / kPi) * std::sqrt(cellVar[c]), std::abs(spread[c]));
+            f.var += cellVar[c];
           }
-          lower = std::max(lower, l1 - floor - 2 * std::sqrt(var));
-          if (l1 - floor + 2 * std::sqrt(var) > upper) {
-            upper = l1 - floor + 2 * std::sqrt(var);
-            worstL1 = l1;
-            worstFloor = floor;
+          return f;
+        };
+        std::vector<Figures> fig;
+        bool marginal = false;
+        for (int l = 0; l < nL; ++l) {
+          fig.push_back(figures(l, nullptr));
+          const Figures& f = fig.back();
+          // "On" from a Monte Carlo pilot whose noise floor is most of its difference rests on that
+          // floor being right: confirmed by a replica (the gentle noise's area pilot: L1 38.6 against
+          // a floor of 34.2 claimed 1.99 beyond it at one incidence).
+          marginal = marginal || (!est->deterministic() && f.l1 - f.floor - 2 * std::sqrt(f.var) > tol && f.floor > 0.5 * f.l1);
+        }
+        if (marginal) {
+          WaveSettings other = ws;
+          other.seed = ws.seed ^ 0x5851F42D4C957F2Dull;
+          const WaveTileResult w2 = makeJobWaveEstimator(job, grid, *transport.scene(), other)->run(pilots[k], inc.bin, dir);
+          ++replicas;
+          for (int l = 0; l < nL; ++l) fig[size_t(l)] = figures(l, &w2);
+        }
+        for (const Figures& f : fig) {
+          lower = std::max(lower, f.l1 - f.floor - 2 * std::sqrt(f.var));
+          if (f.l1 - f.floor + 2 * std::sqrt(f.var) > upper) {
+            upper = f.l1 - f.floor + 2 * std::sqrt(f.var);
+            worstL1 = f.l1;
+            worstFloor = f.floor;
             worstTheta = inc.theta_deg;
           }
         }
@@ -584,7 +615,10 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
                         ", upper " + fmt3(upper) + ") at theta " + fmt3(worstTheta) + " deg" +
                         (wavePilotsRun < int(pilots.size()) ? " (decided by the first " + std::to_string(wavePilotsRun) +
                                                                   " of " + std::to_string(pilots.size()) + " wave pilots)"
-                                                            : "");
+                                                            : "") +
+                        (replicas > 0 ? " (" + std::to_string(replicas) + " marginal wave pilot(s) re-run with another seed: the floor is at "
+                                                          "least the noise the two show)"
+                                    : "");
       // Kirchhoff-theory estimate, used when the pilot cannot decide (its noise straddles the
       // tolerance): the diffraction-limited specular spike 2 R e^{-g} (geometric optics has none;
       // R <= 1) plus the blur of a lobe of width 2·slope by the window's diffraction, angular sd
@@ -636,6 +670,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       d["resolution_cells"] = nCells;
       d["wave_samples_per_bin"] = ws.samplesPerBin;
       d["wave_pilots_run"] = wavePilotsRun;
+      d["wave_pilot_replicas"] = replicas;
     }
     if (forced.has(Component::Incoherent) && !on) {
       d["reason"] = d["reason"].get<std::string>() + "; kept: requested";

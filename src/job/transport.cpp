@@ -58,7 +58,7 @@ std::string GeometricTransport::describe() const {
            (singleScattering_ == "facets" ? "on every tile" : "on the tiles where it is cheaper") +
            (facets_->maxSlope() ? fmt::format(" (heightfield, steepest slope {:.3g}: no ray above {:.3g} deg elevation)",
                                               *facets_->maxSlope(), degrees(std::atan(*facets_->maxSlope())))
-                                : " (visibility by rays at 16 points per facet)");
+                                : " (visibility by rays from each facet's first-level points, split where they disagree)");
   return "path tracer through the explicit microgeometry";
 }
 

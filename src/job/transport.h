@@ -33,12 +33,14 @@ class GeometricTransport {
   // The Embree scene of explicit geometry (null for a statistical surface).
   const PeriodicScene* scene() const { return scene_.get(); }
   std::string describe() const;
-  // Whether tile `incidenceBin` / `exactDirection` is computed by the facet sum (no paths).
+  // Whether the job lets any tile's single scattering come from the facet sum.
   bool mayUseFacetSum() const { return facets_ != nullptr; }
+  // Whether tile `incidenceBin` / `exactDirection` is computed by the facet sum (no paths).
   bool facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection) const;
-  // Facet-direction pairs of the facet sum that cost one ray: measured by
-  // bench/bench_single_scattering (a pair is a reflection, a bin lookup and a Fresnel factor per
-  // wavelength; a ray is an Embree traversal of the periodic scene).
+  // Facet-direction pairs of the facet sum that cost one ray: measured by `microbsdf_bench
+  // --benchmark_filter='FacetSum|GratingPath'` (bench/bench_path_tracer.cpp: 4.0 on the Al grating;
+  // a pair is a reflection, a bin lookup and a Fresnel factor per wavelength, a ray an Embree
+  // traversal of the periodic scene with the path tracer's bookkeeping).
   static constexpr double kPairsPerRay = 4.0;
 
  private:
