@@ -23,7 +23,6 @@
 #include "optics/material.h"
 #include "scattering/path_tracer.h"
 #include "scattering/single_scattering.h"
-#include "job/transport.h"
 #include "microflake/microflake_walk.h"
 #include "scattering/wave_estimator.h"
 
@@ -243,7 +242,7 @@ BENCHMARK_CAPTURE(BM_FftHeightfieldSlice, exact_crop, std::string("exact"))->Uni
 // same tile: the Al sine grating of integration.effects_auto (2 x 0.3 µm, 128 facets in 64
 // orientations, 2 wavelengths, 8 x 16 theta-phi bins), incidence bin at 20° (above the steepest
 // slope: no ray) and the job's 50 000 paths. Prints the facet sum's pairs per second against the
-// path tracer's rays per second — the exchange rate GeometricTransport::kPairsPerRay assumes — and
+// path tracer's rays per second — the exchange rate FacetSingleScattering::kPairsPerRay assumes — and
 // the tile's speed-up.
 struct GratingFixture {
   Microgeometry geometry = makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0);
@@ -318,9 +317,9 @@ int main(int argc, char** argv) {
                 gFftSeconds > 0 ? gExactCropSeconds * gExactScale / gFftSeconds : 0.0);
   if (gFacetPairsPerSecond > 0 && gGratingRaysPerSecond > 0)
     std::printf("Al sine grating tile at 20 deg: facet sum %.3g pairs/s, path tracer %.3g rays/s: %.2f pairs per ray "
-                "(GeometricTransport::kPairsPerRay = %.0f); tile %.2f ms vs %.2f ms at 50000 paths: %.1fx\n",
+                "(FacetSingleScattering::kPairsPerRay = %.0f); tile %.2f ms vs %.2f ms at 50000 paths: %.1fx\n",
                 gFacetPairsPerSecond, gGratingRaysPerSecond, gFacetPairsPerSecond / gGratingRaysPerSecond,
-                GeometricTransport::kPairsPerRay, 1e3 * gFacetTileSeconds, 1e3 * gGratingPathTileSeconds,
+                FacetSingleScattering::kPairsPerRay, 1e3 * gFacetTileSeconds, 1e3 * gGratingPathTileSeconds,
                 gGratingPathTileSeconds / gFacetTileSeconds);
   return 0;
 }

@@ -513,10 +513,8 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
         facetGs.emplace(job.geometry, *transport.scene(), job.material, job.lambda_um(), grid);
         const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
         binAveraged = true;
-        for (int p : pilots) {
-          const FacetSingleScattering::Cost c = facetGs->cost(job.incidence[size_t(p)].bin, std::nullopt);
-          binAveraged = binAveraged && c.pairs / GeometricTransport::kPairsPerRay + c.rays <= 2.0 * double(paths) * groups;
-        }
+        for (int p : pilots)
+          binAveraged = binAveraged && facetGs->cheaperThan(job.incidence[size_t(p)].bin, std::nullopt, 2.0 * double(paths) * groups);
         if (binAveraged) {
           // One node order more than the job's incidence rule: the wave pilot's error estimate is
           // then the distance to the job's own rule (at the default 2 x 2 nodes the job's estimate,

@@ -35,8 +35,7 @@ GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid
 bool GeometricTransport::facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection) const {
   if (!facets_) return false;
   if (singleScattering_ == "facets") return true;
-  const FacetSingleScattering::Cost c = facets_->cost(incidenceBin, exactDirection);
-  return c.pairs / kPairsPerRay + c.rays <= pathRays_;
+  return facets_->cheaperThan(incidenceBin, exactDirection, pathRays_);
 }
 
 TileResult GeometricTransport::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,

@@ -6,9 +6,9 @@
 // Where the job wants no path of depth >= 2 (neither `multiple` nor `lost`) on explicit periodic
 // geometry, a tile's `coherent` may instead come from the deterministic facet sum
 // (scattering/single_scattering.h): [sampling] single_scattering = "facets" always, "auto" per tile
-// where its counted work is below the path tracer's — pairs / kPairsPerRay + rays against
-// 2 rays x paths_per_slice x wavelength groups (a path of depth 1 casts two) — so the choice
-// depends only on the job and the tile, never on timing.
+// where its counted work (FacetSingleScattering::cheaperThan) is below the path tracer's 2 rays x
+// paths_per_slice x wavelength groups (a path of depth 1 casts two) — so the choice depends only
+// on the job and the tile, never on timing.
 #pragma once
 #include <functional>
 #include <memory>
@@ -37,11 +37,6 @@ class GeometricTransport {
   bool mayUseFacetSum() const { return facets_ != nullptr; }
   // Whether tile `incidenceBin` / `exactDirection` is computed by the facet sum (no paths).
   bool facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection) const;
-  // Facet-direction pairs of the facet sum that cost one ray: measured by `microbsdf_bench
-  // --benchmark_filter='FacetSum|GratingPath'` (bench/bench_path_tracer.cpp: 4.0 on the Al grating;
-  // a pair is a reflection, a bin lookup and a Fresnel factor per wavelength, a ray an Embree
-  // traversal of the periodic scene with the path tracer's bookkeeping).
-  static constexpr double kPairsPerRay = 4.0;
 
  private:
   std::unique_ptr<PeriodicScene> scene_;

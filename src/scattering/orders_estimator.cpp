@@ -118,13 +118,13 @@ std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCe
     if (dot(n, n) == 0) return;
     const Vec3 m = fromAbove ? normalize(n) : -normalize(n);
     if (dot(m, wi) <= 0) return;
-    const auto& tri = g.triangles[t];
-    const auto pts = firstLevelPoints(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]]);
-    uint8_t bits = 0;
     if (clear) {
       lit[t] = 0xF;
       return;
     }
+    const auto& tri = g.triangles[t];
+    const auto pts = firstLevelPoints(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]]);
+    uint8_t bits = 0;
     for (int k = 0; k < 4; ++k) {
       const std::optional<bool> known = table ? table->escapes(uint32_t(t), k, m, wi, fromAbove) : std::nullopt;
       if (!known) ++count;

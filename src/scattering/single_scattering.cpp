@@ -97,20 +97,23 @@ FacetSingleScattering::Rule FacetSingleScattering::rule(int incidenceBin, const 
   return r;
 }
 
-FacetSingleScattering::Cost FacetSingleScattering::cost(int incidenceBin, const std::optional<Vec3>& exactDirection) const {
+FacetSingleScattering::Cost FacetSingleScattering::cost(int incidenceBin, const std::optional<Vec3>& exactDirection,
+                                                        double stopAbove) const {
   Cost c;
   const bool dielectric = !material_.isConductor();
   const double nDir = material_.directionsIndependentOfLambda() ? 1.0 : double(lambda_um_.size());
+  const int S = kSubdirections;
+  const double directions = exactDirection ? 1.0 : double(S * S + (S / 2) * (S / 2));
+  c.pairs = pairs(exactDirection.has_value());
   // A facet that needs visibility: its four first-level points, a lit and an exit ray each, and
   // half as many again for the splitting where they disagree (an estimate: only the run knows).
   const double perFacet = 12;
+  if (!slope_.maxSlope) {
+    c.rays = directions * double(facets_) * perFacet * (dielectric ? 2 : 1) * nDir;
+    return c;
+  }
   for (int pass = 0; pass < (exactDirection ? 1 : 2); ++pass) {
-    const Rule r = rule(incidenceBin, exactDirection, pass == 0 ? kSubdirections : kSubdirections / 2);
-    c.pairs += double(r.wi.size()) * double(planes_.size()) * nDir;
-    if (!slope_.maxSlope) {
-      c.rays += double(r.wi.size()) * double(facets_) * perFacet * (dielectric ? 2 : 1) * nDir;
-      continue;
-    }
+    const Rule r = rule(incidenceBin, exactDirection, pass == 0 ? S : S / 2);
     for (const auto& wi : r.wi) {
       const bool fromAbove = wi.w.z >= 0;
       const bool litClear = slope_.clear(wi.w);
@@ -122,9 +125,25 @@ FacetSingleScattering::Cost FacetSingleScattering::cost(int incidenceBin, const 
         if ((rf.z >= 0) == fromAbove && !(litClear && slope_.clear(rf))) c.rays += perFacet * nDir * double(p.facets.size());
         if (dielectric && !litClear) c.rays += perFacet * nDir * double(p.facets.size());  // the refracted side
       }
+      if (c.rays > stopAbove) return c;  // the caller only needs to know the budget is exceeded
     }
   }
   return c;
+}
+
+double FacetSingleScattering::pairs(bool collimated) const {
+  const int S = kSubdirections;
+  const double directions = collimated ? 1.0 : double(S * S + (S / 2) * (S / 2));
+  const double nDir = material_.directionsIndependentOfLambda() ? 1.0 : double(lambda_um_.size());
+  return directions * double(planes_.size()) * nDir;
+}
+
+bool FacetSingleScattering::cheaperThan(int incidenceBin, const std::optional<Vec3>& exactDirection, double rays) const {
+  // The pair count needs no loop: a tile that loses on pairs alone (a large heightfield) costs no
+  // counting pass, and the count stops once the rays pass what is left of the budget.
+  const double budget = rays - pairs(exactDirection.has_value()) / kPairsPerRay;
+  if (budget < 0) return false;
+  return cost(incidenceBin, exactDirection, budget).rays <= budget;
 }
 
 void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::vector<double>& uncertain, uint64_t* rays) const {

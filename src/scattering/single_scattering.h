@@ -27,10 +27,11 @@
 // needed. Cost: (S² + S²/4) × orientations pairs per set of directions (one for all wavelengths
 // unless the index disperses) plus the rays of the pairs that need visibility; `cost()` counts
 // them for a tile without tracing, so the caller can pick the cheaper of this and the path tracer
-// per tile (deterministically: the counts depend only on the geometry and the incidence bin).
+// per tile (`cheaperThan`) (deterministically: the counts depend only on the geometry and the incidence bin).
 // Tests: tests/scattering/single_scattering_test.cpp (Fresnel, the V-groove's tan θ, the path
 // tracer's depth-1 tally on five surfaces).
 #pragma once
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -50,12 +51,22 @@ class FacetSingleScattering {
   FacetSingleScattering(const Microgeometry& g, const PeriodicScene& scene, const Material& material,
                         std::vector<double> lambda_um, const DirectionGrid& grid);
 
+  // Facet-direction pairs that cost one ray: measured by `microbsdf_bench
+  // --benchmark_filter='FacetSum|GratingPath'` (bench/bench_path_tracer.cpp: 4.0 on the Al grating;
+  // a pair is a reflection, a bin lookup and a Fresnel factor per wavelength, a ray an Embree
+  // traversal of the periodic scene with the path tracer's bookkeeping).
+  static constexpr double kPairsPerRay = 4.0;
+
   struct Cost {
     double pairs = 0;  // facet-direction pairs summed
     double rays = 0;   // visibility rays those pairs need
   };
-  // What run() will do for this tile, counted without tracing.
-  Cost cost(int incidenceBin, const std::optional<Vec3>& exactDirection) const;
+  // What run() will do for this tile, counted without tracing; the ray count stops once it passes
+  // `stopAbove`.
+  Cost cost(int incidenceBin, const std::optional<Vec3>& exactDirection,
+            double stopAbove = std::numeric_limits<double>::infinity()) const;
+  // Whether the tile's counted work, pairs / kPairsPerRay + rays, is at most `rays` ray casts.
+  bool cheaperThan(int incidenceBin, const std::optional<Vec3>& exactDirection, double rays) const;
   TileResult run(int tile, int incidenceIndex, int incidenceBin, const std::optional<Vec3>& exactDirection) const;
 
   // The steepest facet slope |∇h| of a periodic heightfield (directions above it need no ray); none
@@ -67,6 +78,7 @@ class FacetSingleScattering {
     std::vector<DirectionSample> wi;  // sub-directions, weight includes 1/count
   };
   Rule rule(int incidenceBin, const std::optional<Vec3>& exactDirection, int s) const;
+  double pairs(bool collimated) const;
   // Σ_t P_t / Ω⊥ into `out` (nLambda × nBins) for a rule, the visibility's error bound into
   // `uncertain`; counts rays.
   void sum(const Rule& r, std::vector<double>& out, std::vector<double>& uncertain, uint64_t* rays) const;

@@ -285,3 +285,23 @@ TEST(Job, LatticeCellAndVisibilityTable) {
   const std::string e = errorOf(hemi + "[sampling]\nvisibility_table = \"maybe\"\n");
   EXPECT_NE(e.find("sampling.visibility_table"), std::string::npos) << e;
 }
+
+// [sampling] single_scattering (job/transport.h): bad values, "facets" beside components that need
+// paths of depth >= 2, and on a statistical surface are errors naming the key.
+TEST(Job, SingleScatteringKeyErrorsNameTheKey) {
+  const std::string grating =
+      "[geometry]\nkind = \"sine-grating\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.03\n"
+      "[material]\nname = \"Al\"\n[directions]\nn_theta = 8\nn_phi = 16\nincidence = [[20.0, 0.0], [75.0, 0.0]]\n"
+      "[scene]\ncoherence_length_um = 50.0\n";
+  for (const std::string& bad :
+       {grating + "[sampling]\nsingle_scattering = \"maybe\"\n",
+        grating + "[effects]\ncomponents = [\"coherent\", \"multiple\"]\n[sampling]\nsingle_scattering = \"facets\"\n",
+        grating + "[effects]\ncomponents = [\"coherent\", \"lost\"]\n[sampling]\nsingle_scattering = \"facets\"\n",
+        std::string("[geometry]\nkind = \"statistical\"\nndf = \"ggx\"\nalpha = 0.3\n[sampling]\nsingle_scattering = \"facets\"\n")}) {
+    const std::string e = errorOf(bad);
+    EXPECT_NE(e.find("sampling.single_scattering"), std::string::npos) << bad << "\n" << e;
+  }
+  // With components = "auto" the planner decides multiple later: "facets" is accepted (paths are
+  // used if multiple turns out to be needed).
+  EXPECT_EQ(errorOf(grating + "[sampling]\nsingle_scattering = \"facets\"\n"), "");
+}

@@ -1,23 +1,13 @@
 // The geometric transport's choice of the facet sum (job/transport.h): only where no path of depth
-// >= 2 is wanted, per tile by counted work (never by timing), forced or refused by
-// [sampling] single_scattering with errors that name the key.
+// >= 2 is wanted, per tile by counted work (never by timing), or as [sampling] single_scattering
+// forces (its errors: job_test.cpp).
 #include "job/transport.h"
 
 #include <gtest/gtest.h>
 
-#include "core/error.h"
-
 using namespace mbsdf;
 
 namespace {
-std::string errorOf(const std::string& text) {
-  try {
-    loadJobFromString(text, "test.toml", "");
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
 const std::string kGrating =
     "[geometry]\nkind = \"sine-grating\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.03\n"
     "[material]\nname = \"Al\"\n[directions]\nn_theta = 8\nn_phi = 16\nincidence = [[20.0, 0.0], [75.0, 0.0]]\n"
@@ -76,18 +66,4 @@ TEST(Transport, FacetSumWhereNothingScattersTwiceAndItCostsLess) {
     ASSERT_TRUE(t->mayUseFacetSum());
     EXPECT_FALSE(t->facetSum(job.incidence[0].bin, std::nullopt));
   }
-}
-
-TEST(Transport, SingleScatteringKeyErrorsNameTheKey) {
-  for (const std::string& bad :
-       {kGrating + "[sampling]\nsingle_scattering = \"maybe\"\n",
-        kGrating + "[effects]\ncomponents = [\"coherent\", \"multiple\"]\n[sampling]\nsingle_scattering = \"facets\"\n",
-        kGrating + "[effects]\ncomponents = [\"coherent\", \"lost\"]\n[sampling]\nsingle_scattering = \"facets\"\n",
-        std::string("[geometry]\nkind = \"statistical\"\nndf = \"ggx\"\nalpha = 0.3\n[sampling]\nsingle_scattering = \"facets\"\n")}) {
-    const std::string e = errorOf(bad);
-    EXPECT_NE(e.find("sampling.single_scattering"), std::string::npos) << bad << "\n" << e;
-  }
-  // With components = "auto" the planner decides multiple later: "facets" is accepted (paths are
-  // used if multiple turns out to be needed).
-  EXPECT_EQ(errorOf(kGrating + "[sampling]\nsingle_scattering = \"facets\"\n"), "");
 }
