@@ -33,9 +33,15 @@ def main():
     ap.add_argument("--lambda-nm", type=float, default=None, help="wavelength (nearest; default: mean over λ)")
     a = ap.parse_args()
 
-    with h5py.File(a.file, "r") as f:
+    # swmr=True: a partial file (a run still writing it, or killed) opens like a finished one.
+    with h5py.File(a.file, "r", swmr=True) as f:
         comps = [c for c in f["bsdf"].keys() if c != "done"]
         done = f["bsdf/done"][()].astype(bool)
+        if not done.all():
+            print(f"warning: incomplete: {done.sum()} of {len(done)} slices; only computed slices are plotted",
+                  file=sys.stderr)
+        if not done.any():
+            sys.exit(f"{a.file}: no slice is computed yet")
         th_i = f["incidence/theta_deg"][()]
         ph_i = f["incidence/phi_deg"][()]
         gth = f["grid/theta_deg"][()]

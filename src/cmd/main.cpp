@@ -6,8 +6,10 @@
 //   microbsdf geometry JOB.toml -o patch.ply
 //   microbsdf check JOB.toml
 //   microbsdf plan JOB.toml [--json plan.json]
-// Exit codes: 0 success, 2 bad input (job file, mesh, heightfield, arguments), 3 stopped early by a
-// signal (SIGTERM, SIGINT, SIGUSR1) or --max-hours (rerun with --resume), 1 other failure.
+// Exit codes (core/error.h, README "Exit codes"): 0 success, 1 unexpected failure, 2 bad input (job
+// file, input files, arguments, output location), 3 stopped early by a signal (SIGTERM, SIGINT,
+// SIGUSR1) or --max-hours (rerun with --resume), 4 the output could not be written (resumable),
+// 5 another run holds the output.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -23,6 +25,9 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/stop.h"
+#include "io/hdf5_handle.h"
+#include "io/output_target.h"
 #include "dist/mpi_session.h"
 #include "dist/runner.h"
 #include "geometry/microgeometry.h"
@@ -72,7 +77,7 @@ std::vector<double> parseAngles(const std::string& s, const std::string& option,
   return angles;
 }
 
-constexpr int kExitInput = 2, kExitFailure = 1;
+constexpr int kExitInput = exitCode(ExitCode::BadInput), kExitFailure = exitCode(ExitCode::Failure);
 
 nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
   nlohmann::json j;
@@ -129,6 +134,11 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
   return j;
 }
 
+void warnIfIncomplete(const BsdfFileReader& f, const std::string& how) {
+  if (f.doneCount() < f.incidenceCount())
+    std::cerr << "warning: incomplete: " << f.doneCount() << " of " << f.incidenceCount() << " slices; " << how << "\n";
+}
+
 void printInfo(const nlohmann::json& j) {
   std::cout << "file:        " << j["file"].get<std::string>() << "\n"
             << "geometry:    " << j["geometry_kind"].get<std::string>() << " (hash " << j["geometry_hash"].get<std::string>()
@@ -139,7 +149,10 @@ void printInfo(const nlohmann::json& j) {
             << "components:  " << j["components"].dump() << "\n"
             << (j.contains("reciprocity") ? "reciprocity: " + j["reciprocity"].get<std::string>() + "\n" : "")
             << (j["wave_samples"].get<uint64_t>() ? "wave term:   " + j["wave_samples"].dump() + " Kirchhoff samples per wavelength\n" : "")
-            << "complete:    " << j["done_count"] << "/" << j["incidence_count"] << " slices\n";
+            << (j["complete"].get<bool>()
+                    ? "complete:    " + j["done_count"].dump() + "/" + j["incidence_count"].dump() + " slices\n"
+                    : "incomplete:  " + j["done_count"].dump() + " of " + j["incidence_count"].dump() +
+                          " slices (a run that has not finished; the missing slices are not listed below)\n");
   std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  reflected  transmitted  truncated  rel.error\n"
             << "(albedo: the components the file holds, without the lost diagnostic; rel.error: the largest\n"
             << " estimated relative standard error of a slice over its components but lost, and wavelengths)\n";
@@ -173,6 +186,112 @@ void printInfo(const nlohmann::json& j) {
                 reached, budget);
 }
 
+// `run`: every rank loads the job; rank 0 checks the output location and takes its lock before any
+// compute, runs the effects planner's pilots, then all ranks run the tiles. Foreseeable failures end
+// every rank with the same exit code and one message; only an unexpected one aborts the job.
+int runCommand(int argc, char** argv, const std::string& jobPath, std::string outPath, std::string logDir, int threads,
+               bool resume, double maxHours, bool verbose) {
+  MpiSession mpi(&argc, &argv);
+  installStopHandlers();
+  setupLogging(mpi.rank(), "", "", verbose);
+  // Rank 0's outcome of a step on every rank: "" to go on, else "<exit code> <message>".
+  auto agree = [&](const std::string& failure) -> std::optional<int> {
+    const std::string f = mpi.broadcast(failure);
+    if (f.empty()) return std::nullopt;
+    if (mpi.rank() == 0) spdlog::error("{}", f.substr(f.find(' ') + 1));
+    return std::stoi(f.substr(0, f.find(' ')));
+  };
+  auto failure = [](ExitCode c, const std::string& msg) { return std::to_string(exitCode(c)) + " " + msg; };
+  std::optional<Job> job;
+  std::string error;
+  try {
+    job = loadJob(jobPath);
+  } catch (const InputError& e) {
+    error = e.what();
+  } catch (const std::exception& e) {
+    error = std::string(jobPath) + ": " + e.what();
+  }
+  // Fail together: every rank exits non-zero, one message from rank 0, no hang.
+  if (mpi.anyRank(!error.empty())) {
+    if (mpi.rank() == 0) spdlog::error("{}", error.empty() ? "another rank could not read the job" : error);
+    return exitCode(ExitCode::BadInput);
+  }
+  const std::string out = outPath.empty() ? job->outputPath : outPath;
+  if (logDir.empty()) logDir = out + ".logs";
+  // The output location, before any compute: a folder, an unwritable place or a busy output fail
+  // in a second instead of after the allocation is spent.
+  std::optional<OutputLock> lock;
+  std::string setup;
+  if (mpi.rank() == 0) {
+    try {
+      checkOutputPath(out);
+      checkWritableFolder(logDir, "log");
+      lock.emplace(out);
+    } catch (const InputError& e) {
+      setup = failure(ExitCode::BadInput, e.what());
+    } catch (const OutputBusyError& e) {
+      setup = failure(ExitCode::OutputBusy, e.what());
+    } catch (const WriteError& e) {
+      setup = failure(ExitCode::WriteFailed, e.what());
+    }
+  }
+  if (auto code = agree(setup)) return *code;
+  try {
+    setupLogging(mpi.rank(), logDir, std::filesystem::path(out).stem().string(), verbose);
+  } catch (const InputError& e) {
+    error = e.what();
+  }
+  if (mpi.anyRank(!error.empty())) {
+    if (!error.empty()) std::cerr << "error: " << error << "\n";
+    return exitCode(ExitCode::BadInput);
+  }
+  if (lock && !lock->previousHolder().empty())
+    spdlog::info("output lock {}: the run that held it ({}) is gone; taken over", lock->path(), lock->previousHolder());
+  try {
+    if (job->autoComponents) {
+      // components = "auto": rank 0 runs the pilots, every rank applies the same plan.
+      std::string planText, stopped;
+      if (mpi.rank() == 0) {
+        std::optional<tbb::global_control> limit;
+        if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
+        try {
+          nlohmann::json p = planEffects(*job);
+          for (std::istringstream lines(formatEffects(p)); std::getline(lines, planText);) spdlog::info("{}", planText);
+          planText = p.dump();
+        } catch (const StopRequested&) {
+          stopped = failure(ExitCode::Stopped, "stop requested during the effects planner's pilots; nothing was "
+                                               "written (run the same command again to start over)");
+        }
+      }
+      if (auto code = agree(stopped)) return *code;
+      applyEffectsPlan(*job, nlohmann::json::parse(mpi.broadcast(planText)));
+    }
+    RunOptions opt;
+    opt.outputPath = out;
+    opt.threads = threads;
+    opt.resume = resume;
+    opt.maxHours = maxHours;
+    RunSummary s = runJob(*job, mpi, opt);
+    if (s.exit != ExitCode::Ok) {
+      if (mpi.rank() == 0) spdlog::error("{}", s.error.empty() ? "run failed" : s.error);
+      return exitCode(s.exit);
+    }
+    if (s.stoppedEarly) return exitCode(ExitCode::Stopped);
+    if (mpi.rank() == 0)
+      spdlog::info("done: {} tiles ({} computed now, {} resumed), {} paths in total, {:.2f} s, wrote {}", s.tiles,
+                   s.computed, s.resumed, s.paths, s.seconds, out);
+  } catch (const std::bad_alloc&) {
+    spdlog::error("run failed: out of memory (see `microbsdf plan` for the job's estimate per rank)");
+    MPI_Abort(MPI_COMM_WORLD, exitCode(ExitCode::Failure));
+    return exitCode(ExitCode::Failure);
+  } catch (const std::exception& e) {
+    spdlog::error("run failed: {}", e.what());
+    MPI_Abort(MPI_COMM_WORLD, exitCode(ExitCode::Failure));
+    return exitCode(ExitCode::Failure);
+  }
+  return exitCode(ExitCode::Ok);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -189,11 +308,12 @@ int main(int argc, char** argv) {
   auto* run = app.add_subcommand("run", "compute the BSDF of a job (run it under mpirun/srun for several ranks)");
   run->add_option("job", jobPath, "job file (TOML)")->required();
   run->add_option("-o,--output", outPath, "output HDF5 file (default: [output] path of the job)");
-  run->add_option("--threads", threads, "threads per rank (default: all cores)");
+  run->add_option("--threads", threads, "threads per rank (default: all cores)")->check(CLI::NonNegativeNumber);
   run->add_option("--log-dir", logDir, "folder for the per-rank log files (default: <output>.logs)");
   run->add_flag("-v,--verbose", verbose, "debug-level logging");
   run->add_flag("--resume", resume, "keep the finished slices of an interrupted run of the same job (harmless on a fresh run)");
-  run->add_option("--max-hours", maxHours, "stop cleanly (exit code 3) before this wall time, in hours");
+  run->add_option("--max-hours", maxHours, "stop cleanly (exit code 3) before this wall time, in hours")
+      ->check(CLI::NonNegativeNumber);
 
   auto* info = app.add_subcommand("info", "provenance, completeness and energy per slice of an output file");
   info->add_option("file", h5Path, "output HDF5 file")->required();
@@ -256,7 +376,7 @@ int main(int argc, char** argv) {
   auto* plan = app.add_subcommand("plan", "what a job will compute and cost (tiles, core-hours, output size), from a short pilot");
   plan->add_option("job", jobPath, "job file (TOML)")->required();
   plan->add_option("--json", planJson, "also write the plan as JSON to this file");
-  plan->add_option("--threads", threads, "threads for the pilot (default: all cores)");
+  plan->add_option("--threads", threads, "threads for the pilot (default: all cores)")->check(CLI::NonNegativeNumber);
   check->add_option("job", jobPath, "job file (TOML)")->required();
 
   CompareSmithOptions cs;
@@ -272,9 +392,10 @@ int main(int argc, char** argv) {
   compare->add_option("--correlation-um", cs.correlation_um, "correlation length ℓ of exp(-r²/ℓ²)")->capture_default_str();
   compare->add_option("--texel-um", cs.texel_um, "heightfield spacing")->capture_default_str();
   compare->add_option("--seed", cs.seed, "random seed (surface and paths)")->capture_default_str();
-  compare->add_option("--threads", threads, "threads (default: all cores)");
+  compare->add_option("--threads", threads, "threads (default: all cores)")->check(CLI::NonNegativeNumber);
   compare->add_option("--json", csJson, "also write the full result (incl. plane-of-incidence lobes) as JSON");
 
+  silenceHdf5Diagnostics();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -282,57 +403,7 @@ int main(int argc, char** argv) {
     return code == 0 ? 0 : kExitInput;
   }
 
-  if (run->parsed()) {
-    MpiSession mpi(&argc, &argv);
-    installStopHandlers();
-    setupLogging(mpi.rank(), "", "", verbose);
-    std::optional<Job> job;
-    std::string error;
-    try {
-      job = loadJob(jobPath);
-    } catch (const InputError& e) {
-      error = e.what();
-    } catch (const std::exception& e) {
-      error = std::string(jobPath) + ": " + e.what();
-    }
-    // Fail together: every rank exits non-zero, one message from rank 0, no hang.
-    if (mpi.anyRank(!error.empty())) {
-      if (mpi.rank() == 0) spdlog::error("{}", error.empty() ? "another rank could not read the job" : error);
-      return kExitInput;
-    }
-    std::string out = outPath.empty() ? job->outputPath : outPath;
-    if (logDir.empty()) logDir = out + ".logs";
-    setupLogging(mpi.rank(), logDir, std::filesystem::path(out).stem().string(), verbose);
-    try {
-      if (job->autoComponents) {
-        // components = "auto": rank 0 runs the pilots, every rank applies the same plan.
-        std::string planText;
-        if (mpi.rank() == 0) {
-          std::optional<tbb::global_control> limit;
-          if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
-          nlohmann::json p = planEffects(*job);
-          for (std::istringstream lines(formatEffects(p)); std::getline(lines, planText);) spdlog::info("{}", planText);
-          planText = p.dump();
-        }
-        applyEffectsPlan(*job, nlohmann::json::parse(mpi.broadcast(planText)));
-      }
-      RunOptions opt;
-      opt.outputPath = out;
-      opt.threads = threads;
-      opt.resume = resume;
-      opt.maxHours = maxHours;
-      RunSummary s = runJob(*job, mpi, opt);
-      if (s.stoppedEarly) return kExitStoppedEarly;
-      if (mpi.rank() == 0)
-        spdlog::info("done: {} tiles ({} computed now, {} resumed), {} paths in total, {:.2f} s, wrote {}", s.tiles,
-                     s.computed, s.resumed, s.paths, s.seconds, out);
-    } catch (const std::exception& e) {
-      spdlog::error("run failed: {}", e.what());
-      MPI_Abort(MPI_COMM_WORLD, kExitFailure);
-      return kExitFailure;
-    }
-    return 0;
-  }
+  if (run->parsed()) return runCommand(argc, argv, jobPath, outPath, logDir, threads, resume, maxHours, verbose);
 
   try {
     if (info->parsed()) {
@@ -367,6 +438,7 @@ int main(int argc, char** argv) {
       if (!(renderReq.environment >= 0) || !(renderReq.lightIrradiance >= 0) || !(renderReq.exposure > 0))
         throw InputError("--environment and --irradiance must be >= 0, --exposure > 0");
       BsdfFileReader f(h5Path);
+      warnIfIncomplete(f, "pixels lit or seen through a missing slice are a magenta checker");
       RgbImage img = renderPreview(f, renderReq);
       writePng(outPath, img);
       std::cerr << "wrote " << outPath << " (" << img.width << " x " << img.height << ")\n";
@@ -377,6 +449,7 @@ int main(int argc, char** argv) {
       sheetReq.theta_deg = parseAngles(sheetThetas, "--theta-i", 180, true);
       if (!(sheetReq.cell.size >= 16 && sheetReq.cell.size <= 4096)) throw InputError("--size must be in [16, 4096]");
       BsdfFileReader f(h5Path);
+      warnIfIncomplete(f, "missing slices are hatched red cells");
       RgbImage img = renderContactSheet(f, sheetReq);
       writePng(outPath, img);
       std::cerr << "wrote " << outPath << " (" << img.width << " x " << img.height << ")\n";
@@ -393,6 +466,8 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (plan->parsed()) {
+      installStopHandlers();
+      setupLogging(0, "", "", false);
       Job job = loadJob(jobPath);
       PlanOptions po;
       po.threads = threads;
@@ -426,14 +501,28 @@ int main(int argc, char** argv) {
                                     : std::to_string(job.geometry.triangles.size()) + " triangles, " +
                                           std::to_string(job.geometry.sizeX) + " x " +
                                           std::to_string(job.geometry.sizeY) + " µm")
+                << (job.statistical ? "" : "\n  surface " + job.closure.describe())
                 << "\n  material "
                 << job.material.describe() << "\n  " << job.lambda_nm.size() << " wavelengths, grid " << grid.kind()
-                << " with " << grid.binCount() << " bins, " << job.incidence.size() << " incidence directions\n";
+                << " with " << grid.binCount() << " bins, " << job.incidence.size() << " incidence directions\n"
+                << "  memory about " << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9) << " GB per rank before the "
+                << "wave estimator's own (`plan` measures it), output up to "
+                << fmt::format("{:.3g}", outputBytesUncompressed(job) / 1e9) << " GB\n";
+      if (const double avail = availableMemoryBytes(); avail > 0 && memoryBytesPerRank(job, 0) > avail)
+        throw InputError(jobPath + ": the job needs about " + fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9) +
+                         " GB per rank but this machine has " + fmt::format("{:.3g}", avail / 1e9) +
+                         " GB available ([directions] bins, [spectrum] wavelengths)");
       return 0;
     }
   } catch (const InputError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInput;
+  } catch (const StopRequested&) {
+    std::cerr << "stopped on request\n";
+    return exitCode(ExitCode::Stopped);
+  } catch (const WriteError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return exitCode(ExitCode::WriteFailed);
   } catch (const std::invalid_argument& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInput;

@@ -4,23 +4,60 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
 #include <filesystem>
+#include <memory>
+#include <mutex>
+
+#include "core/error.h"
+#include "core/stop.h"
 
 namespace mbsdf {
+namespace {
+std::mutex gLogFailureMutex;
+std::string gLogFailure;
+}  // namespace
+
+std::string logWriteFailure() {
+  std::lock_guard<std::mutex> lock(gLogFailureMutex);
+  return gLogFailure;
+}
 
 void setupLogging(int rank, const std::string& logDir, const std::string& stem, bool verbose) {
   std::vector<spdlog::sink_ptr> sinks;
   if (rank == 0) sinks.push_back(std::make_shared<spdlog::sinks::stderr_color_sink_mt>());
   if (!logDir.empty()) {
-    std::filesystem::create_directories(logDir);
     auto path = (std::filesystem::path(logDir) / (stem + ".rank" + std::to_string(rank) + ".log")).string();
-    sinks.push_back(std::make_shared<spdlog::sinks::basic_file_sink_mt>(path, true));
+    try {
+      std::filesystem::create_directories(logDir);
+      sinks.push_back(std::make_shared<spdlog::sinks::basic_file_sink_mt>(path, true));
+    } catch (const std::exception& e) {
+      throw InputError("log folder " + logDir + ": cannot create " + path + " (" + e.what() +
+                       "); choose another with --log-dir");
+    }
   }
   auto logger = std::make_shared<spdlog::logger>("microbsdf", sinks.begin(), sinks.end());
+  logger->set_error_handler([](const std::string& msg) {
+    std::lock_guard<std::mutex> lock(gLogFailureMutex);
+    if (gLogFailure.empty()) gLogFailure = msg;
+    std::fprintf(stderr, "microbsdf: log write failed: %s\n", msg.c_str());
+  });
   logger->set_pattern("[%Y-%m-%d %H:%M:%S.%e] [rank " + std::to_string(rank) + "] [%l] %v");
   logger->set_level(verbose ? spdlog::level::debug : spdlog::level::info);
   logger->flush_on(spdlog::level::info);
   spdlog::set_default_logger(logger);
+}
+
+std::function<void(uint64_t)> heartbeat(const std::string& what, double intervalSeconds) {
+  auto start = std::chrono::steady_clock::now();
+  auto last = std::make_shared<std::chrono::steady_clock::time_point>(start);
+  return [what, intervalSeconds, start, last](uint64_t done) {
+    throwIfStopped();
+    const auto now = std::chrono::steady_clock::now();
+    if (std::chrono::duration<double>(now - *last).count() < intervalSeconds) return;
+    *last = now;
+    spdlog::info("{}: running for {:.0f} s ({} done)", what, std::chrono::duration<double>(now - start).count(), done);
+  };
 }
 
 ProgressReporter::ProgressReporter(std::string what, uint64_t total, double intervalSeconds, bool logCompletion)

@@ -3,12 +3,25 @@
 #pragma once
 #include <chrono>
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
 
 namespace mbsdf {
 
 // Sets the default spdlog logger. logDir empty: console only (rank 0) / nothing (other ranks).
+// Throws InputError naming the folder when the log file cannot be created there.
 void setupLogging(int rank, const std::string& logDir, const std::string& stem, bool verbose);
+
+// The first failed write or flush of a log file since setupLogging ("" if none). Every log line is
+// flushed, so a full disk shows here at the next line; the runner checks it between tiles and
+// stops with a WriteError instead of computing on without a log.
+std::string logWriteFailure();
+
+// A progress callback for a phase whose total is not known in advance (a pilot): logs "<what>:
+// running for N s (<count> done)" at most every `intervalSeconds`, and throws StopRequested
+// (core/stop.h) when a stop was requested, so pilots answer signals like tiles do.
+std::function<void(uint64_t)> heartbeat(const std::string& what, double intervalSeconds = 10.0);
 
 class ProgressReporter {
  public:

@@ -13,6 +13,9 @@
 #include <set>
 
 #include "core/log.h"
+#include "core/stop.h"
+#include "io/output_target.h"
+#include "job/plan.h"
 #include "geometry/embree_scene.h"
 #include "io/bsdf_file.h"
 #include "job/symmetry.h"
@@ -25,24 +28,13 @@ namespace {
 
 constexpr int kTagRequest = 11, kTagResult = 12, kTagStopped = 13, kTagAssign = 21;
 
-volatile std::sig_atomic_t gStop = 0;
-extern "C" void onStopSignal(int) { gStop = 1; }
-
-// Thrown from a progress callback to abandon the tile in flight.
-struct TileAbandoned {};
+// How a rank ends; the maximum over the ranks is the run's.
+enum RankStatus : int { kRankOk = 0, kRankWriteFailed = 1 };
 
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 }  // namespace
-
-void installStopHandlers() {
-  struct sigaction sa {};
-  sa.sa_handler = onStopSignal;
-  sigemptyset(&sa.sa_mask);
-  for (int s : {SIGTERM, SIGINT, SIGUSR1}) sigaction(s, &sa, nullptr);
-}
-bool stopRequested() { return gStop != 0; }
 
 RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& options) {
   const auto t0 = Clock::now();
@@ -63,6 +55,29 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     }
   }
 
+  // Memory: refuse a footprint this node cannot hold before anything is written (every rank checks
+  // its own node's share; the ranks fail together).
+  {
+    int local = 1;
+    MPI_Comm node;
+    if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) == MPI_SUCCESS) {
+      MPI_Comm_size(node, &local);
+      MPI_Comm_free(&node);
+    }
+    const double need = memoryBytesPerRank(job, wave ? wave->memoryBytes() : 0.0) * local;
+    const double avail = availableMemoryBytes();
+    const bool tooBig = avail > 0 && need > avail;
+    if (mpi.anyRank(tooBig)) {
+      RunSummary refused;
+      refused.exit = ExitCode::BadInput;
+      refused.error = fmt::format("the job needs about {:.2f} GB of memory per node ({} rank(s) here) but {:.2f} GB are "
+                                  "available: use fewer bins, wavelengths or ranks per node, or a larger node "
+                                  "(`microbsdf plan` shows the estimate)",
+                                  need / 1e9, local, avail / 1e9);
+      return refused;
+    }
+  }
+
   const int nTiles = int(job.incidence.size());
   // Reciprocity (PHYSICS.md §8): each pair of incidence bins gets the wave term once.
   std::optional<ReciprocalPairs> pairs;
@@ -76,9 +91,9 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     spdlog::info("job {}: {} ({}), {}, {} wavelengths, grid {} ({} bins), {} tiles on {} ranks, {} paths per slice",
                  job.file, job.geometryKind,
                  job.statistical ? transport.describe()
-                                 : fmt::format("{} triangles, {:.3g} x {:.3g} µm{}", job.geometry.triangles.size(),
+                                 : fmt::format("{} triangles, {:.3g} x {:.3g} µm{}, {}", job.geometry.triangles.size(),
                                                job.geometry.sizeX, job.geometry.sizeY,
-                                               job.geometry.periodic ? ", periodic" : ""),
+                                               job.geometry.periodic ? ", periodic" : "", job.closure.describe()),
                  job.material.describe(), job.lambda_nm.size(), grid.kind(), grid.binCount(), nTiles, mpi.size(),
                  job.pathsPerSlice);
 
@@ -95,7 +110,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     ProgressReporter pathProgress("tile " + std::to_string(t), job.pathsPerSlice, 30.0, false);
     auto cb = [&](uint64_t done) {
       pathProgress.update(done);
-      if (gStop) throw TileAbandoned{};
+      throwIfStopped();
       if (between) between();
     };
     auto ts = Clock::now();
@@ -165,13 +180,18 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
       int t = -1;
       MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
       if (t < 0) break;
+      if (!logWriteFailure().empty()) {  // no log, no run: give the tile back and stop
+        MPI_Send(&t, 1, MPI_INT, 0, kTagStopped, MPI_COMM_WORLD);
+        MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        break;
+      }
       try {
         TileResult r = computeTile(t, {});
         std::vector<double> buf = r.serialize();
         MPI_Send(buf.data(), int(buf.size()), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD);
         summary.paths += r.samples;
         ++summary.computed;
-      } catch (const TileAbandoned&) {
+      } catch (const StopRequested&) {
         spdlog::info("stop requested: tile {} abandoned", t);
         MPI_Send(&t, 1, MPI_INT, 0, kTagStopped, MPI_COMM_WORLD);
         // Rank 0 answers every message with an assignment; it will be -1 now.
@@ -179,19 +199,61 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
         break;
       }
     }
-    int stopped = gStop ? 1 : 0, anyStopped = 0;
-    MPI_Allreduce(&stopped, &anyStopped, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-    int incomplete = 0;
-    MPI_Bcast(&incomplete, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (!logWriteFailure().empty()) spdlog::error("log write failed: {}", logWriteFailure());
+    int status = logWriteFailure().empty() ? kRankOk : kRankWriteFailed, worst = 0;
+    MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
     double times[2] = {pathSecondsSum, waveSecondsSum};
     MPI_Reduce(times, nullptr, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
-    summary.stoppedEarly = incomplete != 0;
+    int outcome = 0;  // rank 0's ExitCode, once it has finished or closed the file
+    MPI_Bcast(&outcome, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    summary.stoppedEarly = outcome == exitCode(ExitCode::Stopped);
+    if (outcome != exitCode(ExitCode::Stopped)) summary.exit = ExitCode(outcome);
     summary.seconds = since(t0);
     return summary;
   }
 
-  // Rank 0: writer, queue, serving the workers between its own batches.
-  BsdfFileWriter writer(outPath, job, grid, options.resume);
+  // Rank 0: writer, queue, serving the workers between its own batches. The writer is created
+  // before any tile is handed out; if it cannot be (a resume that does not match, an unwritable
+  // file), the workers are told there is nothing to do and every rank returns the same error.
+  std::unique_ptr<BsdfFileWriter> writerPtr;
+  {
+    ExitCode setupExit = ExitCode::Ok;
+    try {
+      // Room on the disk: the uncompressed size is an upper bound (deflate shrinks it), so only
+      // the grid tables and a margin are certain to be needed.
+      const double free = freeBytesAt(outPath), upper = outputBytesUncompressed(job);
+      const double certain = std::min(upper, double(grid.binCount()) * 8.0 * 4.0 + 65536.0);
+      if (free >= 0 && free < certain)
+        throw WriteError(fmt::format("output {}: {:.3g} MB free on its file system, the file needs at least {:.3g} MB "
+                                     "(and up to {:.3g} MB uncompressed)", outPath, free / 1e6, certain / 1e6, upper / 1e6));
+      if (free >= 0 && free < upper)
+        spdlog::warn("output {}: {:.3g} MB free on its file system; the file may need up to {:.3g} MB (uncompressed "
+                     "size; deflate usually makes it smaller). A full disk stops the run with exit code 4, resumable",
+                     outPath, free / 1e6, upper / 1e6);
+      writerPtr = std::make_unique<BsdfFileWriter>(outPath, job, grid, options.resume);
+    } catch (const InputError& e) {
+      setupExit = ExitCode::BadInput, summary.error = e.what();
+    } catch (const WriteError& e) {
+      setupExit = ExitCode::WriteFailed, summary.error = e.what();
+    }
+    if (setupExit != ExitCode::Ok) {
+      // Every worker has asked for a tile: answer each with "none", then end like a stopped run.
+      for (int w = 1; w < mpi.size(); ++w) {
+        int request = 0, none = -1;
+        MPI_Status st;
+        MPI_Recv(&request, 1, MPI_INT, MPI_ANY_SOURCE, kTagRequest, MPI_COMM_WORLD, &st);
+        MPI_Send(&none, 1, MPI_INT, st.MPI_SOURCE, kTagAssign, MPI_COMM_WORLD);
+      }
+      int status = kRankOk, worst = 0, outcome = exitCode(setupExit);
+      MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+      double times[2] = {0, 0}, total[2];
+      MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+      MPI_Bcast(&outcome, 1, MPI_INT, 0, MPI_COMM_WORLD);
+      summary.exit = setupExit;
+      return summary;
+    }
+  }
+  BsdfFileWriter& writer = *writerPtr;
   std::set<int> finished(writer.resumedTiles().begin(), writer.resumedTiles().end());
   summary.resumed = int(finished.size());
   if (summary.resumed) spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary.resumed, nTiles, outPath);
@@ -216,6 +278,9 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   bool stopAssigning = false;
   ProgressReporter progress("tiles", uint64_t(nTiles));
   int written = int(finished.size());
+  // A failed write stops the run: no more tiles are handed out and results still in flight are
+  // dropped (the journal lists only slices whose data reached the disk).
+  std::string writeFailure;
   auto noteStop = [&](const char* why) {
     if (!stopAssigning) spdlog::warn("{}: stopping cleanly after the tiles in flight", why);
     stopAssigning = true;
@@ -227,7 +292,11 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     return since(t0) + 1.5 * mean > options.maxHours * 3600.0;
   };
   auto takeTile = [&]() -> int {
-    if (gStop) noteStop("signal received");
+    if (stopRequested()) noteStop("signal received");
+    if (writeFailure.empty() && !logWriteFailure().empty()) {
+      writeFailure = "log write failed: " + logWriteFailure();
+      noteStop("the log could not be written");
+    }
     if (!stopAssigning && outOfTime()) noteStop("--max-hours reached");
     if (stopAssigning || next >= queue.size()) return -1;
     return queue[next++];
@@ -235,8 +304,14 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   // Mean over the slices written now of each component's Σ f Ω⊥ (averaged over wavelengths).
   std::map<std::string, double> energySum;
   auto writeOne = [&](const TileResult& r) {
-    if (finished.count(r.incidenceIndex)) return;
-    writer.writeTile(r);
+    if (finished.count(r.incidenceIndex) || !writeFailure.empty()) return;
+    try {
+      writer.writeTile(r);
+    } catch (const WriteError& e) {
+      writeFailure = e.what();
+      noteStop("the output could not be written");
+      return;
+    }
     finished.insert(r.incidenceIndex);
     ++written;
     progress.update(uint64_t(written));
@@ -303,7 +378,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
       summary.paths += r.samples;
       ++summary.computed;
       writeResult(r);
-    } catch (const TileAbandoned&) {
+    } catch (const StopRequested&) {
       spdlog::info("stop requested: tile {} abandoned", t);
       lostTiles = true;
       noteStop("signal received");
@@ -311,18 +386,21 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   }
   while (activeWorkers > 0) serveOne(true);
 
-  int stopped = gStop ? 1 : 0, anyStopped = 0;
-  MPI_Allreduce(&stopped, &anyStopped, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-  int incomplete = written < nTiles ? 1 : 0;
-  MPI_Bcast(&incomplete, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  int status = writeFailure.empty() ? kRankOk : kRankWriteFailed, worst = 0;
+  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  if (worst == kRankWriteFailed && writeFailure.empty()) writeFailure = "another rank could not write its log file (see its stderr)";
   double times[2] = {pathSecondsSum, waveSecondsSum}, total[2] = {0, 0};
   MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  const bool incomplete = written < nTiles;
   std::optional<double> filledIncoherent;  // mean over all slices, after the reciprocity fill
-  if (!incomplete && pairs) {
-    auto tf = Clock::now();
-    const double e = writer.completeReciprocal(*pairs);
-    filledIncoherent = e;
-    spdlog::info("reciprocity: filled the mirrored half of {} slices in {:.2f} s", nTiles, since(tf));
+  try {
+    if (!incomplete && writeFailure.empty() && pairs) {
+      auto tf = Clock::now();
+      filledIncoherent = writer.completeReciprocal(*pairs);
+      spdlog::info("reciprocity: filled the mirrored half of {} slices in {:.2f} s", nTiles, since(tf));
+    }
+  } catch (const WriteError& e) {
+    writeFailure = e.what();
   }
   {
     std::string energies;
@@ -333,14 +411,26 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
                  "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
                  summary.computed, summary.resumed, since(t0), total[0], total[1], summary.paths, energies);
   }
-  if (incomplete) {
-    writer.close();
+  // Finish (close, fsync, rename) or close; a failure of either is a write failure, which leaves the
+  // partial file and its journal (every slice in the journal is on disk) and any old output as they were.
+  try {
+    if (writeFailure.empty() && !incomplete) writer.finish();
+    else writer.close();
+  } catch (const WriteError& e) {
+    if (writeFailure.empty()) writeFailure = e.what();
+  }
+  if (!writeFailure.empty()) {
+    summary.exit = ExitCode::WriteFailed;
+    summary.error = fmt::format("{}. {}/{} slices are safe in {}.partial (listed in its journal); free space or fix the "
+                                "file system, then run the same command with --resume. {} was not changed",
+                                writeFailure, written, nTiles, outPath, outPath);
+  } else if (incomplete) {
     summary.stoppedEarly = true;
     spdlog::warn("stopped early: {}/{} slices complete in {}.partial{}; run the same command with --resume to finish",
                  written, nTiles, outPath, lostTiles ? " (tiles in flight were abandoned)" : "");
-  } else {
-    writer.finish();
   }
+  int outcome = exitCode(summary.exit == ExitCode::Ok && summary.stoppedEarly ? ExitCode::Stopped : summary.exit);
+  MPI_Bcast(&outcome, 1, MPI_INT, 0, MPI_COMM_WORLD);
   summary.seconds = since(t0);
   return summary;
 }

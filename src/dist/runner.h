@@ -13,6 +13,7 @@
 #pragma once
 #include <string>
 
+#include "core/error.h"
 #include "dist/mpi_session.h"
 #include "job/job.h"
 
@@ -30,16 +31,14 @@ struct RunSummary {
   int computed = 0;      // tiles computed in this run (all ranks)
   int resumed = 0;       // tiles kept from an earlier run
   bool stoppedEarly = false;
+  // Not Ok when the run could not start or finish: BadInput (a resume that does not match, too
+  // little memory), WriteFailed (the output or a log could not be written). Same on every rank;
+  // `error` says why (rank 0).
+  ExitCode exit = ExitCode::Ok;
+  std::string error;
   double seconds = 0;
   uint64_t paths = 0;
 };
-
-// Exit code of a clean early stop (signal or --max-hours): rerun with --resume to complete.
-inline constexpr int kExitStoppedEarly = 3;
-
-// Installs the SIGTERM/SIGINT/SIGUSR1 handlers that request a clean stop.
-void installStopHandlers();
-bool stopRequested();
 
 RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& options);
 

@@ -26,7 +26,62 @@ double unitToMicrometres(const std::string& unit, const std::string& where) {
 
 namespace {
 
+// Every line of an OBJ file is checked before tinyobjloader reads it (which skips what it cannot
+// parse: a truncated face "f 1" would silently leave a hole). Accepted: v (x y z, optionally w or
+// an RGB colour), vt, vn, f with at least three vertices whose indices exist (negative ones count
+// back), o, g, s, usemtl, mtllib and comment lines. Anything else is an error naming file:line.
+void checkObjText(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw InputError(path + ": cannot open");
+  std::string line;
+  long long vertices = 0;
+  auto fail = [&](int lineNo, const std::string& what) {
+    throw InputError(path + ":" + std::to_string(lineNo) + ": " + what);
+  };
+  auto numbers = [&](std::istringstream& ss, int lineNo) {
+    std::vector<double> v;
+    for (std::string tok; ss >> tok;) {
+      char* end = nullptr;
+      const double d = std::strtod(tok.c_str(), &end);
+      if (end == tok.c_str() || *end != '\0' || !std::isfinite(d)) fail(lineNo, "'" + tok + "' is not a finite number");
+      v.push_back(d);
+    }
+    return v;
+  };
+  for (int lineNo = 1; std::getline(f, line); ++lineNo) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ss(line);
+    std::string kw;
+    if (!(ss >> kw) || kw[0] == '#') continue;  // blank or a comment line
+    if (kw == "v") {
+      const size_t n = numbers(ss, lineNo).size();
+      if (n != 3 && n != 4 && n != 6 && n != 7)
+        fail(lineNo, "a vertex needs x y z (and optionally w, or r g b): found " + std::to_string(n) + " numbers");
+      ++vertices;
+    } else if (kw == "vt" || kw == "vn") {
+      const size_t n = numbers(ss, lineNo).size();
+      if (n < 1 || n > 3) fail(lineNo, kw + " needs 1 to 3 numbers");
+    } else if (kw == "f") {
+      int count = 0;
+      for (std::string ref; ss >> ref; ++count) {
+        const std::string index = ref.substr(0, ref.find('/'));
+        char* end = nullptr;
+        const long long i = std::strtoll(index.c_str(), &end, 10);
+        if (index.empty() || *end != '\0' || i == 0)
+          fail(lineNo, "face vertex '" + ref + "' is not a vertex index (1-based, or negative from the last vertex)");
+        const long long resolved = i > 0 ? i : vertices + i + 1;
+        if (resolved < 1 || resolved > vertices)
+          fail(lineNo, "face vertex " + index + " does not exist (" + std::to_string(vertices) + " vertices so far)");
+      }
+      if (count < 3) fail(lineNo, "a face needs at least 3 vertices, found " + std::to_string(count) + " (truncated file?)");
+    } else if (kw != "o" && kw != "g" && kw != "s" && kw != "usemtl" && kw != "mtllib") {
+      fail(lineNo, "unsupported OBJ statement '" + kw + "' (a surface patch uses v, f and optionally vt, vn, o, g, s)");
+    }
+  }
+}
+
 Microgeometry loadObj(const std::string& path, double scale) {
+  checkObjText(path);
   tinyobj::ObjReader reader;
   tinyobj::ObjReaderConfig cfg;
   cfg.triangulate = true;
@@ -43,22 +98,6 @@ Microgeometry loadObj(const std::string& path, double scale) {
           throw InputError(path + ": face in shape '" + shape.name + "' refers to a missing vertex");
       g.triangles.push_back({uint32_t(idx[i].vertex_index), uint32_t(idx[i + 1].vertex_index),
                              uint32_t(idx[i + 2].vertex_index)});
-    }
-  }
-  // tinyobjloader parses "nan" as 0 in some versions; check the text for non-finite numbers too.
-  std::ifstream f(path);
-  std::string line;
-  int lineNo = 0;
-  while (std::getline(f, line)) {
-    ++lineNo;
-    if (line.rfind("v ", 0) != 0) continue;
-    std::istringstream ss(line.substr(2));
-    std::string tok;
-    while (ss >> tok) {
-      char* end = nullptr;
-      double d = std::strtod(tok.c_str(), &end);
-      if (end == tok.c_str() || !std::isfinite(d))
-        throw InputError(path + ":" + std::to_string(lineNo) + ": vertex coordinate '" + tok + "' is not a finite number");
     }
   }
   return g;
@@ -216,6 +255,9 @@ Microgeometry loadPly(const std::string& path, double scale) {
             idx[k] = uint32_t(v);
           }
           if (e.name == "face" && (p.name == "vertex_indices" || p.name == "vertex_index")) {
+            if (n < 3)
+              throw InputError(path + ": face " + std::to_string(i) + " has " + std::to_string(n) +
+                               " vertex indices; a face needs at least 3 (truncated file?)");
             for (size_t k = 1; k + 1 < n; ++k) g.triangles.push_back({idx[0], idx[k], idx[k + 1]});
           }
         } else {
@@ -247,12 +289,16 @@ Microgeometry loadMesh(const std::string& path, double scale) {
   if (ext == ".obj") g = loadObj(path, scale);
   else if (ext == ".ply") g = loadPly(path, scale);
   else throw InputError(path + ": unknown mesh format '" + ext + "' (use .obj or .ply)");
-  // Default footprint: the bounding box in x and y (the job may override it).
+  // Default footprint: the bounding box in x and y of the vertices the faces use (the job may
+  // override it); a vertex no face uses must not enlarge it (indices are checked by validate()).
   double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
-  for (auto& v : g.vertices) {
-    x0 = std::min(x0, v.x); x1 = std::max(x1, v.x);
-    y0 = std::min(y0, v.y); y1 = std::max(y1, v.y);
-  }
+  for (const auto& tri : g.triangles)
+    for (uint32_t i : tri) {
+      if (i >= g.vertices.size()) continue;
+      const Vec3& v = g.vertices[i];
+      x0 = std::min(x0, v.x); x1 = std::max(x1, v.x);
+      y0 = std::min(y0, v.y); y1 = std::max(y1, v.y);
+    }
   g.sizeX = x1 > x0 ? x1 - x0 : 1.0;
   g.sizeY = y1 > y0 ? y1 - y0 : 1.0;
   g.validate(path);

@@ -201,4 +201,67 @@ void writePly(const Microgeometry& g, const std::string& path) {
   if (!f) throw std::runtime_error("error writing " + path);
 }
 
+SurfaceClosure surfaceClosureOf(const Microgeometry& g) {
+  SurfaceClosure c;
+  if (g.triangles.empty()) return c;
+  double signedArea = 0;
+  std::vector<uint8_t> used(g.vertices.size(), 0);
+  for (size_t t = 0; t < g.triangles.size(); ++t) {
+    signedArea += 0.5 * g.triangleNormal(t).z;
+    for (uint32_t v : g.triangles[t]) used[v] = 1;
+  }
+  for (uint8_t u : used) c.unusedVertices += u ? 0 : 1;
+  const double footprint = g.sizeX * g.sizeY;
+  c.uncoveredFraction = footprint > 0 ? 1.0 - std::abs(signedArea) / footprint : 0.0;
+  if (std::abs(c.uncoveredFraction) < 1e-9) c.uncoveredFraction = 0;
+  // Vertices matched by quantised position (meshes may repeat vertices per face).
+  const double tol = 1e-7 * std::max({g.sizeX, g.sizeY, 1e-3});
+  std::map<std::array<long long, 3>, uint32_t> ids;
+  std::vector<uint32_t> id(g.vertices.size());
+  for (size_t v = 0; v < g.vertices.size(); ++v) {
+    const Vec3& p = g.vertices[v];
+    const std::array<long long, 3> key{std::llround(p.x / tol), std::llround(p.y / tol), std::llround(p.z / tol)};
+    id[v] = ids.emplace(key, uint32_t(ids.size())).first->second;
+  }
+  std::map<std::pair<uint32_t, uint32_t>, std::pair<int, std::pair<uint32_t, uint32_t>>> edges;
+  for (const auto& tri : g.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = tri[size_t(k)], b = tri[size_t((k + 1) % 3)];
+      auto& e = edges[std::minmax(id[a], id[b])];
+      ++e.first;
+      e.second = {a, b};
+    }
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  for (size_t v = 0; v < g.vertices.size(); ++v)
+    if (used[v]) {
+      x0 = std::min(x0, g.vertices[v].x), x1 = std::max(x1, g.vertices[v].x);
+      y0 = std::min(y0, g.vertices[v].y), y1 = std::max(y1, g.vertices[v].y);
+    }
+  const double btol = 1e-6 * std::max({g.sizeX, g.sizeY, 1e-3});
+  auto onBorder = [&](const Vec3& a, const Vec3& b) {
+    auto both = [&](double u, double v, double edge) { return std::abs(u - edge) < btol && std::abs(v - edge) < btol; };
+    return both(a.x, b.x, x0) || both(a.x, b.x, x1) || both(a.y, b.y, y0) || both(a.y, b.y, y1);
+  };
+  for (const auto& [key, e] : edges)
+    if (e.first == 1 && !(g.periodic && onBorder(g.vertices[e.second.first], g.vertices[e.second.second])))
+      ++c.openEdges;
+  return c;
+}
+
+std::string SurfaceClosure::describe() const {
+  if (closed() && unusedVertices == 0) return "closed surface";
+  std::string s;
+  if (!closed())
+  {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%zu open edges (holes or cracks), %.3g %% of the footprint uncovered", openEdges,
+                  100 * uncoveredFraction);
+    s = buf;
+  }
+  else
+    s = "closed surface";
+  if (unusedVertices) s += ", " + std::to_string(unusedVertices) + " vertices used by no triangle (ignored)";
+  return s;
+}
+
 }  // namespace mbsdf

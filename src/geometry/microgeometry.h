@@ -5,6 +5,7 @@
 // periodic = true: the patch repeats in x and y (PHYSICS.md §4 step 2).
 #pragma once
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -44,6 +45,23 @@ struct Microgeometry {
     return uint32_t(vertices.size() - 1);
   }
 };
+
+// Whether a patch is a closed surface over its footprint. Light through a hole is not scattered;
+// the path tracer counts it as `missed` (or `leaked`), and the facet sum of single scattering, which
+// assumes every ray meets the surface, does not apply.
+//   openEdges: edges used by one triangle only (vertices matched by position), not counting the
+//     footprint's border of a periodic patch, where the next copy continues the surface;
+//   uncoveredFraction: 1 − |Σ projected (signed) triangle area| / footprint. A closed surface over
+//     the footprint projects onto it exactly once, overhangs included (their up- and down-facing
+//     parts cancel), so this is the fraction of vertical rays that meet nothing.
+struct SurfaceClosure {
+  size_t openEdges = 0;
+  size_t unusedVertices = 0;  // vertices no triangle uses
+  double uncoveredFraction = 0;
+  bool closed() const { return openEdges == 0 && std::abs(uncoveredFraction) < 1e-6; }
+  std::string describe() const;
+};
+SurfaceClosure surfaceClosureOf(const Microgeometry& g);
 
 // Periodic heightfield on an nx x ny grid of heights (row-major, h[j*nx + i] at
 // x = -sizeX/2 + i*sizeX/nx, y likewise); the grid wraps around, so the mesh is seamless.

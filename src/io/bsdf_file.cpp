@@ -4,7 +4,12 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <sstream>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -12,7 +17,9 @@
 #include <set>
 #include <limits>
 
+#include "core/error.h"
 #include "core/vecmath.h"
+#include "io/output_target.h"
 
 namespace mbsdf {
 namespace {
@@ -91,6 +98,9 @@ void writeRow(hid_t file, const std::string& path, int i, const std::vector<doub
   if (v.size() != n) throw std::runtime_error("HDF5: row size mismatch for " + path);
   H5Dataspace ms(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
   h5check(H5Dwrite(d, memType, ms, fs, H5P_DEFAULT, v.data()), "write " + path);
+  // The chunk cache writes the chunk when the dataset closes: an error there (disk full) is only
+  // seen by a checked close.
+  d.close("write " + path);
 }
 
 std::vector<double> readRowImpl(hid_t file, const std::string& path, int i) {
@@ -175,6 +185,97 @@ std::vector<double> sliceRelativeError(const TileResult& r, Component c, const D
   return out;
 }
 
+namespace {
+
+std::string readStringAttr(hid_t obj, const std::string& name) {
+  H5Attribute a(H5Aopen(obj, name.c_str(), H5P_DEFAULT), "open attribute " + name);
+  H5Datatype t(H5Aget_type(a), "H5Aget_type");
+  std::string text(H5Tget_size(t), '\0');
+  h5check(H5Aread(a, t, text.data()), "read attribute " + name);
+  while (!text.empty() && text.back() == '\0') text.pop_back();
+  return text;
+}
+
+std::vector<std::string> linesOf(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  return lines;
+}
+
+// The text without comments and white space (a '#' outside a string starts a comment in TOML).
+std::string tomlSkeleton(const std::string& text) {
+  std::string out;
+  for (const auto& line : linesOf(text)) {
+    char quote = 0;
+    for (char ch : line) {
+      if (quote) {
+        if (ch == quote) quote = 0;
+      } else if (ch == '"' || ch == '\'') {
+        quote = ch;
+      } else if (ch == '#') {
+        break;
+      }
+      if (!std::isspace(static_cast<unsigned char>(ch))) out += ch;
+    }
+    if (!out.empty() && out.back() != '\n') out += '\n';  // blank and comment lines leave nothing
+  }
+  return out;
+}
+
+// What differs between the job text stored in a partial file and the job's text ("" if nothing).
+std::string jobTextDifference(const std::string& stored, const std::string& now) {
+  if (stored == now) return "";
+  const auto a = linesOf(stored), b = linesOf(now);
+  size_t i = 0;
+  while (i < a.size() && i < b.size() && a[i] == b[i]) ++i;
+  auto show = [](const std::vector<std::string>& v, size_t k) { return k < v.size() ? "'" + v[k] + "'" : std::string("(end of file)"); };
+  std::string what = "the job text differs from line " + std::to_string(i + 1) + ": was " + show(a, i) + ", is now " + show(b, i);
+  if (tomlSkeleton(stored) == tomlSkeleton(now)) what += " (only comments or white space differ)";
+  return what;
+}
+
+// What differs between the input files recorded in a partial file and the job's ("" if nothing).
+std::string inputFilesDifference(const std::string& storedJson, const std::vector<InputFile>& now) {
+  std::map<std::string, std::pair<std::string, std::string>> stored;
+  if (!storedJson.empty())
+    for (const auto& e : nlohmann::json::parse(storedJson))
+      stored[e.at("key").get<std::string>()] = {e.at("path").get<std::string>(), e.at("sha256").get<std::string>()};
+  std::string what;
+  auto add = [&](const std::string& s) { what += (what.empty() ? "" : "; ") + s; };
+  for (const auto& f : now) {
+    auto it = stored.find(f.key);
+    if (it == stored.end()) add(f.key + " " + f.path + " was not an input of the partial file");
+    else if (it->second.first != f.path) add(f.key + " was " + it->second.first + ", is now " + f.path);
+    else if (it->second.second != f.sha256)
+      add(f.path + " (" + f.key + ") changed since the partial file was written: SHA-256 was " +
+          it->second.second.substr(0, 16) + "..., is now " + f.sha256.substr(0, 16) + "...");
+    if (it != stored.end()) stored.erase(it);
+  }
+  for (const auto& [key, v] : stored) add(key + " " + v.first + " is no longer an input");
+  return what;
+}
+
+std::string inputFilesJson(const std::vector<InputFile>& files) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const auto& f : files) j.push_back({{"key", f.key}, {"path", f.path}, {"sha256", f.sha256}});
+  return j.dump();
+}
+
+// fsync of the HDF5 file's descriptor (sec2 driver): the slice is on the disk, not only in the page
+// cache, before the journal says so.
+void syncHdf5File(hid_t file, const std::string& name) {
+  void* handle = nullptr;
+  h5check(H5Fget_vfd_handle(file, H5P_DEFAULT, &handle), "get the file descriptor of " + name);
+  if (handle && ::fsync(*static_cast<int*>(handle)) != 0) throw WriteError(osErrorMessage("fsync", name, errno));
+}
+
+void renameChecked(const std::string& from, const std::string& to) {
+  if (std::rename(from.c_str(), to.c_str()) != 0) throw WriteError(osErrorMessage("rename to " + to, from, errno));
+}
+
+}  // namespace
+
 BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid, bool resume)
     : path_(path), partial_(path + ".partial"), journal_(path + ".journal"), job_(job), grid_(grid) {
   if (auto dir = std::filesystem::path(path).parent_path(); !dir.empty()) std::filesystem::create_directories(dir);
@@ -197,16 +298,16 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
   {
     H5File old(H5Fopen(partial_.c_str(), H5F_ACC_RDONLY | H5F_ACC_SWMR_READ, H5P_DEFAULT),
                "open " + partial_ + " to resume");
-    {
-      H5Attribute a(H5Aopen(old, "job_text", H5P_DEFAULT), "open attribute job_text");
-      H5Datatype t(H5Aget_type(a), "H5Aget_type");
-      std::string text(H5Tget_size(t), '\0');
-      h5check(H5Aread(a, t, text.data()), "read job_text");
-      while (!text.empty() && text.back() == '\0') text.pop_back();
-      if (text != job.text)
-        throw std::runtime_error(partial_ + " was written by a different job file; remove it (and " + journal_ +
-                                 ") or run without --resume");
-    }
+    // Identity, not only text: the job text, every input file's content and the geometry built.
+    std::string differs = jobTextDifference(readStringAttr(old, "job_text"), job.text);
+    const std::string inputs = H5Aexists(old, "input_files") > 0 ? readStringAttr(old, "input_files") : "";
+    if (differs.empty()) differs = inputFilesDifference(inputs, job.inputFiles);
+    if (differs.empty() && readStringAttr(old, "geometry_hash") != job.geometry.hash())
+      differs = "the microgeometry built from the job differs (geometry hash " + readStringAttr(old, "geometry_hash") +
+                ", now " + job.geometry.hash() + ")";
+    if (!differs.empty())
+      throw InputError("cannot resume " + partial_ + ": " + differs + ". Restore what changed, or remove " + partial_ +
+                       " and " + journal_ + " (or run without --resume) to start over");
     std::vector<uint8_t> done = read1D<uint8_t>(old, "/bsdf/done", H5T_NATIVE_UINT8);
     create(fresh);
     for (int t : journaled) {
@@ -214,15 +315,23 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
       for (const auto& d : rowDatasets(job)) writeRow(file_, d, t, readRowImpl(old, d, t), H5T_NATIVE_DOUBLE);
       resumed_.push_back(t);
     }
-    h5check(H5Fflush(file_, H5F_SCOPE_GLOBAL), "flush");
+    h5check(H5Fflush(file_, H5F_SCOPE_GLOBAL), "flush " + fresh);
+    syncHdf5File(file_, fresh);
   }
-  std::filesystem::rename(fresh, partial_);
+  renameChecked(fresh, partial_);
   // Rewrite the journal with what was kept (atomically).
   {
-    std::ofstream j(journal_ + ".new", std::ios::trunc);
-    for (int t : resumed_) j << "tile " << t << "\n";
+    const std::string next = journal_ + ".new";
+    std::string text;
+    for (int t : resumed_) text += "tile " + std::to_string(t) + "\n";
+    const int fd = ::open(next.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0) throw WriteError(osErrorMessage("create", next, errno));
+    const bool ok = ::write(fd, text.data(), text.size()) == ssize_t(text.size()) && ::fsync(fd) == 0;
+    const int err = errno;
+    ::close(fd);
+    if (!ok) throw WriteError(osErrorMessage("write", next, err));
   }
-  std::filesystem::rename(journal_ + ".new", journal_);
+  renameChecked(journal_ + ".new", journal_);
 }
 
 void BsdfFileWriter::create(const std::string& filename) {
@@ -239,6 +348,7 @@ void BsdfFileWriter::create(const std::string& filename) {
   setStringAttr(f, "job_file", job.file);
   setScalarAttr<uint64_t>(f, "seed", H5T_NATIVE_UINT64, job.seed);
   setStringAttr(f, "geometry_hash", job.geometry.hash());
+  setStringAttr(f, "input_files", inputFilesJson(job.inputFiles));
   setStringAttr(f, "geometry_kind", job.geometryKind);
   setStringAttr(f, "material", job.material.describe());
   setScalarAttr<uint64_t>(f, "paths_per_slice", H5T_NATIVE_UINT64, job.pathsPerSlice);
@@ -359,14 +469,16 @@ void BsdfFileWriter::create(const std::string& filename) {
 void BsdfFileWriter::appendJournal(int tile) {
   // O_APPEND + fsync: the line is on disk before the next tile is written.
   int fd = ::open(journal_.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-  if (fd < 0) throw std::runtime_error("cannot write " + journal_);
+  if (fd < 0) throw WriteError(osErrorMessage("open", journal_, errno));
   std::string line = "tile " + std::to_string(tile) + "\n";
-  bool ok = ::write(fd, line.data(), line.size()) == ssize_t(line.size()) && ::fsync(fd) == 0;
+  const ssize_t n = ::write(fd, line.data(), line.size());
+  const bool ok = n == ssize_t(line.size()) && ::fsync(fd) == 0;
+  const int err = n >= 0 && n != ssize_t(line.size()) ? ENOSPC : errno;
   ::close(fd);
-  if (!ok) throw std::runtime_error("cannot write " + journal_);
+  if (!ok) throw WriteError(osErrorMessage("write", journal_, err));
 }
 
-void BsdfFileWriter::close() { file_.reset(); }
+void BsdfFileWriter::close() { file_.close("close " + partial_); }
 
 BsdfFileWriter::~BsdfFileWriter() {
   if (!finished_) {
@@ -393,7 +505,8 @@ void BsdfFileWriter::writeTile(const TileResult& r) {
   writeRow(f, "/stats/sampling_stop", i, {double(int(r.samplingStop))}, H5T_NATIVE_DOUBLE);
   // Mark done last, then flush: a slice marked done is complete on disk.
   writeRow(f, "/bsdf/done", i, {1.0}, H5T_NATIVE_DOUBLE);
-  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush");
+  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
+  syncHdf5File(f, partial_);
   appendJournal(i);
 }
 
@@ -470,15 +583,33 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
 }
 
 void BsdfFileWriter::finish() {
-  file_.reset();
-  std::filesystem::rename(partial_, path_);
-  std::filesystem::remove(journal_);
+  // Every byte on disk before the rename: a failure here leaves the partial file and its journal
+  // (resumable) and the old output, if any, untouched.
+  file_.close("close " + partial_);
+  syncPath(partial_);
+  renameChecked(partial_, path_);
+  std::filesystem::path dir = std::filesystem::path(path_).parent_path();
+  syncPath(dir.empty() ? "." : dir.string());
+  std::error_code ec;
+  std::filesystem::remove(journal_, ec);
   finished_ = true;
 }
 
 BsdfFileReader::BsdfFileReader(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw std::runtime_error(path + ": no such file");
-  file_ = H5File(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), "open " + path);
+  if (!std::filesystem::exists(path)) {
+    if (std::filesystem::exists(path + ".partial"))
+      throw std::runtime_error(path + ": no such file; " + path + ".partial holds the slices of a run that has not "
+                               "finished (being written, stopped or killed): open that to look at them");
+    throw std::runtime_error(path + ": no such file");
+  }
+  // A SWMR reader opens a partial file while its run writes it, or after the run was killed (the
+  // file still says it is open for writing); complete files open the same way.
+  hid_t id = H5Fopen(path.c_str(), H5F_ACC_RDONLY | H5F_ACC_SWMR_READ, H5P_DEFAULT);
+  if (id < 0) {
+    H5Eclear2(H5E_DEFAULT);
+    id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  }
+  file_ = H5File(id, "open " + path + " (not a microbsdf HDF5 file?)");
   lambda_nm_ = read1D<double>(file_, "/spectrum/wavelength_nm", H5T_NATIVE_DOUBLE);
   incBin_ = read1D<int>(file_, "/incidence/bin", H5T_NATIVE_INT);
   incTheta_ = read1D<double>(file_, "/incidence/theta_deg", H5T_NATIVE_DOUBLE);
@@ -493,6 +624,10 @@ BsdfFileReader::BsdfFileReader(const std::string& path) {
   };
   if (H5Aexists(g, "n_theta") > 0) grid_ = std::make_unique<DirectionGrid>(ThetaPhiGrid{intAttr("n_theta"), intAttr("n_phi")});
   else grid_ = std::make_unique<DirectionGrid>(DiskGrid{intAttr("width"), intAttr("height")});
+}
+
+int BsdfFileReader::doneCount() const {
+  return int(std::count_if(done_.begin(), done_.end(), [](uint8_t d) { return d != 0; }));
 }
 
 std::vector<std::string> BsdfFileReader::components() const {

@@ -101,6 +101,7 @@ class BsdfFileReader {
   double incidencePhi(int i) const { return incPhi_[i]; }
   std::vector<std::string> components() const;
   bool done(int i) const { return done_[i] != 0; }
+  int doneCount() const;
   // One slice of a component: nλ x nBins (λ-major), float converted to double.
   std::vector<double> slice(const std::string& component, int incidence) const;
   std::vector<double> sliceStdError(const std::string& component, int incidence) const;

@@ -1,5 +1,7 @@
 #include "io/slice_export.h"
 
+#include <spdlog/fmt/fmt.h>
+
 #include <optional>
 #include <set>
 
@@ -11,6 +13,7 @@
 #include <stdexcept>
 
 #include "core/colour.h"
+#include "core/error.h"
 #include "io/exr_image.h"
 #include "io/png_image.h"
 #include "scattering/components.h"
@@ -138,7 +141,13 @@ RgbImage renderSliceImage(const BsdfFileReader& file, const SliceRequest& req, i
 
 int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::string& outPath) {
   int inc = file.nearestIncidence(req.theta_deg, req.phi_deg);
-  if (!file.done(inc)) throw std::runtime_error("the slice nearest to the requested incidence is not computed yet");
+  if (!file.done(inc)) {
+    int done = 0;
+    for (int i = 0; i < file.incidenceCount(); ++i) done += file.done(i) ? 1 : 0;
+    throw InputError(fmt::format("the slice nearest to theta_i = {:g}, phi_i = {:g} (theta {:g}, phi {:g}) is not computed "
+                                 "yet: incomplete: {} of {} slices", req.theta_deg, req.phi_deg, file.incidenceTheta(inc),
+                                 file.incidencePhi(inc), done, file.incidenceCount()));
+  }
   std::vector<double> err;
   std::vector<double> f = modelSlice(file, req.model, inc, &err);
   const DirectionGrid& grid = file.grid();

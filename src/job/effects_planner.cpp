@@ -1,5 +1,7 @@
 #include "job/effects_planner.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -10,6 +12,7 @@
 #include <tuple>
 
 #include "core/colour.h"
+#include "core/log.h"
 #include "job/transport.h"
 #include "scattering/fft_estimator.h"
 #include "scattering/single_scattering.h"
@@ -17,6 +20,14 @@
 
 namespace mbsdf {
 namespace {
+
+// Pilots log that they start and, every 10 s, that they still run; they stop on a signal like tiles
+// (core/stop.h): a pilot of a paper-resolution job can take minutes.
+std::function<void(uint64_t)> pilotProgress(const std::string& what, const IncidenceDirection& inc) {
+  const std::string name = fmt::format("effects planner: {} at theta_i = {:.3g} deg", what, inc.theta_deg);
+  spdlog::info("{}", name);
+  return heartbeat(name);
+}
 
 using Clock = std::chrono::steady_clock;
 // The `exact` pilot costs ∝ facets × propagating orders (π sizeX sizeY / λ² above the surface; for a
@@ -321,7 +332,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
       }
       binFraction = double(picked) / nB;
     }
-    const WaveTileResult w = est->run(pilot, inc.bin, exact, {}, mask);
+    const WaveTileResult w = est->run(pilot, inc.bin, exact, pilotProgress("estimator pilot (" + c + ")", inc), mask);
     double error = 0;
     for (int l = 0; l < nL; ++l) {
       double e = 0;
@@ -448,7 +459,9 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   // single scattering (scattering/single_scattering.h) affordable at the pilot bins — the
   // diffraction decision averages both over the incidence bins as the job does (below).
   auto beam = [&](int p) { return grid.centre(job.incidence[size_t(p)].bin); };
-  for (int p : pilots) geo.push_back(transport.run(p, p, job.incidence[size_t(p)].bin, beam(p)));
+  for (int p : pilots)
+    geo.push_back(transport.run(p, p, job.incidence[size_t(p)].bin, beam(p),
+                                pilotProgress("geometric pilot", job.incidence[size_t(p)])));
   // Σ f Ω⊥ of a component and its standard error (root-sum-square over bins).
   auto energy = [&](const TileResult& r, Component c, int l, double* se) {
     double e = 0, v = 0;
@@ -537,7 +550,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       for (size_t k = 0; k < pilots.size(); ++k) {
         const auto& inc = job.incidence[size_t(pilots[k])];
         const std::optional<Vec3> dir = binAveraged ? std::nullopt : std::optional<Vec3>(beam(pilots[k]));
-        const WaveTileResult w = est->run(pilots[k], inc.bin, dir);
+        const WaveTileResult w = est->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot", inc));
         const TileResult r = binAveraged ? facetGs->run(pilots[k], pilots[k], inc.bin, std::nullopt) : geo[k];
         // Per wavelength: L1 of the cells' Σ (f_ws − f_coh) Ω⊥, its expected noise (floor) and the
         // variance Σ (s Ω⊥)². With a replica (a second Monte Carlo pilot of another seed) f_ws is the
@@ -581,7 +594,8 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
         if (marginal) {
           WaveSettings other = ws;
           other.seed = ws.seed ^ 0x5851F42D4C957F2Dull;
-          const WaveTileResult w2 = makeJobWaveEstimator(job, grid, *transport.scene(), other)->run(pilots[k], inc.bin, dir);
+          const WaveTileResult w2 = makeJobWaveEstimator(job, grid, *transport.scene(), other)
+                                        ->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot replica", inc));
           ++replicas;
           for (int l = 0; l < nL; ++l) fig[size_t(l)] = figures(l, &w2);
         }
@@ -712,7 +726,9 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     Job other = pilotJob;
     other.seed = job.seed ^ 0x9E3779B97F4A7C15ull;
     GeometricTransport t2(other, grid, paths);
-    for (int p : pilots) geo2->push_back(t2.run(p, p, job.incidence[size_t(p)].bin, beam(p)));
+    for (int p : pilots)
+      geo2->push_back(t2.run(p, p, job.incidence[size_t(p)].bin, beam(p),
+                             pilotProgress("geometric pilot replica", job.incidence[size_t(p)])));
   };
   decisions.push_back(wavelengthDecision(job, grid, geo, chosen, replicate, &plan));
   if (job.scene.incidenceMax_deg < 90) {

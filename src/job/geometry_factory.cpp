@@ -13,12 +13,13 @@
 
 namespace mbsdf {
 
-namespace {
 std::string resolvePath(const std::string& base, const std::string& file) {
   std::filesystem::path p(file);
   if (p.is_absolute() || base.empty()) return file;
   return (std::filesystem::path(base) / p).string();
 }
+
+namespace {
 
 double gMaxGeneratedTriangles = 1e7;
 }  // namespace
@@ -46,6 +47,14 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     if (s.size() == 1) s.push_back(s[0]);
     if (s.size() != 2 || !(s[0] > 0 && s[1] > 0)) geo.fail(key, "expected one or two positive numbers");
     return s;
+  };
+  // Texels per side of a generated heightfield: at most 2048 (the cell limit), an error naming the
+  // key rather than a silently coarser texel.
+  auto texels = [&](double size, double texel) {
+    if (std::ceil(size / texel) > 2048)
+      geo.fail("texel_um", fmt::format("{} µm / {} µm = {} texels per side; at most 2048 (use a larger texel_um or a "
+                                       "smaller size_um)", size, texel, std::ceil(size / texel)));
+    return gridSizeFor(size, texel);
   };
   // Generators throw std::invalid_argument for inconsistent shapes; report them against the key
   // most likely responsible.
@@ -104,14 +113,14 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     auto s = size2({20.0, 20.0});
     double rms = geo.positive("rms_um", 0.1), corr = geo.positive("correlation_um", 1.0);
     double texel = geo.positive("texel_um", corr / 8);
-    g = makeGaussian(s[0], s[1], rms, corr, gridSizeFor(s[0], texel), gridSizeFor(s[1], texel), seed);
+    g = makeGaussian(s[0], s[1], rms, corr, texels(s[0], texel), texels(s[1], texel), seed);
   } else if (kind == "noise") {
     auto s = size2({20.0, 20.0});
     double rms = geo.positive("rms_um", 0.132), feature = geo.positive("feature_um", 5.0);
     double density = geo.positive("density", 3.0), texel = geo.positive("texel_um", feature / 16);
     if (!(density * s[0] * s[1] / (kPi * feature * feature) <= 1e7))
       geo.fail("density", "would place more than 1e7 noise impulses on the patch");
-    g = makeNoise(s[0], s[1], rms, feature, density, gridSizeFor(s[0], texel), gridSizeFor(s[1], texel), seed);
+    g = makeNoise(s[0], s[1], rms, feature, density, texels(s[0], texel), texels(s[1], texel), seed);
   } else if (kind == "hemispheres") {
     auto s = size2({20.0, 20.0});
     double r = geo.positive("radius_um", 2.0);
@@ -145,11 +154,15 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     if (file.empty()) geo.fail("file", "a mesh geometry needs file = \"patch.obj\" or \"patch.ply\"");
     double scale = unitToMicrometres(geo.getString("units", "um"), geo.where("units"));
     g = loadMesh(resolvePath(baseDir, file), scale);
+    // The footprint of the vertices the triangles use (a stray vertex must not enlarge it).
     double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
-    for (auto& v : g.vertices) {
-      x0 = std::min(x0, v.x); x1 = std::max(x1, v.x);
-      y0 = std::min(y0, v.y); y1 = std::max(y1, v.y);
-    }
+    for (const auto& tri : g.triangles)
+      for (uint32_t i : tri) {
+        const Vec3& v = g.vertices[i];
+        x0 = std::min(x0, v.x); x1 = std::max(x1, v.x);
+        y0 = std::min(y0, v.y); y1 = std::max(y1, v.y);
+      }
+    if (g.triangles.empty()) geo.fail("file", "the mesh " + file + " has no faces");
     auto s = size2({g.sizeX, g.sizeY});
     // Centre the footprint on the origin (float precision in Embree).
     Vec3 c{(x0 + x1) / 2, (y0 + y1) / 2, 0};

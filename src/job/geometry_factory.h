@@ -8,6 +8,9 @@
 
 namespace mbsdf {
 
+// A file named in the job, relative to the job file's folder unless absolute.
+std::string resolvePath(const std::string& base, const std::string& file);
+
 Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut);
 
 // The most triangles a generator may make (1e7 unless set; a job asking for more fails naming the

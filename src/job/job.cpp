@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/file_digest.h"
 #include "geometry/lattice_cell.h"
 #include "job/geometry_factory.h"
 #include "job/params.h"
@@ -73,6 +74,12 @@ std::vector<double> parseWavelengths(const ParamDict& s) {
   if (l.size() > 100000) s.fail("wavelengths_nm", "at most 100000 wavelengths");
   for (double v : l)
     if (!(v > 0)) s.fail("wavelengths_nm", "wavelengths must be positive (nm)");
+  // Each wavelength once: a repeated one would be a second column of the same spectrum (and the
+  // colour conversion integrates over distinct samples).
+  std::vector<double> sorted = l;
+  std::sort(sorted.begin(), sorted.end());
+  if (auto d = std::adjacent_find(sorted.begin(), sorted.end()); d != sorted.end())
+    s.fail("wavelengths_nm", fmt::format("{} nm is listed twice; each wavelength once", *d));
   return l;
 }
 
@@ -351,14 +358,28 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       job.components.add(Component::Coherent);
       job.components.add(Component::Multiple);
     }
+    if (std::holds_alternative<TabulatedNdf>(job.statistical->ndf)) {
+      const std::string path = resolvePath(baseDir, geo.getString("ndf_file", ""));
+      job.inputFiles.push_back({"geometry.ndf_file", path, sha256OfFile(path)});
+    }
   } else {
     job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind);
+    job.closure = surfaceClosureOf(job.geometry);
+    if (!job.closure.closed() || job.closure.unusedVertices)
+      spdlog::warn("{}: [geometry] {}: {}{}", sourceName, job.geometryKind, job.closure.describe(),
+                   job.closure.closed() ? "" : "; light through the holes is counted as missed, not scattered");
+    if (job.geometryKind == "mesh" || job.geometryKind == "heightfield") {
+      const std::string path = resolvePath(baseDir, geo.getString("file", ""));
+      job.inputFiles.push_back({"geometry.file", path, sha256OfFile(path)});
+    }
   }
   if (job.singleScattering == "facets") {
     const bool autoComponents =
         std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") != job.requestedComponents.end();
     if (job.statistical || !job.geometry.periodic)
       samp.fail("single_scattering", "\"facets\" needs explicit periodic geometry");
+    if (!job.closure.closed())
+      samp.fail("single_scattering", "\"facets\" needs a closed surface; the patch has " + job.closure.describe());
     if (!autoComponents && (job.components.has(Component::Multiple) || job.components.has(Component::Lost)))
       samp.fail("single_scattering", "\"facets\" computes single scattering only: multiple and lost need paths");
   }

@@ -47,11 +47,21 @@ struct StatisticalSurface {
   double flakeAlbedo = 1.0;
 };
 
+// A file the job reads (mesh, heightfield, NDF table) and its content digest: a resumed run checks
+// that each is unchanged.
+struct InputFile {
+  std::string key;  // the job key that names it, e.g. "geometry.file"
+  std::string path;
+  std::string sha256;
+};
+
 struct Job {
   std::string file;  // job file path ("" for a string)
   std::string text;  // the full job text (stored in the output for provenance)
+  std::vector<InputFile> inputFiles;
   std::string geometryKind;
   Microgeometry geometry;                       // empty for a statistical surface
+  SurfaceClosure closure;                       // holes and cracks of the explicit geometry
   std::optional<StatisticalSurface> statistical;  // set for kind = "statistical"
   Material material;
   std::string materialName;

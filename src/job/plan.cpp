@@ -1,16 +1,20 @@
 #include "job/plan.h"
 
+#include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <sys/resource.h>
 #include <unistd.h>
 #include <cmath>
 #include <optional>
 #include <sstream>
 
+#include "core/log.h"
 #include "geometry/embree_scene.h"
 #include "io/bsdf_file.h"
 #include "job/effects_planner.h"
@@ -21,6 +25,52 @@
 #include "scattering/wave_estimator.h"
 
 namespace mbsdf {
+
+double memoryBytesPerRank(const Job& job, double waveBytes) {
+  const double nL = double(job.lambda_nm.size()), nB = double(DirectionGrid(job.gridLayout).binCount());
+  const double sceneBytes = double(job.geometry.triangles.size()) * 150.0 + double(job.geometry.vertices.size()) * 60.0;
+  const double tileBytes = nL * nB * 8.0 * 2.0 * 5.0 * 2.0;
+  const double batchBytes = 256.0 * 1024.0 * (32.0 + 8.0 * nL);
+  const double gridBytes = nB * 8.0 * 6.0;  // the direction grid's tables
+  return sceneBytes + tileBytes + batchBytes + gridBytes + waveBytes;
+}
+
+double outputBytesUncompressed(const Job& job) {
+  const double nL = double(job.lambda_nm.size()), nB = double(DirectionGrid(job.gridLayout).binCount());
+  return double(job.incidence.size()) * nL * nB * 4.0 * 2.0 * double(job.components.list().size()) + nB * 8.0 * 4.0;
+}
+
+double availableMemoryBytes() {
+  double avail = -1;
+  std::ifstream meminfo("/proc/meminfo");
+  for (std::string key; meminfo >> key;) {
+    double kb = 0;
+    meminfo >> kb;
+    if (key == "MemAvailable:") avail = kb * 1024.0;
+    meminfo.ignore(256, '\n');
+  }
+  // cgroup v2 (Slurm's --mem, containers): the limit less what the group already uses.
+  std::ifstream maxFile("/sys/fs/cgroup/memory.max"), curFile("/sys/fs/cgroup/memory.current");
+  std::string max;
+  double current = 0;
+  if (maxFile >> max && max != "max" && curFile >> current) {
+    const double left = std::stod(max) - current;
+    if (avail < 0 || left < avail) avail = left;
+  }
+  // An address-space limit (ulimit -v, some batch systems): what is left of it.
+  struct rlimit lim {};
+  if (getrlimit(RLIMIT_AS, &lim) == 0 && lim.rlim_cur != RLIM_INFINITY) {
+    double vmSize = 0;
+    std::ifstream status("/proc/self/status");
+    for (std::string key; status >> key;) {
+      if (key == "VmSize:") status >> vmSize;
+      status.ignore(256, '\n');
+    }
+    const double left = double(lim.rlim_cur) - vmSize * 1024.0;
+    if (avail < 0 || left < avail) avail = left;
+  }
+  return avail;
+}
 
 nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   std::optional<tbb::global_control> threads;
@@ -38,7 +88,9 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   nlohmann::json p;
   p["job"] = job.file;
   p["geometry"] = {{"kind", job.geometryKind}, {"triangles", job.geometry.triangles.size()},
-                   {"size_um", {job.geometry.sizeX, job.geometry.sizeY}}, {"periodic", job.geometry.periodic}};
+                   {"size_um", {job.geometry.sizeX, job.geometry.sizeY}}, {"periodic", job.geometry.periodic},
+                   {"open_edges", job.closure.openEdges}, {"uncovered_fraction", job.closure.uncoveredFraction},
+                   {"surface", job.statistical ? std::string("statistical") : job.closure.describe()}};
   if (job.statistical) p["geometry"]["model"] = MicroflakeDistribution(job.statistical->ndf).describe();
   p["material"] = job.material.describe();
   p["wavelengths"] = nL;
@@ -77,7 +129,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   double pathSeconds = 0, pilotSeconds = 0;
   int facetTiles = 0;
   for (int t : pilots) {
-    const TileResult r = transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t));
+    spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
+    const TileResult r = transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: path pilot"));
     pilotSeconds += r.seconds / double(pilots.size());
     pathSeconds += r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
     facetTiles += r.samples == 0;
@@ -91,7 +144,10 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
     // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
     const double scale = est->deterministic() ? 1.0 : double(job.waveSamplesPerBin) / double(ws.samplesPerBin);
-    for (int t : pilots) waveSeconds += est->run(t, job.incidence[size_t(t)].bin, exactOf(t)).seconds;
+    for (int t : pilots) {
+      spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
+      waveSeconds += est->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot")).seconds;
+    }
     // What the first pilot built for every later tile (exact's visibility table) is paid once per
     // rank, not per tile.
     waveSetupSeconds = est->setupSeconds();
@@ -164,16 +220,9 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
                     tileSeconds * computedTiles + waveSetupSeconds + writeSeconds * nTiles + sceneSeconds +
                         (effects.is_null() ? 0.0 : effects["pilot_seconds"].get<double>())},
                    {"core_hours", coreHours}};
-  // Output: float32 value + standard error per component, uncompressed upper bound.
-  const double outBytes = double(nTiles) * nL * nB * 4.0 * 2.0 * double(comps.size());
-  // Memory per rank: the scene (Embree + double copies), one tile result (doubles, value + error
-  // for up to five tallies), the path tracer's batch of events and the wave estimator's own
-  // (the fft estimator's facet fields, transforms and tables).
-  const double sceneBytes = double(job.geometry.triangles.size()) * 150.0 + double(job.geometry.vertices.size()) * 60.0;
-  const double tileBytes = double(nL) * nB * 8.0 * 2.0 * 5.0 * 2.0;
-  const double batchBytes = 256.0 * 1024.0 * (32.0 + 8.0 * nL);
-  p["output_bytes_uncompressed"] = outBytes;
-  p["memory_bytes_per_rank"] = sceneBytes + tileBytes + batchBytes + waveBytes;
+  const double memoryBytes = memoryBytesPerRank(job, waveBytes);
+  p["output_bytes_uncompressed"] = outputBytesUncompressed(job);
+  p["memory_bytes_per_rank"] = memoryBytes;
   // Suggested Slurm resources: ranks of 8 cores, enough to finish in about 12 hours.
   const int cpusPerTask = 8;
   int ntasks = std::max(1, std::min(computedTiles, int(std::ceil(coreHours / (12.0 * cpusPerTask)))));
@@ -183,7 +232,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   std::ostringstream sb;
   sb << "#SBATCH --ntasks=" << ntasks << "\n#SBATCH --cpus-per-task=" << cpusPerTask << "\n#SBATCH --time="
      << minutes / 60 << ":" << (minutes % 60 < 10 ? "0" : "") << minutes % 60 << ":00\n#SBATCH --mem-per-cpu="
-     << std::max(1, int(std::ceil((sceneBytes + tileBytes + batchBytes + waveBytes) / cpusPerTask / 1e9 * 2))) << "G\n"
+     << std::max(1, int(std::ceil(memoryBytes / cpusPerTask / 1e9 * 2))) << "G\n"
      << "#SBATCH --signal=B:USR1@300\n#SBATCH --requeue\n";
   p["sbatch"] = sb.str();
   return p;
@@ -206,7 +255,8 @@ std::string formatPlan(const nlohmann::json& p) {
   o << "job:            " << p["job"].get<std::string>() << "\n"
     << "geometry:       " << p["geometry"]["kind"].get<std::string>() << ", "
     << (p["geometry"].contains("model") ? p["geometry"]["model"].get<std::string>()
-                                        : p["geometry"]["triangles"].dump() + " triangles")
+                                        : p["geometry"]["triangles"].dump() + " triangles, " +
+                                              p["geometry"]["surface"].get<std::string>())
     << "\n"
     << "material:       " << p["material"].get<std::string>() << "\n"
     << "components:     " << p["components"].dump() << (p.contains("wave_estimator") ? " (wave estimator " + p["wave_estimator"].get<std::string>() + ")" : "") << "\n"

@@ -15,6 +15,17 @@ struct PlanOptions {
   int threads = 0;            // 0: all cores
 };
 
+// Resident memory of one rank running `job`: the scene (Embree + double copies), one tile result
+// (doubles, value + error for up to five tallies), the path tracer's batch of events, and the wave
+// estimator's own (`waveBytes`: the fft estimator's facet fields, transforms and tables).
+double memoryBytesPerRank(const Job& job, double waveBytes);
+// The output file's size without compression (float32 value + standard error per component, the
+// grid's four double tables): an upper bound, as deflate only shrinks it.
+double outputBytesUncompressed(const Job& job);
+// Memory this process can still take: /proc/meminfo's MemAvailable, or less under a cgroup limit
+// (Slurm's --mem); a negative value when unknown.
+double availableMemoryBytes();
+
 // With components = "auto" the effects planner runs first and its decisions are in "effects".
 nlohmann::json planJob(const Job& job, const PlanOptions& options);
 std::string formatPlan(const nlohmann::json& plan);

@@ -22,8 +22,10 @@ GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid
     s.seed = job.seed;
     s.tallyGeoMasked = job.components.has(Component::Lost);
     tracer_ = std::make_unique<PathTracer>(*scene_, job.material, job.lambda_um(), grid, s);
-    if (job.geometry.periodic && job.singleScattering != "paths" && !job.components.has(Component::Multiple) &&
-        !job.components.has(Component::Lost)) {
+    // The facet sum assumes every ray meets the surface; a patch with holes takes paths, which
+    // count the light through them as missed.
+    if (job.geometry.periodic && job.closure.closed() && job.singleScattering != "paths" &&
+        !job.components.has(Component::Multiple) && !job.components.has(Component::Lost)) {
       facets_ = std::make_unique<FacetSingleScattering>(job.geometry, *scene_, job.material, job.lambda_um(), grid);
       singleScattering_ = job.singleScattering;
       const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(job.lambda_nm.size());

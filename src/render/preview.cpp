@@ -98,18 +98,32 @@ RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
         const Vec3 wo = local(view), wi = local(light);
         std::fill(L.begin(), L.end(), 0.0);
         if (wo.z <= 0) continue;
+        // A pixel whose slice the file does not hold yet (a partial file) is drawn as a magenta
+        // and black checker, never as a dark surface.
+        bool missing = false;
         if (wi.z > 0) {
           if (int inc = nearestDone(wi); inc >= 0) {
             const auto& f = table(inc);
             const int bin = grid.binOf(wo);
             for (int l = 0; l < nL; ++l) L[l] += f[size_t(l) * nB + bin] * req.lightIrradiance * wi.z;
+          } else {
+            missing = true;
           }
         }
-        if (req.environment > 0)
+        if (req.environment > 0) {
           if (int inc = nearestDone(wo); inc >= 0) {
             const auto& a = albedo(inc);
             for (int l = 0; l < nL; ++l) L[l] += req.environment * a[l];
+          } else {
+            missing = true;
           }
+        }
+        if (missing) {
+          const bool on = ((i / 8) + (j / 8)) % 2 == 0;
+          const size_t p = (size_t(j + top) * img.width + size_t(mi) * S + i) * 3;
+          img.rgb[p] = on ? 255 : 0, img.rgb[p + 1] = 0, img.rgb[p + 2] = on ? 255 : 0;
+          continue;
+        }
         Colour3 rgb;
         if (colour) {
           rgb = colour->linearSrgb(L.data());

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <variant>
 
+#include "core/stop.h"
 #include "core/quadrature.h"
 #include "scattering/heightfield_spectrum.h"
 #include "scattering/orders_estimator.h"
@@ -276,6 +277,7 @@ void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fi
   const double scale = powerScale(wi, nI, nO);
   const int nBins = grid.binsPerHemisphere();
   tbb::parallel_for(0, nBins, [&](int local) {
+    if (stopRequested()) return;
     const int bin = hemi * nBins + local;
     const double omegaP = grid.projectedSolidAngle(bin);
     if (omegaP <= 0) return;
@@ -317,6 +319,7 @@ void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fi
       (*out)[size_t(ruleIndex)][size_t(l) * size_t(grid.binCount()) + size_t(bin)] += sum * omegaP;
     }
   });
+  throwIfStopped();
 }
 
 WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::optional<Vec3> exactDirection,

@@ -14,6 +14,7 @@
 #include <tuple>
 #include <stdexcept>
 
+#include "core/stop.h"
 #include "core/quadrature.h"
 #include "core/rng.h"
 #include "scattering/heightfield_spectrum.h"
@@ -658,6 +659,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       std::vector<uint64_t> orderRays(nO, 0);
       ShadowCache shadow(cell_.facets.size());
       tbb::parallel_for(size_t(0), nO, [&](size_t o) {
+        if (stopRequested()) return;
         exactAmplitude(ctx_, cell_, table, slope_, orders[o], wi, fromAbove, media, masked, lit, shadow, &H[4 * o],
                        &orderRays[o]);
       });
@@ -665,6 +667,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     } else {
     // Points in parallel blocks, each block accumulating into its own group: deterministic.
     tbb::parallel_for(0, blocks, [&](int g) {
+      if (stopRequested()) return;
       const int j0 = g * N / blocks, j1 = (g + 1) * N / blocks;
       for (int j = j0; j < j1; ++j) {
         Sampler ps(ctx_.settings.seed, uint32_t(tile), (uint64_t(k) << 32) | uint64_t(j), kOrdersStream + 1);
@@ -711,6 +714,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       std::vector<std::pair<int, double>> share;
     };
     std::vector<OrderPower> op(nO);
+    throwIfStopped();
     tbb::parallel_for(size_t(0), nO, [&](size_t o) {
       const Order& ord = orders[o];
       bool any = false;

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "core/rng.h"
+#include "core/stop.h"
 #include "scattering/wave_common.h"
 
 using mbsdf::wave::ExitVisibility;
@@ -120,6 +121,7 @@ WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional
   for (size_t b0 = 0; b0 < bins.size(); b0 += kBatch) {
     size_t b1 = std::min(bins.size(), b0 + kBatch);
     tbb::parallel_for(b0, b1, [&](size_t i) { doBin(bins[i]); });
+    throwIfStopped();
     if (progress) progress(uint64_t(b1) * uint64_t(P));
   }
   r.samples = uint64_t(bins.size()) * uint64_t(P);

@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cmath>
 
+#include "core/stop.h"
+
 namespace mbsdf {
 
 std::vector<std::vector<int>> wavelengthGroups(int nLambda, bool shared) {
@@ -54,6 +56,7 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
         c.events.reserve(p1 - p0);
         for (uint64_t p = p0; p < p1; ++p) trace(plan.firstPath + p, g, c);
       });
+      throwIfStopped();
       // Merge in chunk order: identical sums for any number of threads.
       for (const PathChunk& c : chunks) {
         for (const PathChunk::Event& e : c.events) {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <map>
 
+#include "core/stop.h"
 #include "optics/fresnel.h"
 #include "scattering/visibility_table.h"
 #include "scattering/wave_common.h"
@@ -155,6 +156,7 @@ void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::ve
   std::vector<std::vector<double>> block(kBlocks), blockU(kBlocks);
   std::vector<uint64_t> blockRays(kBlocks, 0);
   tbb::parallel_for(0, kBlocks, [&](int k) {
+    if (stopRequested()) return;
     std::vector<double>& acc = block[size_t(k)];
     std::vector<double>& accU = blockU[size_t(k)];
     acc.assign(size_t(nL) * nB, 0.0);
@@ -252,6 +254,7 @@ void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::ve
     }
     blockRays[size_t(k)] = nRays;
   });
+  throwIfStopped();
   out.assign(size_t(nL) * nB, 0.0);
   uncertain.assign(size_t(nL) * nB, 0.0);
   for (int k = 0; k < kBlocks; ++k) {

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "core/stop.h"
 #include "scattering/wave_common.h"
 
 namespace mbsdf {
@@ -29,6 +30,7 @@ VisibilityTable::VisibilityTable(const Microgeometry& g, const PeriodicScene& sc
   for (int h = 0; h < H; ++h) {
     const bool up = h == 0;
     tbb::parallel_for(size_t(0), F, [&](size_t f) {
+      if (stopRequested()) return;
       const Vec3& n = normal_[f];
       if (dot(n, n) == 0) return;
       const Vec3 side = up ? n : -n;
@@ -51,6 +53,7 @@ VisibilityTable::VisibilityTable(const Microgeometry& g, const PeriodicScene& sc
       }
       rays += count;
     });
+    throwIfStopped();
   }
   rays_ = rays.load();
   seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <utility>
 
 #include "core/error.h"
 #include "geometry/generators.h"
@@ -80,6 +81,41 @@ TEST(MeshLoader, BrokenFilesAreNamed) {
   std::string txt = tmp("mesh.stl");
   write(txt, "solid\n");
   EXPECT_NE(errorOf(txt).find("unknown mesh format"), std::string::npos);
+}
+
+TEST(MeshLoader, MalformedObjLinesAndShortFacesAreNamed) {
+  const std::string quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n";
+  const std::pair<std::string, std::string> cases[] = {
+      {quad + "f 1 2 3\nf 1\n", ":6: a face needs at least 3 vertices"},
+      {quad + "f 1 2 3\nf 1 2\n", ":6: a face needs at least 3 vertices"},
+      {quad + "f 1 2 3\nf 1 3 5\n", ":6: face vertex 5 does not exist"},
+      {quad + "f 1 2 3\nf -1 -2 -9\n", ":6: face vertex -9 does not exist"},
+      {"v 1 2\n" + quad + "f 2 3 4\n", ":1: a vertex needs x y z"},
+      {quad + "f 1 2 3x\n", ":5: face vertex '3x'"},
+      {quad + "l 1 2\nf 1 2 3\n", ":5: unsupported OBJ statement 'l'"},
+  };
+  for (const auto& [text, message] : cases) {
+    const std::string p = tmp("malformed.obj");
+    write(p, text);
+    EXPECT_NE(errorOf(p).find("malformed.obj" + message), std::string::npos) << text << " -> " << errorOf(p);
+  }
+  // Accepted: w, vertex colours, relative indices, slashes, groups and comments.
+  const std::string ok = tmp("ok.obj");
+  write(ok, "# patch\no patch\nv -1 -1 0 1\nv 1 -1 0 0.5 0.5 0.5\nv 1 1 0\nv -1 1 0\nvn 0 0 1\ng top\ns off\n"
+            "f 1//1 2//1 3//1\n# last\nf -4 -2 -1\n");
+  Microgeometry g = loadMesh(ok, 1.0);
+  EXPECT_EQ(g.triangles.size(), 2u);
+  // A vertex no face uses does not enlarge the footprint.
+  write(ok, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv 5 5 5 5\nf 1 2 3\nf 1 3 4\n");
+  g = loadMesh(ok, 1.0);
+  EXPECT_DOUBLE_EQ(g.sizeX, 2.0);
+  EXPECT_DOUBLE_EQ(g.sizeY, 2.0);
+  // PLY faces with fewer than three indices name the face.
+  const std::string ply = tmp("short.ply");
+  write(ply, "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+             "element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+             "3 0 1 2\n2 0 2\n");
+  EXPECT_NE(errorOf(ply).find("short.ply: face 1 has 2 vertex indices"), std::string::npos) << errorOf(ply);
 }
 
 TEST(HeightfieldLoader, ExrRoundTripAndNaN) {

@@ -1,77 +1,18 @@
 #!/usr/bin/python3
 """Integration tests that run the microbsdf binary (single rank and under mpirun).
 
-Usage: cli_test.py BUILD_DIR SOURCE_DIR TEST_NAME
-Each test prints what it checked and exits non-zero on failure. Every subprocess has a timeout.
+Usage: cli_test.py BUILD_DIR SOURCE_DIR TEST_NAME (see harness.py).
 """
-import hashlib
-import signal
-import time
 import json
 import os
-import re
-import shutil
+import signal
 import subprocess
 import sys
-import struct
-import tempfile
+import time
 
-import h5py
-import matplotlib
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np
 
-BUILD, SRC, NAME = sys.argv[1], sys.argv[2], sys.argv[3]
-EXE = os.path.join(BUILD, "microbsdf")
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1")
-TMP = tempfile.mkdtemp(prefix="microbsdf_" + NAME + "_")
-
-
-def run(args, timeout=300, expect=0, mpi=0):
-    cmd = ([shutil.which("mpirun"), "-np", str(mpi), "--oversubscribe"] if mpi else []) + [EXE] + args
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=ENV, cwd=TMP)
-    if expect is not None and p.returncode != expect:
-        sys.exit(f"FAIL: {' '.join(cmd)} exited {p.returncode}, expected {expect}\n{p.stdout}\n{p.stderr}")
-    return p
-
-
-def small_job(path, extra="", output="out.h5", geometry=None):
-    geometry = geometry or ('kind = "hemispheres"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\n'
-                            'spacing_um = 5.0\nresolution_um = 0.25\n')
-    with open(path, "w") as f:
-        f.write(f"""[geometry]
-{geometry}
-[material]
-name = "Au"
-[spectrum]
-wavelengths_nm = [450.0, 650.0]
-[directions]
-n_theta = 12
-n_phi = 24
-incidence = [[0.0, 0.0], [20.0, 10.0], [45.0, 90.0], [70.0, 200.0], [85.0, 300.0]]
-[sampling]
-paths_per_slice = 20000
-seed = 7
-[output]
-path = "{output}"
-{extra}""")
-    return path
-
-
-def datasets(path):
-    """SHA-256 of the raw bytes of every /bsdf and /bsdf_stderr dataset."""
-    out = {}
-    with h5py.File(path, "r") as f:
-        for g in ("bsdf", "bsdf_stderr"):
-            for k, d in f[g].items():
-                out[f"{g}/{k}"] = hashlib.sha256(np.ascontiguousarray(d[()]).tobytes()).hexdigest()
-    return out
-
-
-def sha(path):
-    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+from harness import *  # noqa: F401,F403 (BUILD, SRC, EXE, ENV, TMP, run, small_job, datasets, ...)
 
 
 def test_mpi_smoke():
@@ -598,67 +539,6 @@ path = "out.h5"
               f"{np.max(np.abs(albedo_z)):.2f}; wall time {t_sym:.1f} s vs {t_full:.1f} s ({t_full / t_sym:.1f}x)")
 
 
-def many_tiles_job(path, n_theta, output, paths=20000):
-    """A job with n_theta x 4 incidence directions on a small patch (each tile a fraction of a second)."""
-    inc = ", ".join(f"[{t:.2f}, {p:.1f}]" for t in np.linspace(0, 80, n_theta) for p in (0, 45, 90, 135))
-    with open(path, "w") as f:
-        f.write(f"""[geometry]
-kind = "hemispheres"
-size_um = [5.0, 5.0]
-radius_um = 2.0
-spacing_um = 5.0
-resolution_um = 0.25
-[material]
-name = "Al"
-[spectrum]
-wavelengths_nm = [450.0, 650.0]
-[directions]
-n_theta = 10
-n_phi = 20
-incidence = [{inc}]
-[effects]
-components = ["coherent", "incoherent", "multiple"]
-[sampling]
-paths_per_slice = {paths}
-wave_samples_per_bin = 64
-[output]
-path = "{output}"
-""")
-    return path
-
-
-def journal_count(out):
-    try:
-        return sum(1 for _ in open(out + ".journal"))
-    except FileNotFoundError:
-        return 0
-
-
-def start(args, mpi=2):
-    cmd = [shutil.which("mpirun"), "-np", str(mpi), "--oversubscribe", EXE] + args
-    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ENV, cwd=TMP,
-                            start_new_session=True)
-
-
-def wait_for(proc, out, fraction, total, timeout=300):
-    t0 = time.time()
-    while journal_count(out) < fraction * total:
-        if proc.poll() is not None:
-            return False
-        if time.time() - t0 > timeout:
-            sys.exit("FAIL: timeout waiting for progress")
-        time.sleep(0.02)
-    return True
-
-
-def wait_session_gone(sid, timeout=60):
-    """Waits until no process of the session is left (ranks outlive mpirun for a moment)."""
-    t0 = time.time()
-    while subprocess.run(["pgrep", "-s", str(sid)], capture_output=True).returncode == 0:
-        assert time.time() - t0 < timeout, "processes of the killed job are still running"
-        time.sleep(0.05)
-
-
 def test_crash_resume():
     job = many_tiles_job(os.path.join(TMP, "job.toml"), 10, "crash.h5")
     total = 40
@@ -945,6 +825,8 @@ SelectType=select/cons_tres
 SelectTypeParameters=CR_Core
 JobCompType=jobcomp/none
 KillWait=5
+AuthInfo=cred_expire=10
+SchedulerParameters=sched_interval=1,bf_interval=1
 AccountingStorageType=accounting_storage/none
 NodeName={host} CPUs=2 RealMemory=2000 State=UNKNOWN
 PartitionName=debug Nodes={host} Default=YES MaxTime=INFINITE State=UP
@@ -1060,12 +942,11 @@ def test_slurm_requeue():
         while slurm.job(jid).get("Restarts", "0") == "0":
             assert time.time() - t0 < 60, "the job was not requeued"
             time.sleep(0.2)
-        # A requeued job waits for its BeginTime (a scheduler delay of about two minutes); release it
-        # at once, retrying while the requeue is still in progress. Wait for the restarted script's
-        # first line rather than for a job state: while the requeue is in progress, the first run's
-        # exit code 3 can show as a transient FAILED (CI caught one), which is not the job's end.
-        # A requeue whose relaunch fails is held (Reason=launch_failed_requeued_held), so a pending
-        # job is also released. Every state seen is kept for the failure message.
+        # A requeued job waits until the credentials of its first run have expired (slurm.conf
+        # AuthInfo=cred_expire, 10 s here, 120 s by default) and Slurm starts it by itself: starting
+        # it earlier (scontrol update StartTime=now) races the revocation of those credentials
+        # ("Job credential revoked"). Wait for the restarted script's first line rather than for a
+        # job state. Every state seen is kept for the failure message.
         log_path = os.path.join(TMP, f"microbsdf-{jid}.out")
         t0 = time.time()
         seen = []
@@ -1074,19 +955,18 @@ def test_slurm_requeue():
             state = (info.get("JobState"), info.get("Reason"), info.get("StartTime"))
             if not seen or seen[-1][1:] != state:
                 seen.append((round(time.time() - t0, 1),) + state)
-            if time.time() - t0 > 240:
+            held = "held" in (info.get("Reason") or "").lower()
+            if held or time.time() - t0 > 240:
                 raise AssertionError("the requeued job did not start:\n" + open(log_path).read()
                                      + "\nstates (s, JobState, Reason, StartTime): " + repr(seen)
                                      + "\n" + slurm.diagnostics(jid))
-            if info.get("JobState") == "PENDING":
-                slurm.cmd("scontrol", "release", jid, check=False)
-                slurm.cmd("scontrol", "update", f"JobId={jid}", "StartTime=now", check=False)
             time.sleep(0.5)
         print("states while requeued (s, JobState, Reason, StartTime):", seen)
         info = slurm.wait(jid)
         log = open(log_path).read()
         assert info["JobState"] == "COMPLETED", log
         assert "stopped cleanly; requeueing" in log and "resuming:" in log, log
+        assert not any(st[1] == "FAILED" for st in seen), f"the clean stop showed as FAILED: {seen}"
         assert datasets(out) == datasets(os.path.join(TMP, "out/ref.h5"))
         print(f"USR1 to the batch script: clean stop, requeued (Restarts={info['Restarts']}), resumed, completed; "
               "datasets identical to an uninterrupted run")
@@ -1094,9 +974,4 @@ def test_slurm_requeue():
         slurm.stop()
 
 
-TESTS = {n[5:]: f for n, f in globals().items() if n.startswith("test_")}
-try:
-    TESTS[NAME]()
-finally:
-    shutil.rmtree(TMP, ignore_errors=True)
-print("1 passed, 0 failed")
+run_selected(globals())

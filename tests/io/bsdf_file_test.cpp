@@ -7,6 +7,8 @@
 #include <cmath>
 #include <filesystem>
 
+#include "core/error.h"
+
 using namespace mbsdf;
 
 namespace {
@@ -93,4 +95,39 @@ TEST(BsdfFile, ResumeKeepsJournaledSlices) {
   }
   Job other = loadJobFromString(job.text + "\n[output]\npath = \"x.h5\"\n", "t.toml", "");
   EXPECT_THROW(BsdfFileWriter(path, other, g, true), std::runtime_error);
+}
+
+// Resume checks identity: what differs is named, and the partial file is left as it was.
+TEST(BsdfFile, ResumeRefusalSaysWhatDiffers) {
+  Job job = smallJob();
+  DirectionGrid g(job.gridLayout);
+  std::string path = (std::filesystem::temp_directory_path() / "microbsdf_resume_identity.h5").string();
+  for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(path + ext);
+  {
+    BsdfFileWriter w(path, job, g);
+    w.writeTile(tile(job, g, 0, 0.5));
+  }
+  auto refusal = [&](const Job& j) -> std::string {
+    try {
+      BsdfFileWriter w(path, j, g, true);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  Job comment = loadJobFromString("# a note\n" + job.text, "t.toml", "");
+  std::string e = refusal(comment);
+  EXPECT_NE(e.find("differs from line 1"), std::string::npos) << e;
+  EXPECT_NE(e.find("only comments or white space differ"), std::string::npos) << e;
+  Job input = job;
+  input.inputFiles.push_back({"geometry.file", "patch.obj", std::string(64, 'a')});
+  e = refusal(input);
+  EXPECT_NE(e.find("geometry.file patch.obj was not an input"), std::string::npos) << e;
+  Job moved = job;
+  moved.geometry.vertices[0].z += 1e-3;
+  e = refusal(moved);
+  EXPECT_NE(e.find("geometry hash"), std::string::npos) << e;
+  // Nothing changed: it resumes.
+  BsdfFileWriter w(path, job, g, true);
+  EXPECT_EQ(w.resumedTiles(), std::vector<int>{0});
 }

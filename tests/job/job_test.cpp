@@ -305,3 +305,14 @@ TEST(Job, SingleScatteringKeyErrorsNameTheKey) {
   // used if multiple turns out to be needed).
   EXPECT_EQ(errorOf(grating + "[sampling]\nsingle_scattering = \"facets\"\n"), "");
 }
+
+TEST(Job, RepeatedWavelengthAndTexelLimitNameTheKey) {
+  std::string e = errorOf("[spectrum]\nwavelengths_nm = [450.0, 550.0, 450.0]\n");
+  EXPECT_NE(e.find("wavelengths_nm"), std::string::npos) << e;
+  EXPECT_NE(e.find("450 nm is listed twice"), std::string::npos) << e;
+  e = errorOf("[geometry]\nkind = \"gaussian\"\nsize_um = [300.0, 10.0]\ntexel_um = 0.1\n");
+  EXPECT_NE(e.find("texel_um"), std::string::npos) << e;
+  EXPECT_NE(e.find("at most 2048"), std::string::npos) << e;
+  EXPECT_EQ(errorOf("[geometry]\nkind = \"gaussian\"\nsize_um = [204.8, 10.0]\ntexel_um = 0.1\n"), "");
+}
+

@@ -1,0 +1,41 @@
+// The output location of a run, checked before any compute, and held by one run at a time.
+//
+// A cluster allocation should not be spent on a job whose result cannot be written: the output path
+// must not be a folder, its folder and the log folder must be writable, and there should be room for
+// the file. A second run on the same output would interleave two jobs' slices, so rank 0 holds an
+// exclusive lock (flock(2) on `<output>.lock`, which records the holder's host and PID) from before
+// the pilots to the final rename. flock locks die with their process, so the lock of a killed run is
+// free at once; the next run notes whose it was and takes it.
+#pragma once
+#include <string>
+
+namespace mbsdf {
+
+// Throws InputError (naming the path and the reason) when `outPath` is a folder or its folder cannot
+// be created or written; `role` names it in the message ("output", "log").
+void checkOutputPath(const std::string& outPath);
+void checkWritableFolder(const std::string& folder, const std::string& role);
+
+// Bytes available to this user on the file system holding `path` (its folder if it does not exist).
+double freeBytesAt(const std::string& path);
+
+// fsync(2) of a file or folder; throws WriteError naming it.
+void syncPath(const std::string& path);
+
+class OutputLock {
+ public:
+  // Takes the lock of `outPath` or throws OutputBusyError naming the holder (host, PID, start time).
+  explicit OutputLock(const std::string& outPath);
+  ~OutputLock();
+  OutputLock(const OutputLock&) = delete;
+  OutputLock& operator=(const OutputLock&) = delete;
+  // Who held the lock before, if a process that is gone left its record ("" otherwise).
+  const std::string& previousHolder() const { return previous_; }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_, previous_;
+  int fd_ = -1;
+};
+
+}  // namespace mbsdf

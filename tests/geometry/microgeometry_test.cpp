@@ -1,0 +1,50 @@
+// Surface closure: open edges and the uncovered fraction of the footprint, against shapes whose
+// answer is known.
+#include "geometry/microgeometry.h"
+
+#include <gtest/gtest.h>
+
+#include "geometry/generators.h"
+
+using namespace mbsdf;
+
+namespace {
+Microgeometry square(bool both) {
+  Microgeometry g;
+  g.vertices = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  g.triangles = {{0, 1, 2}};
+  if (both) g.triangles.push_back({0, 2, 3});
+  g.sizeX = g.sizeY = 2;
+  return g;
+}
+}  // namespace
+
+TEST(SurfaceClosure, GeneratedPatchesAreClosed) {
+  for (const Microgeometry& g : {makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.3), makeOverhang(10, 10, 5, 0.8, 1.5, 2, 1, 0.4),
+                                 square(true)}) {
+    const SurfaceClosure c = surfaceClosureOf(g);
+    EXPECT_TRUE(c.closed()) << c.describe();
+    EXPECT_EQ(c.openEdges, 0u);
+    EXPECT_NEAR(c.uncoveredFraction, 0.0, 1e-9);  // overhangs included: their projections cancel
+  }
+}
+
+TEST(SurfaceClosure, AHoleIsFoundAndMeasured) {
+  const SurfaceClosure half = surfaceClosureOf(square(false));
+  EXPECT_FALSE(half.closed());
+  EXPECT_EQ(half.openEdges, 1u);  // the diagonal; the other two edges lie on the periodic border
+  EXPECT_NEAR(half.uncoveredFraction, 0.5, 1e-12);
+  EXPECT_EQ(half.unusedVertices, 1u);
+  // A finite (non-periodic) patch: its border is open too.
+  Microgeometry finite = square(true);
+  finite.periodic = false;
+  EXPECT_EQ(surfaceClosureOf(finite).openEdges, 4u);
+  // One triangle removed from a dome lattice: three open edges, its projected area uncovered.
+  Microgeometry dome = makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.3);
+  const size_t t = dome.triangles.size() / 3;
+  const double lost = 0.5 * dome.triangleNormal(t).z / (dome.sizeX * dome.sizeY);
+  dome.triangles.erase(dome.triangles.begin() + long(t));
+  const SurfaceClosure c = surfaceClosureOf(dome);
+  EXPECT_EQ(c.openEdges, 3u);
+  EXPECT_NEAR(c.uncoveredFraction, lost, 1e-12);
+}

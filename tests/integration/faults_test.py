@@ -1,0 +1,389 @@
+#!/usr/bin/python3
+"""Fault injection: what a cluster does to a run every day, and what the program must do about it.
+
+Usage: faults_test.py BUILD_DIR SOURCE_DIR TEST_NAME (see harness.py).
+Each test asserts the exit code, the message, and that a good output already at the path is
+byte-identical afterwards. No test waits for a fixed time to pass: each waits for an observable
+state (a journal line, a log line, a process gone), with a timeout only as a bound.
+"""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from harness import *  # noqa: F401,F403 (BUILD, SRC, EXE, ENV, TMP, run, small_job, datasets, ...)
+
+EXIT_BAD_INPUT, EXIT_STOPPED, EXIT_WRITE_FAILED, EXIT_BUSY = 2, 3, 4, 5
+
+
+def good_output(name, job=None):
+    """A finished output at `name` (the run that must never damage it) and its bytes' digest."""
+    job = job or small_job(os.path.join(TMP, "good.toml"))
+    run(["run", job, "-o", name])
+    return sha(os.path.join(TMP, name))
+
+
+def expect(args, code, *phrases, mpi=0, timeout=300):
+    p = run(args, expect=code, mpi=mpi, timeout=timeout)
+    text = p.stdout + p.stderr
+    for phrase in phrases:
+        assert phrase in text, f"{' '.join(args)}: '{phrase}' not in the output:\n{text}"
+    assert "MPI_ABORT" not in text, f"{' '.join(args)} aborted instead of exiting:\n{text}"
+    return text
+
+
+def killed_partial(job, out):
+    """A run killed (SIGKILL, rank and mpirun) after its first finished slice: a resumable partial."""
+    p = start(["run", job, "-o", out], mpi=1)
+    t0 = time.time()
+    while journal_count(os.path.join(TMP, out)) < 1:
+        assert p.poll() is None, "the run ended before the kill"
+        assert time.time() - t0 < 120, "no slice finished"
+        time.sleep(0.02)
+    subprocess.run(["pkill", "-KILL", "-s", str(p.pid)])
+    p.wait()
+    wait_session_gone(p.pid)
+    assert os.path.exists(os.path.join(TMP, out + ".partial"))
+
+
+def mount_tmpfs(path, size):
+    os.makedirs(path, exist_ok=True)
+    return subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", path],
+                          capture_output=True).returncode == 0
+
+
+def test_disk_full():
+    """A full output file system: exit 4 naming the file and ENOSPC, the old output untouched, the
+    partial file resumable once there is room, and the resumed table identical to a clean run."""
+    job = small_job(os.path.join(TMP, "job.toml"), extra="", output="x.h5")
+    with open(job) as f:
+        text = f.read().replace("n_theta = 12\nn_phi = 24", "n_theta = 60\nn_phi = 120")
+    with open(job, "w") as f:
+        f.write(text)
+    run(["run", job, "-o", "ref.h5"])
+    ref = sha(os.path.join(TMP, "ref.h5"))
+    size = os.path.getsize(os.path.join(TMP, "ref.h5"))
+    disk = os.path.join(TMP, "disk")
+    if mount_tmpfs(disk, f"{size * 16 // 10 // 1024}k"):
+        how = "a tmpfs of 1.6x the file's size holding an old output of the same size"
+    else:
+        sys.exit("FAIL: cannot mount a tmpfs (the test needs root, as CI has)")
+    try:
+        shutil.copy(os.path.join(TMP, "ref.h5"), os.path.join(disk, "out.h5"))
+        text = expect(["run", job, "-o", "disk/out.h5"], EXIT_WRITE_FAILED, "No space left on device (ENOSPC)",
+                      "disk/out.h5.partial", "--resume", "was not changed")
+        assert sha(os.path.join(disk, "out.h5")) == ref, "the old output was damaged"
+        journaled = journal_count(os.path.join(disk, "out.h5"))
+        # Room again (the old output goes): --resume completes it, identical to an uninterrupted run.
+        os.remove(os.path.join(disk, "out.h5"))
+        run(["run", job, "-o", "disk/out.h5", "--resume"])
+        assert datasets(os.path.join(disk, "out.h5")) == datasets(os.path.join(TMP, "ref.h5"))
+        # The log folder on the full disk: the run stops with exit 4 too (log writes are checked).
+        subprocess.run(["dd", "if=/dev/zero", f"of={disk}/filler", "bs=4k"], capture_output=True)
+        expect(["run", job, "-o", "logfull.h5", "--log-dir", "disk/logs"], EXIT_WRITE_FAILED)
+    finally:
+        subprocess.run(["umount", disk], capture_output=True)
+    print(f"disk full ({how}): exit 4 with ENOSPC named, {journaled} slices journaled, old output "
+          "byte-identical; --resume completed it identical to a clean run; a full log folder: exit 4")
+
+
+def test_two_writers():
+    """A second run on an output that a run is writing exits at once (5) naming the holder; the
+    lock of a killed run is taken over; the good output is untouched until the first run ends."""
+    ref = good_output("out.h5")
+    job = many_tiles_job(os.path.join(TMP, "slow.toml"), 30, "out.h5", paths=200000)
+    p = start(["run", job, "-o", "out.h5"], mpi=2)
+    try:
+        while journal_count(os.path.join(TMP, "out.h5")) < 1:
+            assert p.poll() is None, p.communicate()[0]
+            time.sleep(0.02)
+        t0 = time.time()
+        text = expect(["run", job, "-o", "out.h5"], EXIT_BUSY, "is being written by another run", "PID")
+        seconds = time.time() - t0
+        assert sha(os.path.join(TMP, "out.h5")) == ref
+        expect(["run", job, "-o", "out.h5", "--resume"], EXIT_BUSY, "is being written by another run", mpi=2)
+    finally:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+        wait_session_gone(p.pid)
+    assert sha(os.path.join(TMP, "out.h5")) == ref
+    # The killed run's lock is free (flock dies with its process): the next run notes and takes it.
+    r = run(["run", job, "-o", "out.h5", "--resume", "--max-hours", "0.0001"], expect=None)
+    assert r.returncode in (0, EXIT_STOPPED), r.stdout + r.stderr
+    assert "is gone; taken over" in r.stdout + r.stderr, r.stdout + r.stderr
+    print(f"second writer refused in {seconds:.2f} s: {text.strip().splitlines()[-1][:160]}; stale lock taken over")
+
+
+def test_resume_changed_inputs():
+    """--resume refuses a partial file whose mesh, heightfield or NDF table changed (same job text),
+    and a job text with only a comment changed, saying what differs; the partial file stays as it was."""
+    def mesh(path, z):
+        with open(path, "w") as f:
+            f.write(f"v -1 -1 0\nv 1 -1 0\nv 1 1 {z}\nv -1 1 0\nf 1 2 3\nf 1 3 4\n")
+
+    def ndf(path, d):
+        with open(path, "w") as f:
+            f.write(f"0, 1\n30, {d}\n60, 0.1\n90, 0\n")
+
+    def exr(path, theta):
+        run(["slice", "good.h5", "--theta-i", str(theta), "--model", "GM", "--size", "16", "-o", path])
+
+    good_output("good.h5")
+    cases = {
+        "mesh": ('kind = "mesh"\nfile = "patch.obj"', "patch.obj", lambda: mesh("patch.obj", 0.0),
+                 lambda: mesh("patch.obj", 0.001)),
+        "heightfield": ('kind = "heightfield"\nfile = "h.exr"\ntexel_um = 0.5', "h.exr", lambda: exr("h.exr", 0),
+                        lambda: exr("h.exr", 20)),
+        "ndf table": ('kind = "statistical"\nndf = "tabulated"\nndf_file = "ndf.txt"', "ndf.txt",
+                      lambda: ndf("ndf.txt", 0.5), lambda: ndf("ndf.txt", 0.6)),
+    }
+    os.chdir(TMP)
+    for name, (geometry, file, before, after) in cases.items():
+        before()
+        job = many_tiles_job(os.path.join(TMP, "r.toml"), 30, "r.h5", paths=100000)
+        with open(job) as f:
+            text = f.read()
+        text = text[:text.index("[geometry]")] + "[geometry]\n" + geometry + "\n" + text[text.index("[material]"):]
+        if name == "ndf table":
+            text = text.replace('components = ["coherent", "incoherent", "multiple"]', 'components = ["coherent", "multiple"]')
+        with open(job, "w") as f:
+            f.write(text)
+        killed_partial(job, "r.h5")
+        partial = sha(os.path.join(TMP, "r.h5.partial"))
+        after()
+        expect(["run", job, "-o", "r.h5", "--resume"], EXIT_BAD_INPUT, "cannot resume", file,
+               "changed since the partial file was written")
+        assert sha(os.path.join(TMP, "r.h5.partial")) == partial, name
+        before()  # restored: the resume goes on
+        run(["run", job, "-o", "r.h5", "--resume"])
+        for ext in ("", ".journal", ".partial"):
+            if os.path.exists(os.path.join(TMP, "r.h5" + ext)):
+                os.remove(os.path.join(TMP, "r.h5" + ext))
+        print(f"{name}: a changed {file} refused with its name; restored, the resume completed")
+    # A comment-only edit of the job text: refused, saying so.
+    job = many_tiles_job(os.path.join(TMP, "c.toml"), 30, "c.h5", paths=100000)
+    killed_partial(job, "c.h5")
+    with open(job) as f:
+        text = f.read()
+    with open(job, "w") as f:
+        f.write(text.replace("[material]", "# a note\n[material]"))
+    expect(["run", job, "-o", "c.h5", "--resume"], EXIT_BAD_INPUT, "the job text differs from line",
+           "only comments or white space differ")
+    print("a comment-only edit: refused, naming the line and saying only comments differ")
+
+
+def test_broken_meshes():
+    """Malformed OBJ and PLY faces are errors naming file:line (or the face); a patch with a hole is
+    reported by check, plan and the run log, and its light through the hole is `missed`."""
+    quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+    files = {
+        "trunc.obj": (quad + "f 1 2 3\nf 1\n", "trunc.obj:6", "a face needs at least 3 vertices"),
+        "badidx.obj": (quad + "f 1 2 3\nf 1 3 9\n", "badidx.obj:6", "does not exist"),
+        "badv.obj": ("v 1 2\n" + quad + "f 2 3 4\n", "badv.obj:1", "a vertex needs x y z"),
+        "word.obj": (quad + "f 1 2 3\nf 1 3 x\n", "word.obj:6", "is not a vertex index"),
+        "trunc.ply": ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                      "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n"
+                      "-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n3 0 1 2\n1 0\n", "trunc.ply: face 1", "at least 3"),
+    }
+    for name, (content, where, what) in files.items():
+        with open(os.path.join(TMP, name), "w") as f:
+            f.write(content)
+        job = small_job(os.path.join(TMP, name + ".toml"), geometry=f'kind = "mesh"\nfile = "{name}"')
+        expect(["check", job], EXIT_BAD_INPUT, where, what)
+        expect(["run", job, "-o", "broken.h5"], EXIT_BAD_INPUT, where, what)
+        assert not os.path.exists(os.path.join(TMP, "broken.h5.partial"))
+    # A stray vertex no face uses does not enlarge the footprint.
+    with open(os.path.join(TMP, "stray.obj"), "w") as f:
+        f.write(quad + "v 5 5 5 5\nf 1 2 3\nf 1 3 4\n")
+    job = small_job(os.path.join(TMP, "stray.toml"), geometry='kind = "mesh"\nfile = "stray.obj"')
+    out = expect(["check", job], 0, "2.000000 x 2.000000", "1 vertices used by no triangle")
+    # A hole over half the patch: reported everywhere, and half the light is missed by every path.
+    with open(os.path.join(TMP, "hole.obj"), "w") as f:
+        f.write(quad + "f 1 2 3\n")
+    job = small_job(os.path.join(TMP, "hole.toml"), geometry='kind = "mesh"\nfile = "hole.obj"',
+                    extra='[effects]\ncomponents = ["coherent"]\n')
+    expect(["check", job], 0, "open edges", "50 % of the footprint uncovered")
+    plan = expect(["plan", job], 0, "50 % of the footprint uncovered")
+    log = expect(["run", job, "-o", "hole.h5"], 0, "50 % of the footprint uncovered")
+    info = json.loads(run(["info", "hole.h5", "--json"]).stdout)
+    missed = np.array([s["missed"][0] for s in info["slices"]])
+    # Binomial: 20 000 paths, p = 1/2; the facet sum (which assumes a closed surface) is not used.
+    assert np.all(np.abs(missed - 0.5) < 4 * np.sqrt(0.25 / 20000)), missed
+    facets = small_job(os.path.join(TMP, "hf.toml"), geometry='kind = "mesh"\nfile = "hole.obj"',
+                       extra='[effects]\ncomponents = ["coherent"]\n')
+    with open(facets) as f:
+        text = f.read()
+    with open(facets, "w") as f:
+        f.write(text.replace("[sampling]\n", '[sampling]\nsingle_scattering = "facets"\n'))
+    expect(["check", facets], EXIT_BAD_INPUT, "single_scattering", "needs a closed surface")
+    del out, plan, log
+    print(f"OBJ/PLY faults named file:line; stray vertex ignored; a half-open patch: reported by check, plan and "
+          f"run, missed = {missed.round(4).tolist()} (0.5 expected)")
+
+
+def test_readonly_folders():
+    """Read-only output and log folders: exit 2 before any compute, no abort."""
+    ro = os.path.join(TMP, "ro")
+    if not mount_tmpfs(ro, "1m") or subprocess.run(["mount", "-o", "remount,ro", ro]).returncode != 0:
+        sys.exit("FAIL: cannot mount a read-only tmpfs (the test needs root, as CI has)")
+    try:
+        ref = good_output("good.h5")
+        job = small_job(os.path.join(TMP, "job.toml"))
+        expect(["run", job, "-o", "ro/out.h5"], EXIT_BAD_INPUT, "output folder ro is not writable", "Read-only file system")
+        expect(["run", job, "-o", "good.h5", "--log-dir", "ro/logs"], EXIT_BAD_INPUT, "log folder ro/logs")
+        expect(["run", job, "-o", "ro/out.h5"], EXIT_BAD_INPUT, "not writable", mpi=2)
+        assert sha(os.path.join(TMP, "good.h5")) == ref
+    finally:
+        subprocess.run(["umount", ro], capture_output=True)
+    print("read-only output and log folders (a read-only tmpfs): exit 2 with the folder named, 1 and 2 ranks")
+
+
+def test_output_is_folder():
+    """An output path that is a folder fails before any compute (under 2 s), without MPI_ABORT."""
+    os.makedirs(os.path.join(TMP, "adir"))
+    job = small_job(os.path.join(TMP, "job.toml"))
+    for mpi in (0, 2):
+        t0 = time.time()
+        expect(["run", job, "-o", "adir"], EXIT_BAD_INPUT, "output adir is a folder", mpi=mpi)
+        seconds = time.time() - t0
+        assert seconds < 2.0 + (1.0 if mpi else 0.0), seconds  # mpirun's own start-up adds under a second
+        print(f"output is a folder, {mpi or 1} rank(s): exit 2 in {seconds:.2f} s")
+
+
+def test_pilot_signal():
+    """SIGINT while the effects planner's pilots run (the paper's HEMISPHERES at 75 x 300 bins: a
+    diffraction pilot of minutes): exit 3 within 2 s, nothing written."""
+    job = os.path.join(TMP, "pilot.toml")
+    with open(os.path.join(SRC, "jobs", "paper-resolution", "hemispheres.toml")) as f:
+        text = f.read()
+    with open(job, "w") as f:  # components = "auto" (the default): the planner's pilots run first
+        f.write(text.replace('components = ["coherent", "incoherent", "multiple"]', ""))
+    ref = good_output("p.h5")
+    for mpi in (0, 2):
+        cmd = ([shutil.which("mpirun"), "-np", "2", "--oversubscribe"] if mpi else []) + [EXE, "run", job, "-o", "p.h5"]
+        p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ENV, cwd=TMP,
+                             start_new_session=True)
+        lines = []
+        for line in p.stdout:
+            lines.append(line)
+            if "effects planner: diffraction pilot" in line:
+                break
+        t0 = time.time()
+        # Ctrl-C reaches every process of the terminal's group; under mpirun, mpirun forwards SIGUSR1
+        # (SIGINT to mpirun itself kills the job with Open MPI's own exit code, see README).
+        if mpi:
+            os.killpg(p.pid, signal.SIGUSR1)
+        else:
+            os.kill(p.pid, signal.SIGINT)
+        rest, _ = p.communicate(timeout=60)
+        seconds = time.time() - t0
+        text = "".join(lines) + rest
+        assert p.returncode == EXIT_STOPPED, f"exit {p.returncode}\n{text}"
+        assert seconds < 2.0, f"{seconds:.2f} s\n{text}"
+        assert "stop requested during the effects planner's pilots" in text, text
+        assert sha(os.path.join(TMP, "p.h5")) == ref and not os.path.exists(os.path.join(TMP, "p.h5.partial"))
+        print(f"{'SIGUSR1 to mpirun -np 2' if mpi else 'SIGINT'} during a diffraction pilot: exit 3 in {seconds:.2f} s")
+    # `plan` answers too.
+    p = subprocess.Popen([EXE, "plan", job], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ENV,
+                         cwd=TMP)
+    for line in p.stdout:
+        if "pilot" in line:
+            break
+    t0 = time.time()
+    p.send_signal(signal.SIGINT)
+    p.communicate(timeout=60)
+    assert p.returncode == EXIT_STOPPED and time.time() - t0 < 2.0, (p.returncode, time.time() - t0)
+    print(f"plan: SIGINT during its pilots, exit 3 in {time.time() - t0:.2f} s")
+
+
+def test_partial_readers():
+    """info, slice, sheet, render and plot_lobes.py read a partial file while its run writes it and
+    after the run was killed; they say it is incomplete and never draw a missing slice as black."""
+    job = many_tiles_job(os.path.join(TMP, "job.toml"), 30, "p.h5", paths=200000)
+    p = start(["run", job, "-o", "p.h5"], mpi=2)
+    partial = os.path.join(TMP, "p.h5.partial")
+
+    def read_all(when):
+        info = run(["info", "p.h5.partial"])
+        assert re.search(r"incomplete:\s+\d+ of 120 slices", info.stdout), info.stdout
+        j = json.loads(run(["info", "p.h5.partial", "--json"]).stdout)
+        assert not j["complete"] and 0 < j["done_count"] < 120, j["done_count"]
+        done = [s for s in j["slices"] if s["done"]][0]
+        missing = [s for s in j["slices"] if not s["done"]][0]
+        run(["slice", "p.h5.partial", "--theta-i", str(done["theta_deg"]), "--phi-i", str(done["phi_deg"]),
+             "--model", "GM", "-o", "s.png"])
+        r = run(["slice", "p.h5.partial", "--theta-i", str(missing["theta_deg"]), "--phi-i",
+                 str(missing["phi_deg"]), "--model", "GM", "-o", "m.png"], expect=EXIT_BAD_INPUT)
+        assert "not computed yet: incomplete" in r.stderr, r.stderr
+        r = run(["sheet", "p.h5.partial", "--size", "32", "-o", "sheet.png"])
+        assert "incomplete:" in r.stderr and "hatched" in r.stderr, r.stderr
+        r = run(["render", "p.h5.partial", "--size", "32", "-o", "render.png"])
+        assert "incomplete:" in r.stderr and "magenta" in r.stderr, r.stderr
+        r = subprocess.run(["/usr/bin/python3", os.path.join(SRC, "scripts", "plot_lobes.py"), "p.h5.partial",
+                            "-o", "lobes.png"], capture_output=True, text=True, timeout=120, cwd=TMP)
+        assert r.returncode == 0 and "incomplete:" in r.stderr, r.stderr
+        # The sheet's missing cells are hatched red, not black.
+        with h5py.File(partial, "r", swmr=True) as f:
+            n_done = int(f["bsdf/done"][()].sum())
+        print(f"{when}: {n_done} of 120 slices; info, slice, sheet, render and plot_lobes.py read it")
+
+    try:
+        while journal_count(os.path.join(TMP, "p.h5")) < 2:
+            assert p.poll() is None, p.communicate()[0]
+            time.sleep(0.02)
+        read_all("while the run writes it")
+    finally:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+        wait_session_gone(p.pid)
+    read_all("after the run was killed")
+
+
+def test_small_inputs():
+    """Smaller input faults, each an exit 2 naming the key: a repeated wavelength, a texel finer than
+    the generator's cell limit, negative --threads and --max-hours, a job too large for the memory."""
+    job = small_job(os.path.join(TMP, "dup.toml"))
+    with open(job) as f:
+        text = f.read()
+    with open(job, "w") as f:
+        f.write(text.replace("wavelengths_nm = [450.0, 650.0]", "wavelengths_nm = [550.0, 550.0]"))
+    expect(["check", job], EXIT_BAD_INPUT, "wavelengths_nm", "550 nm is listed twice")
+    texel = small_job(os.path.join(TMP, "texel.toml"),
+                      geometry='kind = "gaussian"\nsize_um = [200.0, 200.0]\ntexel_um = 0.05')
+    expect(["check", texel], EXIT_BAD_INPUT, "texel_um", "at most 2048")
+    good = small_job(os.path.join(TMP, "good.toml"))
+    expect(["run", good, "--threads", "-2"], EXIT_BAD_INPUT, "--threads")
+    expect(["run", good, "--max-hours", "-1"], EXIT_BAD_INPUT, "--max-hours")
+    # The bin limit under a 4 GB address space: refused before anything is written.
+    big = os.path.join(TMP, "big.toml")
+    with open(big, "w") as f:
+        f.write('[geometry]\nkind = "flat"\n[material]\nname = "Al"\n[spectrum]\nwavelengths_nm = [500.0]\n'
+                '[directions]\nn_theta = 2500\nn_phi = 10000\nincidence = [[0.0, 0.0]]\n'
+                '[effects]\ncomponents = ["coherent"]\n[sampling]\npaths_per_slice = 1000\n')
+    limited = ["/bin/sh", "-c", f"ulimit -v 4000000 && exec {EXE} run big.toml -o big.h5"]
+    r = subprocess.run(limited, capture_output=True, text=True, timeout=120, env=ENV, cwd=TMP)
+    assert r.returncode == EXIT_BAD_INPUT and "GB of memory" in r.stderr, (r.returncode, r.stderr[-2000:])
+    assert not os.path.exists(os.path.join(TMP, "big.h5.partial"))
+    r = subprocess.run(["/bin/sh", "-c", f"ulimit -v 4000000 && exec {EXE} check big.toml"], capture_output=True,
+                       text=True, timeout=120, env=ENV, cwd=TMP)
+    assert r.returncode == EXIT_BAD_INPUT and "GB per rank" in r.stderr, (r.returncode, r.stderr)
+    print("repeated wavelength, texel limit, negative --threads/--max-hours, memory: exit 2 naming each")
+
+
+def test_exit_codes_documented():
+    """The README's exit-code table lists every code the program uses (core/error.h)."""
+    with open(os.path.join(SRC, "src", "core", "error.h")) as f:
+        codes = sorted({int(c) for c in re.findall(r"^\s+\w+ = (\d+),", f.read(), re.M)})
+    with open(os.path.join(SRC, "README.md")) as f:
+        readme = f.read()
+    table = readme[readme.index("## Exit codes"):]
+    for c in codes:
+        assert re.search(rf"^\| `{c}` \|", table, re.M), f"exit code {c} is not in the README's table"
+    print("README documents exit codes", codes)
+
+
+run_selected(globals())
