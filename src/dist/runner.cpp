@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <csignal>
 #include <map>
 #include <memory>
 #include <numeric>
@@ -14,10 +13,10 @@
 
 #include "core/log.h"
 #include "core/stop.h"
-#include "io/output_target.h"
-#include "job/plan.h"
 #include "geometry/embree_scene.h"
 #include "io/bsdf_file.h"
+#include "io/output_target.h"
+#include "job/plan.h"
 #include "job/symmetry.h"
 #include "job/transport.h"
 #include "scattering/reciprocity.h"
@@ -33,6 +32,38 @@ enum RankStatus : int { kRankOk = 0, kRankWriteFailed = 1 };
 
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Memory: a footprint this node cannot hold is refused before anything is written ("" if it fits).
+// Every rank checks its own node's share: the estimate per rank times the ranks on the node.
+std::string memoryShortfall(const Job& job, const WaveEstimator* wave) {
+  int local = 1;
+  MPI_Comm node;
+  if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) == MPI_SUCCESS) {
+    MPI_Comm_size(node, &local);
+    MPI_Comm_free(&node);
+  }
+  const double need = memoryBytesPerRank(job, wave ? wave->memoryBytes() : 0.0) * local;
+  const double avail = availableMemoryBytes();
+  if (!(avail > 0 && need > avail)) return "";
+  return fmt::format("the job needs about {:.2f} GB of memory per node ({} rank(s) here) but {:.2f} GB are available: "
+                     "use fewer bins, wavelengths or ranks per node, or a larger node (`microbsdf plan` shows the "
+                     "estimate)", need / 1e9, local, avail / 1e9);
+}
+
+// Room on the output's file system. The uncompressed size is an upper bound (deflate shrinks it), so
+// only the grid tables and a margin are certain to be needed: less than that is an error, less than
+// the bound a warning.
+void checkDiskSpace(const std::string& outPath, const Job& job, const DirectionGrid& grid) {
+  const double free = freeBytesAt(outPath), upper = outputBytesUncompressed(job);
+  const double certain = std::min(upper, double(grid.binCount()) * 8.0 * 4.0 + 65536.0);
+  if (free >= 0 && free < certain)
+    throw WriteError(fmt::format("output {}: {:.3g} MB free on its file system, the file needs at least {:.3g} MB "
+                                 "(and up to {:.3g} MB uncompressed)", outPath, free / 1e6, certain / 1e6, upper / 1e6));
+  if (free >= 0 && free < upper)
+    spdlog::warn("output {}: {:.3g} MB free on its file system; the file may need up to {:.3g} MB (uncompressed "
+                 "size; deflate usually makes it smaller). A full disk stops the run with exit code 4, resumable",
+                 outPath, free / 1e6, upper / 1e6);
+}
 
 }  // namespace
 
@@ -55,27 +86,11 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     }
   }
 
-  // Memory: refuse a footprint this node cannot hold before anything is written (every rank checks
-  // its own node's share; the ranks fail together).
-  {
-    int local = 1;
-    MPI_Comm node;
-    if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) == MPI_SUCCESS) {
-      MPI_Comm_size(node, &local);
-      MPI_Comm_free(&node);
-    }
-    const double need = memoryBytesPerRank(job, wave ? wave->memoryBytes() : 0.0) * local;
-    const double avail = availableMemoryBytes();
-    const bool tooBig = avail > 0 && need > avail;
-    if (mpi.anyRank(tooBig)) {
-      RunSummary refused;
-      refused.exit = ExitCode::BadInput;
-      refused.error = fmt::format("the job needs about {:.2f} GB of memory per node ({} rank(s) here) but {:.2f} GB are "
-                                  "available: use fewer bins, wavelengths or ranks per node, or a larger node "
-                                  "(`microbsdf plan` shows the estimate)",
-                                  need / 1e9, local, avail / 1e9);
-      return refused;
-    }
+  if (std::string shortfall = memoryShortfall(job, wave.get()); mpi.anyRank(!shortfall.empty())) {
+    RunSummary refused;
+    refused.exit = ExitCode::BadInput;
+    refused.error = shortfall.empty() ? "another rank's node has too little memory for the job" : shortfall;
+    return refused;
   }
 
   const int nTiles = int(job.incidence.size());
@@ -219,17 +234,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   {
     ExitCode setupExit = ExitCode::Ok;
     try {
-      // Room on the disk: the uncompressed size is an upper bound (deflate shrinks it), so only
-      // the grid tables and a margin are certain to be needed.
-      const double free = freeBytesAt(outPath), upper = outputBytesUncompressed(job);
-      const double certain = std::min(upper, double(grid.binCount()) * 8.0 * 4.0 + 65536.0);
-      if (free >= 0 && free < certain)
-        throw WriteError(fmt::format("output {}: {:.3g} MB free on its file system, the file needs at least {:.3g} MB "
-                                     "(and up to {:.3g} MB uncompressed)", outPath, free / 1e6, certain / 1e6, upper / 1e6));
-      if (free >= 0 && free < upper)
-        spdlog::warn("output {}: {:.3g} MB free on its file system; the file may need up to {:.3g} MB (uncompressed "
-                     "size; deflate usually makes it smaller). A full disk stops the run with exit code 4, resumable",
-                     outPath, free / 1e6, upper / 1e6);
+      checkDiskSpace(outPath, job, grid);
       writerPtr = std::make_unique<BsdfFileWriter>(outPath, job, grid, options.resume);
     } catch (const InputError& e) {
       setupExit = ExitCode::BadInput, summary.error = e.what();

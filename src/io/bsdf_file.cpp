@@ -503,7 +503,10 @@ void BsdfFileWriter::writeTile(const TileResult& r) {
   writeRow(f, "/stats/wave_samples", i, {double(r.waveSamples)}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/seconds", i, {r.seconds}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/sampling_stop", i, {double(int(r.samplingStop))}, H5T_NATIVE_DOUBLE);
-  // Mark done last, then flush: a slice marked done is complete on disk.
+  // The slice on disk (flushed and synced), then its done flag (flushed and synced), then the
+  // journal: a slice marked done, or journaled, is complete on disk.
+  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
+  syncHdf5File(f, partial_);
   writeRow(f, "/bsdf/done", i, {1.0}, H5T_NATIVE_DOUBLE);
   h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
   syncHdf5File(f, partial_);

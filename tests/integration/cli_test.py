@@ -567,7 +567,9 @@ def test_crash_resume():
 
 
 def test_clean_stop():
-    job = many_tiles_job(os.path.join(TMP, "job.toml"), 10, "stop.h5")
+    # About 10 s of tiles on 2 ranks, stopped after the first 5 %: mpirun takes up to a few seconds to
+    # pass a signal on, less than the 9 s of work still ahead (a 1-s job finished first).
+    job = many_tiles_job(os.path.join(TMP, "job.toml"), 10, "stop.h5", paths=200000)
     total = 40
     run(["run", job, "-o", "ref.h5"], mpi=2)
     # SIGTERM to the ranks (what srun and Slurm do), SIGUSR1 to mpirun (it forwards it): the ranks
@@ -578,7 +580,7 @@ def test_clean_stop():
                                    ("term-mpirun", signal.SIGTERM, "group", None)):
         name = f"stop_{how}.h5"
         p = start(["run", job, "-o", name])
-        assert wait_for(p, os.path.join(TMP, name), 0.3, total)
+        assert wait_for(p, os.path.join(TMP, name), 0.05, total)
         if target == "children":
             subprocess.run(["pkill", "-TERM", "-P", str(p.pid)], check=True)
         else:
