@@ -123,6 +123,23 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
         if (c != "lost")
           for (size_t l = 0; l < v.size(); ++l) total[l] += v[l] + st.energyTransmitted[c][l];
       s["energy"]["total"] = total;
+      if (!st.pathsAlbedoStdError.empty()) {
+        // The albedo's standard error: the path-traced components' from the per-path energies, the
+        // others' (wave term; the facet sum's bound where no path ran) added in quadrature.
+        for (auto& [c, v] : st.energyReflectedStdError) s["energy"]["reflected_stderr"][c] = v;
+        for (auto& [c, v] : st.energyTransmittedStdError) s["energy"]["transmitted_stderr"][c] = v;
+        std::vector<double> se2(total.size(), 0.0);
+        for (size_t l = 0; l < se2.size(); ++l) se2[l] = st.pathsAlbedoStdError[l] * st.pathsAlbedoStdError[l];
+        for (auto& [c, v] : st.energyReflectedStdError) {
+          const bool traced = st.samples > 0 && (c == "coherent" || c == "multiple");
+          if (c == "lost" || traced) continue;
+          for (size_t l = 0; l < se2.size(); ++l)
+            se2[l] += v[l] * v[l] + st.energyTransmittedStdError[c][l] * st.energyTransmittedStdError[c][l];
+        }
+        std::vector<double> se(se2.size());
+        for (size_t l = 0; l < se.size(); ++l) se[l] = std::sqrt(se2[l]);
+        s["energy"]["total_stderr"] = se;
+      }
     }
     slices.push_back(s);
   }
@@ -153,9 +170,10 @@ void printInfo(const nlohmann::json& j) {
                     ? "complete:    " + j["done_count"].dump() + "/" + j["incidence_count"].dump() + " slices\n"
                     : "incomplete:  " + j["done_count"].dump() + " of " + j["incidence_count"].dump() +
                           " slices (a run that has not finished; the missing slices are not listed below)\n");
-  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  reflected  transmitted  truncated  rel.error\n"
-            << "(albedo: the components the file holds, without the lost diagnostic; rel.error: the largest\n"
-            << " estimated relative standard error of a slice over its components but lost, and wavelengths)\n";
+  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  ± s.e.     reflected  transmitted  truncated  rel.error\n"
+            << "(albedo: the components the file holds, without the lost diagnostic, ± its standard error (the\n"
+            << " mean over λ of each λ's); rel.error: the largest estimated relative per-bin error of a slice over\n"
+            << " its components but lost, and wavelengths)\n";
   int reached = 0, budget = 0;
   for (const auto& s : j["slices"]) {
     if (!s["done"].get<bool>()) continue;
@@ -174,10 +192,11 @@ void printInfo(const nlohmann::json& j) {
       for (auto& [c, v] : s["rel_error"].items())
         if (c != "lost")
           for (auto& x : v) rel = std::max(rel, x.get<double>());
-    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.6f %12.6f %10.2e %10.2e\n", s["index"].get<int>(),
+    const double se = s["energy"].contains("total_stderr") ? mean(s["energy"]["total_stderr"]) : std::nan("");
+    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.2e %12.6f %12.6f %10.2e %10.2e\n", s["index"].get<int>(),
                 s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
-                (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(), refl + trans, refl, trans,
-                mean(s["truncated"]), rel);
+                (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(), refl + trans, se, refl,
+                trans, mean(s["truncated"]), rel);
     if (s["sampling_stop"] == "target") ++reached;
     if (s["sampling_stop"] == "budget") ++budget;
   }

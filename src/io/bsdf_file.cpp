@@ -135,11 +135,11 @@ std::vector<std::string> rowDatasets(const Job& job) {
   for (Component c : job.components.list()) {
     std::string n = componentName(c);
     for (const char* g : {"/bsdf/", "/bsdf_stderr/", "/stats/energy_reflected/", "/stats/energy_transmitted/",
-                          "/stats/rel_error/"})
+                          "/stats/energy_reflected_stderr/", "/stats/energy_transmitted_stderr/", "/stats/rel_error/"})
       v.push_back(g + n);
   }
   for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/wave_samples", "/stats/seconds",
-                        "/stats/sampling_stop", "/bsdf/done"})
+                        "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/bsdf/done"})
     v.push_back(n);
   return v;
 }
@@ -276,6 +276,25 @@ void renameChecked(const std::string& from, const std::string& to) {
 
 }  // namespace
 
+std::vector<double> energyStdError(const TileResult& r, Component c, int side, const DirectionGrid& grid) {
+  std::vector<double> se = r.pathEnergyStdError({c}, side);
+  if (!se.empty()) return se;
+  // No path moments: the facet sum's per-bin error bounds add up (a bound); a wave estimator's
+  // per-bin errors add in quadrature (bins estimated independently).
+  const bool bound = c == Component::Coherent;
+  se.assign(size_t(r.nLambda), 0.0);
+  for (int l = 0; l < r.nLambda; ++l) {
+    double sum = 0;
+    for (int b = 0; b < r.nBins; ++b) {
+      if (grid.isUpper(b) != (side == 0)) continue;
+      const double e = r.stdError[int(c)][size_t(l) * r.nBins + b] * grid.projectedSolidAngle(b);
+      if (std::isfinite(e)) sum += bound ? std::abs(e) : e * e;
+    }
+    se[size_t(l)] = bound ? sum : std::sqrt(sum);
+  }
+  return se;
+}
+
 BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid, bool resume)
     : path_(path), partial_(path + ".partial"), journal_(path + ".journal"), job_(job), grid_(grid) {
   if (auto dir = std::filesystem::path(path).parent_path(); !dir.empty()) std::filesystem::create_directories(dir);
@@ -312,7 +331,9 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
     create(fresh);
     for (int t : journaled) {
       if (t < 0 || t >= int(done.size()) || !done[t]) continue;
-      for (const auto& d : rowDatasets(job)) writeRow(file_, d, t, readRowImpl(old, d, t), H5T_NATIVE_DOUBLE);
+      for (const auto& d : rowDatasets(job))  // (a partial file of an older version lacks some statistics)
+        if (H5Lexists(old, d.substr(0, d.rfind('/')).c_str(), H5P_DEFAULT) > 0 && H5Lexists(old, d.c_str(), H5P_DEFAULT) > 0)
+          writeRow(file_, d, t, readRowImpl(old, d, t), H5T_NATIVE_DOUBLE);
       resumed_.push_back(t);
     }
     h5check(H5Fflush(file_, H5F_SCOPE_GLOBAL), "flush " + fresh);
@@ -419,6 +440,8 @@ void BsdfFileWriter::create(const std::string& filename) {
     H5Group er(H5Gcreate2(s, "energy_reflected", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
     H5Group et(H5Gcreate2(s, "energy_transmitted", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
     H5Group re(H5Gcreate2(s, "rel_error", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
+    H5Group ser(H5Gcreate2(s, "energy_reflected_stderr", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
+    H5Group set(H5Gcreate2(s, "energy_transmitted_stderr", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
     H5Dataset wl(H5Dopen2(f, "/spectrum/wavelength_nm", H5P_DEFAULT), "open wavelength");
     H5Dataset ib(H5Dopen2(f, "/incidence/bin", H5P_DEFAULT), "open incidence bin");
     H5Dataset gt(H5Dopen2(f, "/grid/theta_deg", H5P_DEFAULT), "open grid theta");
@@ -441,6 +464,11 @@ void BsdfFileWriter::create(const std::string& filename) {
         H5Dataset d = create3D(grp, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
         describe(d, "1", "hemispherical integral sum(f * projected_solid_angle) of " + name);
       }
+      for (hid_t grp : {ser.get(), set.get()}) {
+        H5Dataset d = create3D(grp, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+        describe(d, "1", "standard error of that hemispherical integral of " + name + " (path-traced: from the per-path "
+                         "energies; otherwise from the per-bin errors, see the README)");
+      }
       {
         H5Dataset d = create3D(re, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
         describe(d, "1", "estimated relative standard error of the slice: sqrt(sum (stderr * projected_solid_angle)^2) / "
@@ -457,6 +485,11 @@ void BsdfFileWriter::create(const std::string& filename) {
     write1D(s, "seconds", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "s", "wall time of the tile");
     write1D(s, "sampling_stop", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
             "0: fixed budget; 1: target_rel_error reached; 2: max_paths_per_slice spent first");
+    {
+      H5Dataset d = create3D(s, "paths_albedo_stderr", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+      describe(d, "1", "standard error of the summed energy (both hemispheres) of the path-traced components but "
+                       "lost, from the per-path energies (0 without path-traced components)");
+    }
     for (const char* n : {"truncated", "leaked", "missed"}) {
       H5Dataset d = create3D(s, n, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
       describe(d, "1", std::string("fraction of incident power ") + n);
@@ -503,6 +536,14 @@ void BsdfFileWriter::writeTile(const TileResult& r) {
   writeRow(f, "/stats/wave_samples", i, {double(r.waveSamples)}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/seconds", i, {r.seconds}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/sampling_stop", i, {double(int(r.samplingStop))}, H5T_NATIVE_DOUBLE);
+  {
+    std::vector<Component> traced;
+    for (Component c : job_.components.list())
+      if (c != Component::Lost && c != Component::GeoMasked && !r.pathMoments[int(c)].empty()) traced.push_back(c);
+    std::vector<double> se = r.pathEnergyStdError(traced, -1);
+    if (traced.empty()) se.assign(size_t(r.nLambda), 0.0);
+    writeRow(f, "/stats/paths_albedo_stderr", i, se, H5T_NATIVE_DOUBLE);
+  }
   // The slice on disk (flushed and synced), then its done flag (flushed and synced), then the
   // journal: a slice marked done, or journaled, is complete on disk.
   h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
@@ -523,6 +564,9 @@ void BsdfFileWriter::writeSliceStats(const TileResult& r, Component c) {
     }
   writeRow(file_, "/stats/energy_reflected/" + name, r.incidenceIndex, refl, H5T_NATIVE_DOUBLE);
   writeRow(file_, "/stats/energy_transmitted/" + name, r.incidenceIndex, trans, H5T_NATIVE_DOUBLE);
+  for (int side = 0; side < 2; ++side)
+    writeRow(file_, side == 0 ? "/stats/energy_reflected_stderr/" + name : "/stats/energy_transmitted_stderr/" + name,
+             r.incidenceIndex, energyStdError(r, c, side, grid_), H5T_NATIVE_DOUBLE);
   writeRow(file_, "/stats/rel_error/" + name, r.incidenceIndex, sliceRelativeError(r, c, grid_), H5T_NATIVE_DOUBLE);
 }
 
@@ -664,9 +708,15 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   s.truncated = readRow("/stats/truncated", incidence);
   s.leaked = readRow("/stats/leaked", incidence);
   s.missed = readRow("/stats/missed", incidence);
+  const bool energyErrors = H5Lexists(file_, "/stats/energy_reflected_stderr", H5P_DEFAULT) > 0;
+  if (energyErrors) s.pathsAlbedoStdError = readRow("/stats/paths_albedo_stderr", incidence);
   for (const auto& c : components()) {
     s.energyReflected[c] = readRow("/stats/energy_reflected/" + c, incidence);
     s.energyTransmitted[c] = readRow("/stats/energy_transmitted/" + c, incidence);
+    if (energyErrors) {
+      s.energyReflectedStdError[c] = readRow("/stats/energy_reflected_stderr/" + c, incidence);
+      s.energyTransmittedStdError[c] = readRow("/stats/energy_transmitted_stderr/" + c, incidence);
+    }
     std::string rel = "/stats/rel_error/" + c;
     if (H5Lexists(file_, "/stats/rel_error", H5P_DEFAULT) > 0 && H5Lexists(file_, rel.c_str(), H5P_DEFAULT) > 0)
       s.relError[c] = readRow(rel, incidence);

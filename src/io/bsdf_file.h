@@ -1,6 +1,7 @@
 // The output file (DESIGN.md "HDF5 file"): a self-describing, versioned HDF5 schema.
 //   /                       attributes Conventions, schema_version, program_version, job_text, seed,
-//                           geometry_hash, geometry_kind, material, grid_kind
+//                           geometry_hash, input_files (JSON: key, path and SHA-256 of each file the
+//                           job reads), geometry_kind, material, grid_kind
 //   /spectrum/wavelength_nm (nλ)                           dimension scale
 //   /grid/{theta_deg, phi_deg, solid_angle, projected_solid_angle} (nBins, full sphere)
 //   /incidence/{bin, theta_deg, phi_deg} (nInc)             `bin` is a dimension scale
@@ -11,16 +12,23 @@
 //   /stats/...              per slice: samples, wave_samples, seconds, sampling_stop (0 fixed budget, 1 target
 //                           relative error reached, 2 budget spent), truncated/leaked/missed (nInc, nλ),
 //                           energy_reflected/<c>, energy_transmitted/<c> (nInc, nλ) = Σ f·Ω⊥,
-//                           rel_error/<c> (nInc, nλ): estimated relative standard error
+//                           rel_error/<c> (nInc, nλ): estimated relative standard error,
+//                           energy_reflected_stderr/<c>, energy_transmitted_stderr/<c> (nInc, nλ): the
+//                           energies' standard errors, paths_albedo_stderr (nInc, nλ): that of the
+//                           path-traced components' summed energy
 // The writer writes each tile as it arrives and flushes; it writes to `<path>.partial` and renames
 // on completion, so an existing output is never damaged by a failed run.
 //
 // Crash safety (DESIGN.md "Distribution"): the partial file is written in HDF5's single-writer /
 // multiple-reader mode (SWMR, libver latest), whose ordered metadata flushes keep the file readable
-// whenever the writer dies; after each slice is flushed its tile number is appended to
-// `<path>.journal` and fsync'ed. `--resume` opens the old partial file as a SWMR reader, keeps the
-// slices that are both marked done in the file and listed in the journal, copies them into a fresh
-// partial file and goes on with the rest. A SIGKILL therefore loses at most the tiles in flight.
+// whenever the writer dies. A slice's rows are written (each dataset closed, with the close checked:
+// HDF5's chunk cache writes there), flushed and fsync'ed; then its done flag, flushed and fsync'ed;
+// then its tile number is appended to `<path>.journal` and fsync'ed. Every failed write throws (a
+// WriteError where the operating system refused it). `--resume` opens the old partial file as a
+// SWMR reader, checks that the job text, the input files' digests and the geometry hash match (an
+// InputError saying what differs), keeps the slices that are both marked done in the file and
+// listed in the journal, copies them into a fresh partial file and goes on with the rest. A SIGKILL
+// therefore loses at most the tiles in flight; a full disk loses none that the journal lists.
 //
 // Reciprocity (PHYSICS.md §8, scattering/reciprocity.h): when the job halves the wave term, each
 // tile leaves the reflection bins it did not compute as NaN in /bsdf/incoherent, and completeReciprocal()
@@ -83,7 +91,17 @@ struct SliceStats {
   std::vector<double> truncated, leaked, missed;
   std::map<std::string, std::vector<double>> energyReflected, energyTransmitted;
   std::map<std::string, std::vector<double>> relError;  // per component, per wavelength
+  // Standard errors of the energies above (empty in files without them), and of the summed energy
+  // of the path-traced components (both hemispheres), per wavelength.
+  std::map<std::string, std::vector<double>> energyReflectedStdError, energyTransmittedStdError;
+  std::vector<double> pathsAlbedoStdError;
 };
+
+// The standard error of Σ f Ω⊥ of component c over one hemisphere (side 0 upper, 1 lower), per
+// wavelength: from the per-path energies where the component is path-traced (TileResult::pathMoments:
+// the covariance of the bins included); else the facet sum's bounds summed, or a wave estimator's
+// per-bin errors in quadrature.
+std::vector<double> energyStdError(const TileResult& r, Component c, int side, const DirectionGrid& grid);
 
 // Estimated relative standard error of a slice of one component, per wavelength:
 // sqrt(Σ_b (σ_b Ω⊥_b)²) / Σ_b |f_b| Ω⊥_b (PHYSICS.md §3 units; the bins of a path-traced component

@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 
@@ -39,6 +40,11 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
     sum[int(c)].assign(size_t(nL) * nB, 0.0);
     sum2[int(c)].assign(size_t(nL) * nB, 0.0);
   }
+  std::array<std::vector<double>, kComponentCount> energy1, energy2;  // per (side, λ): Σ w, Σ w²
+  for (int c = 0; c < kComponentCount; ++c) {
+    energy1[size_t(c)].assign(2 * size_t(nL), 0.0);
+    energy2[size_t(c)].assign(2 * size_t(nL), 0.0);
+  }
   r.truncated.assign(nL, 0.0);
   r.leaked.assign(nL, 0.0);
   r.missed.assign(nL, 0.0);
@@ -66,6 +72,10 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
             const size_t idx = size_t(lambdas[k]) * nB + e.bin;
             sum[e.component][idx] += w;
             sum2[e.component][idx] += w * w;
+            // One exit event per path: per-path energy moments by component and side.
+            const size_t side = grid.isUpper(e.bin) ? 0 : 1;
+            energy1[e.component][side * size_t(nL) + size_t(lambdas[k])] += w;
+            energy2[e.component][side * size_t(nL) + size_t(lambdas[k])] += w * w;
           }
         }
         r.rays += c.rays;
@@ -94,6 +104,15 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
         // Standard error of the mean of N i.i.d. per-path contributions (zero for most paths).
         const double var = N > 1 ? std::max(0.0, (s2 - s1 * s1 / dN) / (dN - 1)) : 0.0;
         e[i] = std::sqrt(var / dN) / op;
+      }
+  }
+  for (Component c : plan.components) {
+    auto& m = r.pathMoments[int(c)];
+    m.assign(4 * size_t(nL), 0.0);
+    for (size_t side = 0; side < 2; ++side)
+      for (int l = 0; l < nL; ++l) {
+        m[(side * 2 + 0) * size_t(nL) + size_t(l)] = energy1[int(c)][side * size_t(nL) + size_t(l)] / dN;
+        m[(side * 2 + 1) * size_t(nL) + size_t(l)] = energy2[int(c)][side * size_t(nL) + size_t(l)] / dN;
       }
   }
   for (int l = 0; l < nL; ++l) {

@@ -34,6 +34,10 @@ std::vector<double> TileResult::serialize() const {
     b.push_back(double(v->size()));
     b.insert(b.end(), v->begin(), v->end());
   }
+  for (const auto& m : pathMoments) {
+    b.push_back(double(m.size()));
+    b.insert(b.end(), m.begin(), m.end());
+  }
   return b;
 }
 
@@ -69,6 +73,7 @@ TileResult TileResult::deserialize(const std::vector<double>& b) {
     take(r.stdError[c], n);
   }
   for (auto* v : {&r.truncated, &r.leaked, &r.missed}) take(*v, size_t(next()));
+  for (auto& m : r.pathMoments) take(m, size_t(next()));
   return r;
 }
 
@@ -98,10 +103,32 @@ void TileResult::poolPaths(const TileResult& more) {
   for (auto [mine, theirs] : {std::pair{&truncated, &more.truncated}, std::pair{&leaked, &more.leaked},
                               std::pair{&missed, &more.missed}})
     for (size_t l = 0; l < mine->size() && l < theirs->size(); ++l) (*mine)[l] = ((*mine)[l] * na + (*theirs)[l] * nb) / n;
+  for (int c = 0; c < kComponentCount; ++c)  // means over all paths
+    for (size_t i = 0; i < pathMoments[c].size() && i < more.pathMoments[c].size(); ++i)
+      pathMoments[c][i] = (pathMoments[c][i] * na + more.pathMoments[c][i] * nb) / n;
   samples += more.samples;
   rays += more.rays;
   seconds += more.seconds;
   rounds += more.rounds;
+}
+
+std::vector<double> TileResult::pathEnergyStdError(const std::vector<Component>& comps, int side) const {
+  for (Component c : comps)
+    if (pathMoments[int(c)].empty()) return {};
+  std::vector<double> se(size_t(nLambda), 0.0);
+  if (samples < 2) return se;
+  for (int l = 0; l < nLambda; ++l) {
+    double m1 = 0, m2 = 0;
+    for (Component c : comps)
+      for (int sd = 0; sd < 2; ++sd) {
+        if (side >= 0 && sd != side) continue;
+        m1 += pathMoments[int(c)][size_t((sd * 2 + 0) * nLambda + l)];
+        m2 += pathMoments[int(c)][size_t((sd * 2 + 1) * nLambda + l)];
+      }
+    const double n = double(samples);
+    se[size_t(l)] = std::sqrt(std::max(0.0, m2 - m1 * m1) * n / (n - 1) / n);
+  }
+  return se;
 }
 
 }  // namespace mbsdf

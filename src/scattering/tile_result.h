@@ -22,6 +22,13 @@ struct TileResult {
   std::vector<double> truncated;  // paths cut at max depth (or wrapping forever)
   std::vector<double> leaked;     // paths that crossed the surface where it has holes or wrong winding
   std::vector<double> missed;     // primary rays that met no geometry (finite patches, holes)
+  // Per-path moments of the energy a path-traced component carries out of each hemisphere (empty for
+  // components not traced by paths): 2 sides (upper, lower) x 2 moments (mean w, mean w²) x nLambda,
+  // at (side * 2 + moment) * nLambda + lambda. A path ends in one exit event, so the events of
+  // different components and sides of one path exclude each other: the energy of any set S of them
+  // has the per-path variance Σ_S m2 − (Σ_S m1)², and its standard error over N paths the square
+  // root of that over N − 1 (the covariance across bins included, unlike a per-bin sum).
+  std::array<std::vector<double>, kComponentCount> pathMoments;
   uint64_t samples = 0;           // paths per wavelength
   // Progressive sampling ([sampling] target_rel_error): rounds of paths run, and why it stopped.
   enum class SamplingStop : int { FixedBudget = 0, TargetReached = 1, BudgetExhausted = 2 };
@@ -39,6 +46,11 @@ struct TileResult {
   // microflake walk) into this one: the result is the estimator over all samples (means weighted by
   // sample counts, per-path variances recombined), for the components `more` has.
   void poolPaths(const TileResult& more);
+
+  // The standard error of the energy (Σ f Ω⊥) of the path-traced components in `comps` leaving by
+  // `side` (0 upper, 1 lower, -1 both) per wavelength (see pathMoments); empty if one of them has no
+  // moments.
+  std::vector<double> pathEnergyStdError(const std::vector<Component>& comps, int side) const;
 
   std::vector<double> serialize() const;
   static TileResult deserialize(const std::vector<double>& buf);

@@ -6,6 +6,7 @@
 
 #include "core/rng.h"
 #include "geometry/generators.h"
+#include "optics/fresnel.h"
 #include "scattering_test_util.h"
 
 using namespace mbsdf;
@@ -145,4 +146,62 @@ TEST(ProgressiveSampling, PooledRoundsEqualOneLongRun) {
       EXPECT_NEAR(a.stdError[int(c)][i], f.stdError[int(c)][i], 1e-9 * (1 + f.stdError[int(c)][i]));
     }
   for (int l = 0; l < 2; ++l) EXPECT_NEAR(a.truncated[l], f.truncated[l], 1e-15);
+  // The per-path energy moments pool too, and travel through the MPI message unchanged.
+  for (Component c : {Component::Coherent, Component::Multiple})
+    for (size_t i = 0; i < f.pathMoments[int(c)].size(); ++i)
+      EXPECT_NEAR(a.pathMoments[int(c)][i], f.pathMoments[int(c)][i], 1e-12 * (1 + f.pathMoments[int(c)][i]));
+  const TileResult back = TileResult::deserialize(a.serialize());
+  EXPECT_EQ(back.pathMoments, a.pathMoments);
+  EXPECT_EQ(back.value, a.value);
+}
+
+// The standard error of a slice's energy comes from the per-path energies (TileResult::pathMoments),
+// with the covariance of the bins: each path lands in one bin. Against closed forms: a flat
+// dielectric reflects the Fresnel fraction F of the paths (each path reflects or refracts with
+// weight 1, so R's estimator is binomial) and transmits 1 − F, seen from above and from inside,
+// 72 cases of index and angle. z = (estimate − F) / SE must have mean z² within 4 standard deviations
+// (√(2/n)) of 1. A mirror's albedo is exactly 1 with a standard error of exactly 0, and so is a
+// lossless dielectric's R + T (the per-bin root-sum-square said ± 1e-3 for it).
+TEST(EnergyStandardError, FlatDielectricZScoresAgainstFresnel) {
+  PathTracerSettings s;
+  s.paths = 4000;
+  std::vector<double> z;
+  double rssOverSe = 0;
+  int rssCases = 0;
+  for (double eta : {1.3, 1.5, 2.0}) {
+    Material glass;
+    glass.model = Dielectric{ConstantIndex{eta, 0.0}};
+    Scenario sc(makeFlat(4, 4, 0), glass, ThetaPhiGrid{9, 8}, {0.55}, s);
+    for (double theta : {2.0, 12.0, 23.0, 31.0, 38.0, 47.0, 55.0, 63.0, 71.0, 77.0, 82.0, 86.0}) {
+      for (bool above : {true, false}) {
+        // From inside only below the critical angle (beyond it F = 1 exactly: no variance).
+        const double thetaIn = above ? theta : 180.0 - theta * std::asin(1.0 / eta) / radians(90.0);
+        const double cosI = std::abs(std::cos(radians(thetaIn)));
+        const double F = fresnelReflectance(cosI, above ? 1.0 : eta, Complex(above ? eta : 1.0, 0));
+        TileResult r = sc.run(thetaIn, 0.0, /*exact=*/true, int(z.size()));
+        const int reflectedSide = above ? 0 : 1;
+        const auto se = r.pathEnergyStdError({Component::Coherent}, reflectedSide);
+        ASSERT_EQ(se.size(), 1u);
+        const double R = energy(r, sc.grid, Component::Coherent, 0, above);
+        ASSERT_GT(se[0], 0) << eta << " " << thetaIn;
+        z.push_back((R - F) / se[0]);
+        // Both sides together: every path leaves, the albedo is 1 and its error 0.
+        EXPECT_NEAR(r.pathEnergyStdError({Component::Coherent}, -1)[0], 0.0, 1e-12);
+        rssOverSe += energyStdError(r, sc.grid, Component::Coherent, 0, above) / se[0];
+        ++rssCases;
+      }
+    }
+  }
+  double z2 = 0;
+  for (double v : z) z2 += v * v / double(z.size());
+  const double sd = std::sqrt(2.0 / double(z.size()));
+  EXPECT_NEAR(z2, 1.0, 4 * sd) << z.size() << " cases";
+  RecordProperty("cases", int(z.size()));
+  RecordProperty("mean_z2", std::to_string(z2));
+  RecordProperty("rss_over_se", std::to_string(rssOverSe / rssCases));
+  // A mirror: albedo 1, standard error 0.
+  Scenario mirror(makeFlat(4, 4, 0), material("mirror"), ThetaPhiGrid{9, 8}, {0.55}, s);
+  TileResult r = mirror.run(40.0, 0.0, true);
+  EXPECT_NEAR(energy(r, mirror.grid, Component::Coherent, 0, true), 1.0, 1e-12);
+  EXPECT_EQ(r.pathEnergyStdError({Component::Coherent, Component::Multiple}, -1)[0], 0.0);
 }
