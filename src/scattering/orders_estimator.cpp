@@ -36,14 +36,14 @@ struct Order {
   int lambda;
   Vec3 wo;      // order direction
   bool transmission;
-  double scale;  // P_G / |Ĥ_G|² (mean of s and p)
+  double scale;  // Q_G / |Ĥ_G|² (mean of s and p), Q_G = P_G cos θ_G (lobeBins applies 1/cos θ_G)
   double sd;     // lobe standard deviation in (x, y) of ωo
 };
 
-// exact/fft over an incidence bin: one order's Q = P_G · cos θ_G (the power without its 1/cos θ_G
-// obliquity, which is singular where the order grazes the horizon; P_G = Q / cos θ_G is restored at
-// each sub-direction) at every node of the incidence rule, visible and masked, and whether the
-// order propagates there.
+// exact/fft over an incidence bin: one order's Q = P_G · cos θ_G (the power without its 1/cos θ_G,
+// which is singular where the order grazes the horizon; lobeSecant restores it, finite, at each
+// sub-direction) at every node of the incidence rule, visible and masked, and whether the order
+// propagates there.
 struct NodePowers {
   Order ord;
   std::vector<double> q;         // [node * 2 + msk], the high rule's n² nodes first
@@ -66,12 +66,65 @@ const std::vector<double>& lobeNodes(int K) {
   return K == 16 ? n16 : n32;
 }
 
-// Fractions of a Gaussian lobe (centre (cx, cy), standard deviation sd in the xy plane of the
-// hemisphere `zs`) that fall in each bin: a fixed 16 x 16 stratified pattern through the inverse
-// normal CDF, deterministic. Directions outside the unit disk are evanescent and dropped.
+// Half the spacing of node i of the K-point pattern around it (units of sd): the cell a node stands for.
+double lobeCellHalfWidth(int K, int i) {
+  const std::vector<double>& n = lobeNodes(K);
+  const double lo = i > 0 ? n[size_t(i - 1)] : 2 * n[0] - n[1], hi = i + 1 < K ? n[size_t(i + 1)] : 2 * n[size_t(K - 1)] - n[size_t(K - 2)];
+  return 0.25 * (hi - lo);
+}
+
+// The mean of 1/cos θ over a radial cell [ρ − h, ρ + h] of direction cosines ρ = |(u_x, u_y)|, with
+// the part beyond the horizon (ρ > 1: evanescent, carries nothing) counted as zero:
+//   (asin(min(1, ρ + h)) − asin(max(0, ρ − h))) / 2h.
+// An order's lobe is a spot in direction cosines (the window's transform), and its power per solid
+// angle p(ω) is smooth there; the power in a bin is ∫ p dω = ∫ p du / cos θ(u). Evaluating 1/cos θ at
+// the spot's centre diverges as an order reaches the horizon (a Rayleigh anomaly: n Λ / λ a whole
+// number), while the integral stays finite (1/√(1 − ρ²) is integrable) and falls to zero as the spot
+// leaves the disk. This is that integral, cell by cell; far from the horizon it is 1/cos θ.
+double meanSecant(double rho, double h) {
+  if (h <= 0) return rho < 1 ? 1.0 / std::sqrt(1.0 - rho * rho) : 0.0;
+  const double lo = std::max(0.0, rho - h), hi = std::min(1.0, rho + h);
+  if (hi <= lo) return 0.0;
+  return (std::asin(hi) - std::asin(lo)) / (2 * h);
+}
+
+// The power an order sends into a bin is Q_G = P_G cos θ_G times the lobe's share of that bin times a
+// 1/cos θ: the Jacobian from the spot in direction cosines to solid angle. Far from the horizon this
+// is 1/cos θ_G of the lobe's centre — with it a flat interface gives exactly Fresnel's R and T (the
+// normalisation of the scalar model). Near the horizon the centre value diverges, while the lobe's
+// own mean of 1/cos θ over the disk (lobeMeanSecant) stays finite; the smaller of the two is used,
+// which is the centre value wherever the lobe resolves it (by Jensen's inequality the mean is larger
+// while the whole lobe is inside the disk) and the finite mean where the lobe reaches the horizon.
+// The lobe's mean 1/cos θ over the disk per unit of the lobe inside the disk (the 16 x 16 pattern's
+// points inside it; the cells of meanSecant).
+double lobeMeanSecant(double cx, double cy, double sd) {
+  constexpr int K = 16;
+  const std::vector<double>& nodes = lobeNodes(K);
+  double sum = 0;
+  int inside = 0;
+  for (int i = 0; i < K; ++i)
+    for (int j = 0; j < K; ++j) {
+      const double rho = std::hypot(cx + sd * nodes[size_t(i)], cy + sd * nodes[size_t(j)]);
+      inside += rho < 1;
+      sum += meanSecant(rho, sd * std::max(lobeCellHalfWidth(K, i), lobeCellHalfWidth(K, j)));
+    }
+  return inside ? sum / inside : 0.0;
+}
+// The factor of the lobe's fractions inside the disk: 1/cos θ_G, or the finite mean near the horizon.
+double lobeSecant(double cx, double cy, double sd) {
+  const double rho2 = cx * cx + cy * cy, centre = rho2 < 1 ? 1.0 / std::sqrt(1.0 - rho2) : HUGE_VAL;
+  if (std::sqrt(rho2) + 5 * sd < 1) return centre;  // the lobe stays clear of the horizon
+  return std::min(centre, lobeMeanSecant(cx, cy, sd));
+}
+
+// The share of a Gaussian lobe (centre (cx, cy), standard deviation sd in the xy plane of the
+// hemisphere `zs`) in each bin, times its 1/cos θ (lobeSecant): an order's power per bin is
+// Q_G · share. A fixed 16 x 16 stratified pattern through the inverse normal CDF, deterministic.
+// Directions outside the unit disk are evanescent and dropped.
 void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double zs,
               std::vector<std::pair<int, double>>* out) {
   out->clear();
+  const double secant = lobeSecant(cx, cy, sd);
   // Fast path: the whole lobe (±5 sd) inside one bin.
   auto binAt = [&](double x, double y) {
     double r2 = x * x + y * y;
@@ -83,21 +136,22 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
     for (int dy = -1; dy <= 1 && inside; ++dy)
       if ((dx || dy) && binAt(cx + 5 * sd * dx, cy + 5 * sd * dy) != c) inside = false;
   if (inside) {
-    out->push_back({c, 1.0});
+    out->push_back({c, secant});
     return;
   }
   constexpr int K = 16;
   const std::vector<double>& nodes = lobeNodes(K);
+  const double w = secant / (K * K);
   for (int i = 0; i < K; ++i)
     for (int j = 0; j < K; ++j) {
-      int b = binAt(cx + sd * nodes[i], cy + sd * nodes[j]);
+      int b = binAt(cx + sd * nodes[size_t(i)], cy + sd * nodes[size_t(j)]);
       if (b < 0) continue;
-      if (!out->empty() && out->back().first == b) out->back().second += 1.0 / (K * K);
+      if (!out->empty() && out->back().first == b) out->back().second += w;
       else {
         bool found = false;
         for (auto& e : *out)
-          if (e.first == b) { e.second += 1.0 / (K * K); found = true; break; }
-        if (!found) out->push_back({b, 1.0 / (K * K)});
+          if (e.first == b) { e.second += w; found = true; break; }
+        if (!found) out->push_back({b, w});
       }
     }
 }
@@ -504,7 +558,7 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
       const double x = -(2 * kPi * double(ord.a) / Lx + nI * k0 * sub.wi.x) / (nO * k0);
       const double y = -(2 * kPi * double(ord.b) / Ly + nI * k0 * sub.wi.y) / (nO * k0);
       if (x * x + y * y >= 1) return;  // evanescent here
-      const double cz = std::sqrt(1 - (x * x + y * y));
+      const double secant = lobeSecant(x, y, ord.sd);  // 1/cos θ_G, finite at the horizon
       const double bx = x + ord.sd * sub.lx, by = y + ord.sd * sub.ly, r2 = bx * bx + by * by;
       if (r2 >= 1) return;
       const int b = grid.binOf({bx, by, zs * std::sqrt(1 - r2)});
@@ -524,7 +578,7 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
           if (v <= 0) continue;
           // Merged per (table, bin): an order's image covers a few bins, so the list stays short.
           const size_t at = size_t(l) * nB + size_t(b);
-          const double add = v / cz / double(set.size());
+          const double add = v * secant / double(set.size());
           auto& list = parts[o];
           auto hit = std::find_if(list.rbegin(), list.rend(),
                                   [&](const Part& q) { return q.at == at && q.table == table && q.msk == msk; });
@@ -629,7 +683,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
             o.lambda = l;
             o.wo = {x, y, up ? cz : -cz};
             o.transmission = trans;
-            o.scale = 1.0 / (4 * nI * nO * k0 * k0 * Lx * Lx * Ly * Ly * cosI * cz) *
+            o.scale = 1.0 / (4 * nI * nO * k0 * k0 * Lx * Lx * Ly * Ly * cosI) *
                       (kPi * sigma * sigma / ctx_.window.w2());  // W2 of the truncated copy sum
             o.sd = 1.0 / (std::sqrt(2.0) * sigma * nO * k0);
             orders.push_back(o);
@@ -767,9 +821,8 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         auto [it, fresh] = slotOf.emplace(key, nodePower.size());
         if (fresh) nodePower.push_back({ord, std::vector<double>(size_t(K) * 2, 0.0), std::vector<uint8_t>(size_t(K), 0)});
         NodePowers& np = nodePower[it->second];
-        const double cz = std::abs(ord.wo.z);
-        np.q[size_t(k) * 2] = op[o].P[0] * cz;
-        np.q[size_t(k) * 2 + 1] = op[o].P[1] * cz;
+        np.q[size_t(k) * 2] = op[o].P[0];
+        np.q[size_t(k) * 2 + 1] = op[o].P[1];
         np.present[size_t(k)] = 1;
       }
       if (progress) progress(uint64_t(k + 1) * uint64_t(N));
