@@ -140,6 +140,10 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
         for (size_t l = 0; l < se.size(); ++l) se[l] = std::sqrt(se2[l]);
         s["energy"]["total_stderr"] = se;
       }
+      if (!st.energyBalance.empty()) {
+        s["energy_balance"] = st.energyBalance;
+        s["energy_balance_stderr"] = st.energyBalanceStdError;
+      }
     }
     slices.push_back(s);
   }
@@ -170,10 +174,11 @@ void printInfo(const nlohmann::json& j) {
                     ? "complete:    " + j["done_count"].dump() + "/" + j["incidence_count"].dump() + " slices\n"
                     : "incomplete:  " + j["done_count"].dump() + " of " + j["incidence_count"].dump() +
                           " slices (a run that has not finished; the missing slices are not listed below)\n");
-  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  ± s.e.     reflected  transmitted  truncated  rel.error\n"
+  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  ± s.e.     reflected  transmitted  truncated  rel.error  balance\n"
             << "(albedo: the components the file holds, without the lost diagnostic, ± its standard error (the\n"
             << " mean over λ of each λ's); rel.error: the largest estimated relative per-bin error of a slice over\n"
-            << " its components but lost, and wavelengths)\n";
+            << " its components but lost, and wavelengths; balance: reflected + transmitted + lost paths − 1, the\n"
+            << " largest over λ, for a material that absorbs only an excess over 1 — the model's energy error)\n";
   int reached = 0, budget = 0;
   for (const auto& s : j["slices"]) {
     if (!s["done"].get<bool>()) continue;
@@ -193,10 +198,14 @@ void printInfo(const nlohmann::json& j) {
         if (c != "lost")
           for (auto& x : v) rel = std::max(rel, x.get<double>());
     const double se = s["energy"].contains("total_stderr") ? mean(s["energy"]["total_stderr"]) : std::nan("");
-    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.2e %12.6f %12.6f %10.2e %10.2e\n", s["index"].get<int>(),
+    double balance = std::nan("");
+    if (s.contains("energy_balance"))
+      for (auto& x : s["energy_balance"])
+        if (!(std::abs(x.get<double>()) <= std::abs(balance))) balance = x.get<double>();
+    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.2e %12.6f %12.6f %10.2e %10.2e %+8.4f\n", s["index"].get<int>(),
                 s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
                 (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(), refl + trans, se, refl,
-                trans, mean(s["truncated"]), rel);
+                trans, mean(s["truncated"]), rel, balance);
     if (s["sampling_stop"] == "target") ++reached;
     if (s["sampling_stop"] == "budget") ++budget;
   }

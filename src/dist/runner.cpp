@@ -283,6 +283,24 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   bool stopAssigning = false;
   ProgressReporter progress("tiles", uint64_t(nTiles));
   int written = int(finished.size());
+  // The energy balance of each slice (BsdfFileWriter::writeEnergyBalance): beyond [scene] tolerance
+  // and its standard error it is the model's error (scalar theory on deep or steep structures), and
+  // the log says so; `info` shows it for every slice.
+  int unbalanced = 0;
+  double worstBalance = 0;
+  auto noteEnergyBalance = [&](const TileResult& r, const BsdfFileWriter::EnergyBalance& b) {
+    for (size_t l = 0; l < b.value.size(); ++l) {
+      if (!(std::abs(b.value[l]) > job.scene.tolerance + 4 * b.stdError[l])) continue;
+      if (unbalanced++ < 10)
+        spdlog::warn("slice {} (theta_i {:.3g} deg, {} nm): energy balance {:+.4f} ± {:.4f} (reflected + transmitted + "
+                     "lost paths − 1{}), beyond the tolerance {}: the model's own error there",
+                     r.incidenceIndex, job.incidence[size_t(r.incidenceIndex)].theta_deg, job.lambda_nm[l], b.value[l],
+                     b.stdError[l], job.material.lossless() ? "" : ", counted only above 1: the material absorbs",
+                     job.scene.tolerance);
+      if (std::abs(b.value[l]) > std::abs(worstBalance)) worstBalance = b.value[l];
+      break;
+    }
+  };
   // A failed write stops the run: no more tiles are handed out and results still in flight are
   // dropped (the journal lists only slices whose data reached the disk).
   std::string writeFailure;
@@ -311,7 +329,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   auto writeOne = [&](const TileResult& r) {
     if (finished.count(r.incidenceIndex) || !writeFailure.empty()) return;
     try {
-      writer.writeTile(r);
+      noteEnergyBalance(r, writer.writeTile(r));
     } catch (const WriteError& e) {
       writeFailure = e.what();
       noteStop("the output could not be written");
@@ -416,6 +434,9 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
                  "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
                  summary.computed, summary.resumed, since(t0), total[0], total[1], summary.paths, energies);
   }
+  if (unbalanced)
+    spdlog::warn("energy balance beyond the tolerance {} in {} slice(s) computed now (the worst {:+.4f}); `microbsdf info` "
+                 "lists it per slice", job.scene.tolerance, unbalanced, worstBalance);
   // Finish (close, fsync, rename) or close; a failure of either is a write failure, which leaves the
   // partial file and its journal (every slice in the journal is on disk) and any old output as they were.
   try {

@@ -139,7 +139,8 @@ std::vector<std::string> rowDatasets(const Job& job) {
       v.push_back(g + n);
   }
   for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/wave_samples", "/stats/seconds",
-                        "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/bsdf/done"})
+                        "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/stats/energy_balance",
+                        "/stats/energy_balance_stderr", "/bsdf/done"})
     v.push_back(n);
   return v;
 }
@@ -486,6 +487,16 @@ void BsdfFileWriter::create(const std::string& filename) {
     write1D(s, "sampling_stop", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
             "0: fixed budget; 1: target_rel_error reached; 2: max_paths_per_slice spent first");
     {
+      H5Dataset d = create3D(s, "energy_balance", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+      describe(d, "1", job.material.lossless()
+                           ? "reflected + transmitted + truncated + leaked + missed - 1 of the components but lost: "
+                             "the model's energy error (the material absorbs nothing)"
+                           : "the excess of reflected + transmitted + truncated + leaked + missed over 1 (the "
+                             "material absorbs: a deficit is absorption, an excess the model's error)");
+      H5Dataset e = create3D(s, "energy_balance_stderr", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+      describe(e, "1", "standard error of energy_balance");
+    }
+    {
       H5Dataset d = create3D(s, "paths_albedo_stderr", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
       describe(d, "1", "standard error of the summed energy (both hemispheres) of the path-traced components but "
                        "lost, from the per-path energies (0 without path-traced components)");
@@ -519,7 +530,7 @@ BsdfFileWriter::~BsdfFileWriter() {
   }
 }
 
-void BsdfFileWriter::writeTile(const TileResult& r) {
+BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
   hid_t f = file_.get();
   const int i = r.incidenceIndex;
   for (Component c : job_.components.list()) {
@@ -544,6 +555,7 @@ void BsdfFileWriter::writeTile(const TileResult& r) {
     if (traced.empty()) se.assign(size_t(r.nLambda), 0.0);
     writeRow(f, "/stats/paths_albedo_stderr", i, se, H5T_NATIVE_DOUBLE);
   }
+  const EnergyBalance balance = writeEnergyBalance(i);
   // The slice on disk (flushed and synced), then its done flag (flushed and synced), then the
   // journal: a slice marked done, or journaled, is complete on disk.
   h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
@@ -552,6 +564,42 @@ void BsdfFileWriter::writeTile(const TileResult& r) {
   h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
   syncHdf5File(f, partial_);
   appendJournal(i);
+  return balance;
+}
+
+BsdfFileWriter::EnergyBalance BsdfFileWriter::writeEnergyBalance(int i) {
+  const int nL = int(job_.lambda_nm.size());
+  EnergyBalance b;
+  b.value.assign(size_t(nL), -1.0);
+  std::vector<double> var(size_t(nL), 0.0);
+  const std::vector<double> paths = readRowImpl(file_, "/stats/paths_albedo_stderr", i);
+  const bool traced = readRowImpl(file_, "/stats/samples", i)[0] > 0;
+  for (int l = 0; l < nL; ++l) var[size_t(l)] = paths[size_t(l)] * paths[size_t(l)];
+  for (Component c : job_.components.list()) {
+    if (c == Component::Lost || c == Component::GeoMasked) continue;
+    const std::string n = componentName(c);
+    const bool fromPaths = traced && (c == Component::Coherent || c == Component::Multiple);
+    for (const char* side : {"reflected", "transmitted"}) {
+      const std::vector<double> e = readRowImpl(file_, std::string("/stats/energy_") + side + "/" + n, i);
+      const std::vector<double> se = readRowImpl(file_, std::string("/stats/energy_") + side + "_stderr/" + n, i);
+      for (int l = 0; l < nL; ++l) {
+        b.value[size_t(l)] += e[size_t(l)];
+        if (!fromPaths) var[size_t(l)] += se[size_t(l)] * se[size_t(l)];
+      }
+    }
+  }
+  for (const char* lost : {"/stats/truncated", "/stats/leaked", "/stats/missed"}) {
+    const std::vector<double> v = readRowImpl(file_, lost, i);
+    for (int l = 0; l < nL; ++l) b.value[size_t(l)] += v[size_t(l)];
+  }
+  b.stdError.resize(size_t(nL));
+  for (int l = 0; l < nL; ++l) {
+    if (!job_.material.lossless()) b.value[size_t(l)] = std::max(0.0, b.value[size_t(l)]);
+    b.stdError[size_t(l)] = std::sqrt(var[size_t(l)]);
+  }
+  writeRow(file_, "/stats/energy_balance", i, b.value, H5T_NATIVE_DOUBLE);
+  writeRow(file_, "/stats/energy_balance_stderr", i, b.stdError, H5T_NATIVE_DOUBLE);
+  return b;
 }
 
 void BsdfFileWriter::writeSliceStats(const TileResult& r, Component c) {
@@ -620,6 +668,7 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
       writeRow(f, inc, i, v, H5T_NATIVE_DOUBLE);
       writeRow(f, incE, i, se, H5T_NATIVE_DOUBLE);
       writeSliceStats(row, Component::Incoherent);
+      writeEnergyBalance(i);
       for (int l = 0; l < nL; ++l)
         for (int b = 0; b < nB; ++b) energy += v[size_t(l) * nB + b] * grid_.projectedSolidAngle(b);
     }
@@ -710,6 +759,10 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   s.missed = readRow("/stats/missed", incidence);
   const bool energyErrors = H5Lexists(file_, "/stats/energy_reflected_stderr", H5P_DEFAULT) > 0;
   if (energyErrors) s.pathsAlbedoStdError = readRow("/stats/paths_albedo_stderr", incidence);
+  if (H5Lexists(file_, "/stats/energy_balance", H5P_DEFAULT) > 0) {
+    s.energyBalance = readRow("/stats/energy_balance", incidence);
+    s.energyBalanceStdError = readRow("/stats/energy_balance_stderr", incidence);
+  }
   for (const auto& c : components()) {
     s.energyReflected[c] = readRow("/stats/energy_reflected/" + c, incidence);
     s.energyTransmitted[c] = readRow("/stats/energy_transmitted/" + c, incidence);

@@ -15,7 +15,8 @@
 //                           rel_error/<c> (nInc, nλ): estimated relative standard error,
 //                           energy_reflected_stderr/<c>, energy_transmitted_stderr/<c> (nInc, nλ): the
 //                           energies' standard errors, paths_albedo_stderr (nInc, nλ): that of the
-//                           path-traced components' summed energy
+//                           path-traced components' summed energy, energy_balance and
+//                           energy_balance_stderr (nInc, nλ): see writeEnergyBalance
 // The writer writes each tile as it arrives and flushes; it writes to `<path>.partial` and renames
 // on completion, so an existing output is never damaged by a failed run.
 //
@@ -59,7 +60,11 @@ class BsdfFileWriter {
   // std::runtime_error if the partial file belongs to another job.
   BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid, bool resume = false);
   ~BsdfFileWriter();
-  void writeTile(const TileResult& r);
+  // Writes a slice (see above); returns its energy balance (writeEnergyBalance).
+  struct EnergyBalance {
+    std::vector<double> value, stdError;  // per wavelength
+  };
+  EnergyBalance writeTile(const TileResult& r);
   // Fills the reciprocal half of /bsdf/incoherent (see above); every slice must be done. Returns
   // the mean over slices and wavelengths of the incoherent Σ f·Ω⊥.
   double completeReciprocal(const ReciprocalPairs& pairs);
@@ -75,6 +80,11 @@ class BsdfFileWriter {
   void appendJournal(int tile);
   // /stats/energy_reflected, energy_transmitted and rel_error of component c for r's slice.
   void writeSliceStats(const TileResult& r, Component c);
+  // /stats/energy_balance and its standard error for slice i, from the slice's stored energies:
+  // reflected + transmitted + truncated + leaked + missed − 1 over the components but lost. For a
+  // lossless material (Material::lossless) the scalar model's energy error; for an absorbing one
+  // only an excess over 1 is an error (a deficit is absorption), so only that is stored.
+  EnergyBalance writeEnergyBalance(int i);
   std::string path_, partial_, journal_;
   const Job& job_;
   const DirectionGrid& grid_;
@@ -95,6 +105,7 @@ struct SliceStats {
   // of the path-traced components (both hemispheres), per wavelength.
   std::map<std::string, std::vector<double>> energyReflectedStdError, energyTransmittedStdError;
   std::vector<double> pathsAlbedoStdError;
+  std::vector<double> energyBalance, energyBalanceStdError;  // (writeEnergyBalance) empty in older files
 };
 
 // The standard error of Σ f Ω⊥ of component c over one hemisphere (side 0 upper, 1 lower), per

@@ -31,6 +31,12 @@ bool Material::isPerfectConductor() const {
   return c && std::holds_alternative<PerfectConductor>(c->index);
 }
 
+bool Material::lossless() const {
+  if (isConductor()) return isPerfectConductor();
+  const auto* c = std::get_if<ConstantIndex>(&std::get<Dielectric>(model).index);
+  return !c || c->k == 0;
+}
+
 bool Material::directionsIndependentOfLambda() const {
   if (isConductor()) return true;
   return std::holds_alternative<ConstantIndex>(std::get<Dielectric>(model).index);

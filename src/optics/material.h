@@ -40,6 +40,9 @@ struct Material {
 
   bool isConductor() const { return std::holds_alternative<Conductor>(model); }
   bool isPerfectConductor() const;
+  // No absorption: a dielectric with a real index (the geometric tracer ignores any imaginary part)
+  // or a perfect conductor. For these reflected + transmitted energy must be 1.
+  bool lossless() const;
   // True when every wavelength follows the same path (conductors: Fresnel only changes weights;
   // dielectrics: only with a constant index).
   bool directionsIndependentOfLambda() const;
