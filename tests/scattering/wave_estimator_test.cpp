@@ -169,23 +169,26 @@ TEST(WaveConvergence, AreaVarianceFallsAsOneOverBudget) {
 }
 
 // Energy closure on `hemispheres` (radius 2 µm, spacing 5 µm) with perfect-mirror facets at
-// λ = 0.25 µm: ∫GM and ∫WM + ∫lost agree within 5 % at θi = 0° and 20°. The lost diagnostic counts
-// the Kirchhoff field of front-facing but blocked directions; at larger θi more of the blocked light
-// travels near or below the horizon, where the far-field lobes are cut, and the agreement degrades
-// (measured: 0.92 at 30°, 0.90 at 55°), which the test records.
+// λ = 0.25 µm, θi from 0° to 80°: a mirror reflects everything (GM = 1 exactly), and the paper's
+// Eq. 20 means WM + lost to close the balance too. The gap 1 − (WM + lost) is the part of the
+// scalar model that neither term holds: the lost diagnostic counts the Kirchhoff field of
+// front-facing but masked points; at larger θi more of the light is shadowed and masked near the
+// horizon, where the far-field lobes are cut, and diffraction at the shadow boundaries belongs to
+// neither: it grows with λ against the features (at 0.5 µm it is 0.05 at 0°, 0.11 at 30°). Measured
+// at 0.25 µm: 0.022, 0.019, 0.024 at 0°, 10°, 20°, then 0.05–0.08 to 80°. Asserted within 5 % to
+// 20°, and within 0.25 beyond.
 TEST(WaveClosure, GmMatchesWmPlusLost) {
   Microgeometry g = makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 2.0 / 16);
   DirectionGrid::Layout layout = ThetaPhiGrid{9, 18};
   WaveSettings ws;
-  ws.estimator = "orders";
-  ws.samplesPerBin = 4096;
+  ws.estimator = "exact";
   ws.computeMasked = true;
   WaveScenario wave(g, material("mirror"), layout, {0.25}, 50.0, ws);
   PathTracerSettings ps;
-  ps.paths = 200000;
+  ps.paths = 50000;
   ps.tallyGeoMasked = true;
   Scenario geo(g, material("mirror"), layout, {0.25}, ps);
-  for (double theta : {0.0, 20.0, 55.0}) {
+  for (double theta = 0; theta <= 80; theta += 10) {
     TileResult t = geo.run(theta, 0.0, true);
     WaveTileResult w = wave.run(theta, 0.0, true);
     addWaveComponents(t, w, true, true);
@@ -196,12 +199,11 @@ TEST(WaveClosure, GmMatchesWmPlusLost) {
     double gm = integ(Component::Coherent) + integ(Component::Multiple);
     double wm = integ(Component::Coherent) + integ(Component::Incoherent) + integ(Component::Multiple);
     double lost = integ(Component::Lost);
-    RecordProperty("theta" + std::to_string(int(theta)) + "_GM", std::to_string(gm));
+    EXPECT_NEAR(gm, 1.0, 1e-9) << "a mirror reflects everything";
     RecordProperty("theta" + std::to_string(int(theta)) + "_WM_plus_lost", std::to_string(wm + lost));
-    std::printf("theta %.0f: GM %.4f, WM %.4f + lost %.4f = %.4f\n", theta, gm, wm, lost, wm + lost);
-    if (theta <= 20.0) {
-      EXPECT_NEAR(wm + lost, gm, 0.05 * gm) << "theta " << theta << ": WM " << wm << " lost " << lost;
-    }
+    std::printf("theta %.0f: GM %.4f, WM %.4f + lost %.4f = %.4f, gap %+.4f\n", theta, gm, wm, lost, wm + lost,
+                gm - wm - lost);
+    EXPECT_NEAR(wm + lost, gm, theta <= 20.0 ? 0.05 : 0.25) << "theta " << theta << ": WM " << wm << " lost " << lost;
   }
 }
 
