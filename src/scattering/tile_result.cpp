@@ -5,6 +5,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "core/direction_grid.h"
+
 namespace mbsdf {
 
 std::vector<double> TileResult::serialize() const {
@@ -129,6 +131,20 @@ std::vector<double> TileResult::pathEnergyStdError(const std::vector<Component>&
     se[size_t(l)] = std::sqrt(std::max(0.0, m2 - m1 * m1) * n / (n - 1) / n);
   }
   return se;
+}
+
+std::vector<double> energyBalance(const TileResult& r, const DirectionGrid& grid, const std::vector<Component>& model,
+                                  bool lossless) {
+  std::vector<double> b(size_t(r.nLambda), -1.0);
+  for (int l = 0; l < r.nLambda; ++l) {
+    for (Component c : model)
+      if (r.has(c))
+        for (int bin = 0; bin < r.nBins; ++bin) b[size_t(l)] += r.at(c, l, bin) * grid.projectedSolidAngle(bin);
+    for (const auto* v : {&r.truncated, &r.leaked, &r.missed})
+      if (size_t(l) < v->size()) b[size_t(l)] += (*v)[size_t(l)];
+    if (!lossless) b[size_t(l)] = std::max(0.0, b[size_t(l)]);
+  }
+  return b;
 }
 
 }  // namespace mbsdf

@@ -10,6 +10,8 @@
 
 namespace mbsdf {
 
+class DirectionGrid;
+
 struct TileResult {
   int tile = 0;
   int incidenceIndex = 0;  // index into the job's incidence list
@@ -55,5 +57,12 @@ struct TileResult {
   std::vector<double> serialize() const;
   static TileResult deserialize(const std::vector<double>& buf);
 };
+
+// The energy balance of a tile per wavelength: Σ over `model`'s components and both hemispheres of
+// f Ω⊥, plus the truncated, leaked and missed fractions, minus 1 — for a lossless material the
+// model's energy error; for an absorbing one only an excess over 1 is an error (a deficit is
+// absorption), so the rest is reported as 0.
+std::vector<double> energyBalance(const TileResult& r, const DirectionGrid& grid, const std::vector<Component>& model,
+                                  bool lossless);
 
 }  // namespace mbsdf
