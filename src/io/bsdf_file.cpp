@@ -322,8 +322,9 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
     std::string differs = jobTextDifference(readStringAttr(old, "job_text"), job.text);
     const std::string inputs = H5Aexists(old, "input_files") > 0 ? readStringAttr(old, "input_files") : "";
     if (differs.empty()) differs = inputFilesDifference(inputs, job.inputFiles);
-    if (differs.empty() && readStringAttr(old, "geometry_hash") != job.geometry.hash())
-      differs = "the microgeometry built from the job differs (geometry hash " + readStringAttr(old, "geometry_hash") +
+    const std::string storedHash = readStringAttr(old, "geometry_hash");
+    if (differs.empty() && storedHash != job.geometry.hash())
+      differs = "the microgeometry built from the job differs (geometry hash " + storedHash +
                 ", now " + job.geometry.hash() + ")";
     if (!differs.empty())
       throw InputError("cannot resume " + partial_ + ": " + differs + ". Restore what changed, or remove " + partial_ +
@@ -777,15 +778,7 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   return s;
 }
 
-std::string BsdfFileReader::attribute(const std::string& name) const {
-  H5Attribute a(H5Aopen(file_, name.c_str(), H5P_DEFAULT), "open attribute " + name);
-  H5Datatype t(H5Aget_type(a), "H5Aget_type");
-  size_t n = H5Tget_size(t);
-  std::string s(n, '\0');
-  h5check(H5Aread(a, t, s.data()), "read attribute " + name);
-  while (!s.empty() && s.back() == '\0') s.pop_back();
-  return s;
-}
+std::string BsdfFileReader::attribute(const std::string& name) const { return readStringAttr(file_, name); }
 
 bool BsdfFileReader::hasAttribute(const std::string& name) const { return H5Aexists(file_, name.c_str()) > 0; }
 
