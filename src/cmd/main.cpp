@@ -287,8 +287,8 @@ int runCommand(int argc, char** argv, const std::string& jobPath, std::string ou
           for (std::istringstream lines(formatEffects(p)); std::getline(lines, planText);) spdlog::info("{}", planText);
           planText = p.dump();
         } catch (const StopRequested&) {
-          stopped = failure(ExitCode::Stopped, "stop requested during the effects planner's pilots; nothing was "
-                                               "written (run the same command again to start over)");
+          stopped = failure(ExitCode::Stopped, "stop requested during the effects planner's pilots (" + stopAnswerNote() +
+                                                   "); nothing was written (run the same command again to start over)");
         }
       }
       if (auto code = agree(stopped)) return *code;
@@ -546,7 +546,7 @@ int main(int argc, char** argv) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInput;
   } catch (const StopRequested&) {
-    std::cerr << "stopped on request\n";
+    std::cerr << "stopped on request (" << stopAnswerNote() << ")\n";
     return exitCode(ExitCode::Stopped);
   } catch (const WriteError& e) {
     std::cerr << "error: " << e.what() << "\n";

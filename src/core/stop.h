@@ -5,6 +5,8 @@
 // command, which exits with ExitCode::Stopped.
 #pragma once
 
+#include <string>
+
 namespace mbsdf {
 
 struct StopRequested {};
@@ -13,5 +15,10 @@ void installStopHandlers();
 bool stopRequested();
 // Throws StopRequested when a stop was requested.
 void throwIfStopped();
+// Seconds since the first stop signal arrived (-1 without one): the stop messages report it, so a
+// user (and the fault tests) see how fast a phase answered, measured by the program itself.
+double secondsSinceStopSignal();
+// "answered 0.12 s after the signal" (or "answered on request" when no signal set the flag).
+std::string stopAnswerNote();
 
 }  // namespace mbsdf

@@ -207,7 +207,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
         summary.paths += r.samples;
         ++summary.computed;
       } catch (const StopRequested&) {
-        spdlog::info("stop requested: tile {} abandoned", t);
+        spdlog::info("stop requested: tile {} abandoned ({})", t, stopAnswerNote());
         MPI_Send(&t, 1, MPI_INT, 0, kTagStopped, MPI_COMM_WORLD);
         // Rank 0 answers every message with an assignment; it will be -1 now.
         MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
@@ -402,7 +402,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
       ++summary.computed;
       writeResult(r);
     } catch (const StopRequested&) {
-      spdlog::info("stop requested: tile {} abandoned", t);
+      spdlog::info("stop requested: tile {} abandoned ({})", t, stopAnswerNote());
       lostTiles = true;
       noteStop("signal received");
     }

@@ -597,11 +597,12 @@ def test_clean_stop():
         run(["run", job, "-o", name, "--resume"], mpi=2)
         assert datasets(os.path.join(TMP, name)) == datasets(os.path.join(TMP, "ref.h5")), how
     done_after_term = done
-    # --max-hours: a limit of ~1.5 s stops before the end with exit code 3; --resume completes.
+    # --max-hours: a limit of ~1.5 s stops before the end with exit code 3 (on a loaded machine
+    # possibly before the first slice); --resume completes.
     out2 = os.path.join(TMP, "maxh.h5")
     r = run(["run", job, "-o", "maxh.h5", "--max-hours", "0.0004"], mpi=2, expect=3)
     done_after_maxh = journal_count(out2)
-    assert 0 < done_after_maxh < total, done_after_maxh
+    assert done_after_maxh < total, done_after_maxh
     run(["run", job, "-o", "maxh.h5", "--resume"], mpi=2)
     assert datasets(out2) == datasets(os.path.join(TMP, "ref.h5"))
     print(f"signals: slices done when stopped {done_after_term} of {total}; --max-hours: exit 3 after "

@@ -4,7 +4,6 @@
 
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <filesystem>
 #include <fstream>
 
@@ -91,19 +90,18 @@ TEST(Job, WavelengthRangeTable) {
   EXPECT_DOUBLE_EQ(j.lambda_nm[1], 550.0);
 }
 
-// Inputs found by fuzz_job (scripts/fuzz): each must be accepted or rejected with an InputError,
-// quickly (they used to run for minutes).
+// Inputs found by fuzz_job (scripts/fuzz): each must be accepted or rejected with an InputError.
+// Some used to run for minutes; the test's CTest time-out catches that without a wall-clock bound
+// here (a loaded machine must not fail a test).
 TEST(Job, FuzzRegressions) {
   for (const auto& entry :
        std::filesystem::directory_iterator(std::string(MICROBSDF_SOURCE_DIR) + "/tests/fuzz/regressions/job")) {
     std::ifstream in(entry.path(), std::ios::binary);
     std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    auto t0 = std::chrono::steady_clock::now();
     try {
       loadJobFromString(text, "fuzz.toml", "/nonexistent");
     } catch (const InputError&) {
     }
-    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0) << entry.path();
   }
 }
 
