@@ -181,9 +181,7 @@ WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<
         auto& Q = visible ? qv : qm;
         for (int l = 0; l < nL; ++l) {
           const double k0 = 2 * kPi / ctx_.lambda_um[l];
-          const double nI = media.incident(l, fromAbove), nO = transmission ? media.other(l, fromAbove) : nI;
-          KirchhoffValue kv = kirchhoffIntegrand(sp.x, m, wi, wo, k0, nI, nO, media.fresnel(l, cosLocal, fromAbove),
-                                                 transmission);
+          KirchhoffValue kv = wave::integrandAt(media, l, sp.x, m, wi, wo, k0, fromAbove, transmission);
           const Complex wgt = area * ctx_.window.copyFactor(sp.x.x, sp.x.y, kv.qx, kv.qy);
           const Complex xs = kv.s * wgt, xp = kv.p * wgt;
           S[2 * l] += xs;

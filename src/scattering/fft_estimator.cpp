@@ -12,6 +12,7 @@
 
 #include "core/stop.h"
 #include "core/quadrature.h"
+#include "scattering/area_estimator.h"
 #include "scattering/heightfield_spectrum.h"
 #include "scattering/orders_estimator.h"
 #include "scattering/wave_common.h"
@@ -67,7 +68,9 @@ Axis makeAxis(int pixels, int sub, int n, double qOffset, double nOk0, double si
 class FftSpeckleEstimator : public WaveEstimator {
  public:
   explicit FftSpeckleEstimator(const WaveContext& ctx)
-      : ctx_(ctx), grid_(*heightGridOf(ctx.geometry)), spectrum_(ctx.geometry, grid_, ctx.scene, fourierMaxTexel(ctx.material, ctx.lambda_um)) {}
+      : ctx_(ctx), grid_(*heightGridOf(ctx.geometry)), spectrum_(ctx.geometry, grid_, ctx.scene, fourierMaxTexel(ctx.material, ctx.lambda_um)) {
+    if (!ctx.material.isConductor()) denseSide_ = std::make_unique<AreaWaveEstimator>(ctx);
+  }
   std::string name() const override { return "fft"; }
   std::string notes() const override {
     const double theta = 90.0 - std::atan(spectrum_.maxSlope()) * 180.0 / kPi;
@@ -77,7 +80,7 @@ class FftSpeckleEstimator : public WaveEstimator {
                   "window narrower than the patch: masking not modelled, exact for exits below theta = %.1f deg "
                   "(steepest facet slope %.3f)",
                   spectrum_.nx(), spectrum_.ny(), spectrum_.refinement(), spectrum_.refinement(), theta, spectrum_.maxSlope());
-    return buf;
+    return std::string(buf) + (denseSide_ ? "; transmission from the denser medium by the area estimator (Monte Carlo)" : "");
   }
   bool deterministic() const override { return true; }
   double memoryBytes() const override;
@@ -110,6 +113,10 @@ class FftSpeckleEstimator : public WaveEstimator {
   WaveContext ctx_;
   HeightGrid grid_;
   HeightfieldSpectrum spectrum_;
+  // Transmission from the denser medium takes the reverse path's integrand (wave::integrandAt),
+  // whose Fresnel factor depends on the exit direction: not a field the FFT can share across exit
+  // directions. Those bins come from the area estimator.
+  std::unique_ptr<AreaWaveEstimator> denseSide_;
 };
 
 void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& fields, const Vec3& wi, int l, double nI,
@@ -322,7 +329,7 @@ void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fi
   throwIfStopped();
 }
 
-WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::optional<Vec3> exactDirection,
+WaveTileResult FftSpeckleEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
                                         const std::function<void(uint64_t)>& progress,
                                         const std::vector<uint8_t>& exitMask) const {
   const auto t0 = std::chrono::steady_clock::now();
@@ -331,6 +338,8 @@ WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::opt
   const wave::Media media(ctx_);
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   const bool transmissionWanted = !media.conductor() && wave::otherSideWanted(grid, fromAbove, exitMask);
+  bool denseSide = false;
+  for (int l = 0; l < nL && transmissionWanted; ++l) denseSide = denseSide || media.incident(l, fromAbove) > media.other(l, fromAbove);
   const auto rule = wave::incidenceRule(grid, incidenceBin, exactDirection, ctx_.settings.incidenceDirections);
   WaveTileResult r(nL, nB, false);
   const size_t n = size_t(nL) * size_t(nB);
@@ -341,7 +350,7 @@ WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::opt
     const Vec3& wi = rule[k].wi;
     const auto lit = spectrum_.lit(wi, fromAbove, &rays);
     for (int l = 0; l < nL; ++l)
-      for (int trans = 0; trans < (transmissionWanted ? 2 : 1); ++trans) {
+      for (int trans = 0; trans < (transmissionWanted && !denseSide ? 2 : 1); ++trans) {
         const double k0 = 2 * kPi / ctx_.lambda_um[size_t(l)];
         const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
         const auto fields = spectrum_.fields(wi, fromAbove, l, k0, nI, nO, bool(trans), media, lit);
@@ -372,6 +381,15 @@ WaveTileResult FftSpeckleEstimator::run(int /*tile*/, int incidenceBin, std::opt
   }
   r.samples = uint64_t(spectrum_.facets()) * uint64_t(grid.binsPerHemisphere()) * rule.size();
   r.rays = rays;
+  if (denseSide) {
+    std::vector<uint8_t> other(size_t(nB), 0);
+    for (int b = 0; b < nB; ++b) other[size_t(b)] = grid.isUpper(b) != fromAbove && (exitMask.empty() || exitMask[size_t(b)]);
+    const WaveTileResult t = denseSide_->run(tile, incidenceBin, exactDirection, {}, other);
+    for (size_t i = 0; i < n; ++i)
+      if (other[i % size_t(nB)]) r.fws[i] = t.fws[i], r.fwsErr[i] = t.fwsErr[i];
+    r.samples += t.samples;
+    r.rays += t.rays;
+  }
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

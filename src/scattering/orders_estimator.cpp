@@ -233,8 +233,7 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
     const double mo = dot(m, ord.wo);
     if (ord.transmission ? mo >= 0 : mo <= 0) continue;  // back-facing to the order direction
     // g (s, p) of the facet: the integrand without its phase.
-    const KirchhoffValue g0 = kirchhoffIntegrand(Vec3{0, 0, 0}, m, wi, ord.wo, k0, nI, nO, media.fresnel(l, cosLocal, fromAbove),
-                                                 ord.transmission);
+    const KirchhoffValue g0 = wave::integrandAt(media, l, Vec3{0, 0, 0}, m, wi, ord.wo, k0, fromAbove, ord.transmission);
     // 0 shadowed, 1 visible, 2 masked, for a point of facet t; `firstLevel` >= 0: the point is the
     // facet's first-level point of that index, whose shadowing is known (`lit`) and whose masking
     // the shared table may answer (the facet faces ω_G here, so visibleExit's answer is escapes');
@@ -311,6 +310,7 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
       if (group.empty() && below.empty()) continue;
       const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
       const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
+      if (trans && nI > nO) continue;  // from the denser medium: facet sums (OrdersWaveEstimator::run)
       const auto fields = spectrum.fields(wi, fromAbove, l, k0, nI, nO, bool(trans), media, lit);
       auto qzOf = [&](const Order& ord) { return -nI * k0 * wi.z - nO * k0 * ord.wo.z; };
       if (!group.empty()) {
@@ -701,11 +701,22 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     std::vector<uint64_t> blockRays(blocks, 0);
     // exact: Ĥ_G (s, p; visible, masked) per order, summed over facets in closed form.
     std::vector<Complex> H(deterministic ? nO * 4 : 0, 0.0);
+    // exact: every order by facet sums. fft: by the FFT of the facets' fields, except transmitted
+    // orders from the denser medium: their integrand is the reverse path's (wave::integrandAt),
+    // which depends on the order's direction through the facet's Fresnel factor and is no longer
+    // a field shared by all orders; those take the facet sums.
+    auto facetSum = [&](size_t o) {
+      return amplitudes_ == OrderAmplitudes::Exact ||
+             (orders[o].transmission && media.incident(orders[o].lambda, fromAbove) > media.other(orders[o].lambda, fromAbove));
+    };
     if (amplitudes_ == OrderAmplitudes::Fourier) {
       uint64_t fourierRays = 0;
       fourierAmplitudes(ctx_, *spectrum_, orders, wi, fromAbove, media, masked, H.data(), &fourierRays);
       rays += fourierRays;
-    } else if (amplitudes_ == OrderAmplitudes::Exact) {
+    }
+    bool anyFacetSum = false;
+    for (size_t o = 0; o < nO && deterministic; ++o) anyFacetSum = anyFacetSum || facetSum(o);
+    if (anyFacetSum) {
       uint64_t shadowRays = 0;
       const VisibilityTable* table = visibilityTable();
       const std::vector<uint8_t> lit = firstLevelShadowing(ctx_, cell_, table, slope_, wi, fromAbove, &shadowRays);
@@ -713,12 +724,13 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       std::vector<uint64_t> orderRays(nO, 0);
       ShadowCache shadow(cell_.facets.size());
       tbb::parallel_for(size_t(0), nO, [&](size_t o) {
-        if (stopRequested()) return;
+        if (stopRequested() || !facetSum(o)) return;
+        for (int c = 0; c < 4; ++c) H[4 * o + c] = 0;
         exactAmplitude(ctx_, cell_, table, slope_, orders[o], wi, fromAbove, media, masked, lit, shadow, &H[4 * o],
                        &orderRays[o]);
       });
       for (uint64_t v : orderRays) rays += v;
-    } else {
+    } else if (!deterministic) {
     // Points in parallel blocks, each block accumulating into its own group: deterministic.
     tbb::parallel_for(0, blocks, [&](int g) {
       if (stopRequested()) return;
@@ -740,9 +752,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         const bool visible = vis == ExitVisibility::Visible;
           const int l = ord.lambda;
           const double k0 = 2 * kPi / ctx_.lambda_um[l];
-          const double nI = media.incident(l, fromAbove), nOut = ord.transmission ? media.other(l, fromAbove) : nI;
-          KirchhoffValue kv = kirchhoffIntegrand(sp.x, m, wi, ord.wo, k0, nI, nOut, media.fresnel(l, cosLocal, fromAbove),
-                                                 ord.transmission);
+          KirchhoffValue kv = wave::integrandAt(media, l, sp.x, m, wi, ord.wo, k0, fromAbove, ord.transmission);
           // kirchhoffIntegrand's phase is q·x with q_xy = G exactly at the order direction: it is
           // the e^{i (G·x_xy + q_z z)} of Ĥ_G.
           const int msk = visible ? 0 : 1;

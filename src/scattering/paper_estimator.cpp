@@ -88,9 +88,7 @@ WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional
       auto& Q = visible ? qv : qm;
       for (int l = 0; l < nL; ++l) {
         const double k0 = 2 * kPi / ctx_.lambda_um[l];
-        const double nI = media.incident(l, fromAbove), nO = transmission ? media.other(l, fromAbove) : nI;
-        KirchhoffValue kv =
-            kirchhoffIntegrand(hit.p, m, wi, wo, k0, nI, nO, media.fresnel(l, cosLocal, fromAbove), transmission);
+        KirchhoffValue kv = wave::integrandAt(media, l, hit.p, m, wi, wo, k0, fromAbove, transmission);
         const Complex wgt = jac * w * std::polar(1.0, kv.qx * shiftX + kv.qy * shiftY);
         const Complex xs = kv.s * wgt, xp = kv.p * wgt;
         S[2 * l] += xs;

@@ -61,8 +61,10 @@ TEST(HardCaseSuite, CriticalAnglePlusMinusOneMicroradian) {
     const double T = energy(r, flat.grid, Component::Coherent, 0, true);  // transmitted out, upward
     const double F = fresnelReflectance(std::cos(thetaInside), n, Complex(1.0, 0));
     EXPECT_NEAR(T, 1 - F, 4 * std::sqrt(F * (1 - F) / s.paths) + 1e-12) << d;
+    // Beyond the critical angle the zero order is evanescent; the flat patch's other orders carry
+    // only the rounding of their facet sums (about 1e-31).
     if (d > 0) {
-      EXPECT_EQ(T, 0.0);
+      EXPECT_LT(T, 1e-12);
     }
     WaveTileResult w = wave.run(theta, 0.0, true);
     expectFinite(w);
@@ -88,8 +90,10 @@ TEST(HardCaseSuite, FftAtTheEdges) {
     const double R = wave.integral(w.fws, w.fwsErr, 0, false).first, T = wave.integral(w.fws, w.fwsErr, 0, true).first;
     EXPECT_NEAR(R + T, 1.0, 0.01) << d;
     EXPECT_NEAR(R, F, 0.01) << d;
+    // Beyond the critical angle the zero order is evanescent; the flat patch's other orders carry
+    // only the rounding of their facet sums (about 1e-31).
     if (d > 0) {
-      EXPECT_EQ(T, 0.0);
+      EXPECT_LT(T, 1e-12);
     }
   }
   const std::vector<double> lambdas = {0.2, 0.35, 0.7, 1.2, 2.0};

@@ -155,11 +155,12 @@ TEST(WaveReciprocity, RoughConductor) {
 }
 
 // The same surface as glass (n = 1.5): reflection above and reflection inside the glass (where
-// total internal reflection is part of the bin pairs), the pairs the job mirrors. Transmission,
-// f(i → o)/n_o² = f(o → i)/n_i², is measured and recorded, not asserted: with light from inside the
-// estimates have heavy tails — the sum over 32 pairs from inside moved by 6.6 (30.4, 34.1, 37.0)
-// between 2048, 64 and 256 points per direction against standard errors of 1.1–1.7 — so their
-// z-scores are not reliable; this is why the job computes transmission both ways.
+// total internal reflection is part of the bin pairs), and transmission, f(i → o)/n_o² =
+// f(o → i)/n_i², with o the bin of i's refracted direction. Transmission from inside the glass is
+// evaluated on the air side's tangent plane (wave::integrandAt); while it used the glass side's,
+// whose integrand drops every facet past the critical angle, these pairs were not reciprocal and
+// their estimates heavy-tailed (the sum over 32 pairs moved by 6.6 between point budgets against
+// standard errors of 1.1–1.7).
 TEST(WaveReciprocity, RoughDielectric) {
   WaveSettings ws;
   ws.samplesPerBin = 65536;
@@ -169,11 +170,6 @@ TEST(WaveReciprocity, RoughDielectric) {
   glass.model = Dielectric{ConstantIndex{n, 0}};
   WaveScenario sc(makeGaussian(10, 10, 0.3, 1.0, 100, 100, 11), glass, ThetaPhiGrid{4, 8}, {0.55}, 0.0, ws);
   expectReciprocal(reciprocityZ(sc, 0, 12, n), 8, "reflection_above");
-  {
-    const std::vector<double> z = reciprocityZ(sc, 1, 16, n);
-    double z2 = 0;
-    for (double v : z) z2 += v * v;
-    RecordProperty("transmission_mean_z2", std::to_string(z2 / std::max<size_t>(1, z.size())));
-  }
+  expectReciprocal(reciprocityZ(sc, 1, 16, n), 12, "transmission");
   expectReciprocal(reciprocityZ(sc, 2, 12, n), 8, "reflection_below");
 }
