@@ -40,6 +40,7 @@
 #include "job/job.h"
 #include "job/effects_planner.h"
 #include "job/plan.h"
+#include "job/scalar_validity.h"
 
 using namespace mbsdf;
 
@@ -275,6 +276,15 @@ int runCommand(int argc, char** argv, const std::string& jobPath, std::string ou
   }
   if (lock && !lock->previousHolder().empty())
     spdlog::info("output lock {}: the run that held it ({}) is gone; taken over", lock->path(), lock->previousHolder());
+  if (mpi.rank() == 0) {
+    const ScalarValidity validity = scalarValidity(*job);
+    if (validity.applies) {
+      if (validity.beyondTolerance)
+        spdlog::warn("scalar model: {}", validity.note);
+      else
+        spdlog::info("scalar model: {}", validity.note);
+    }
+  }
   try {
     if (job->autoComponents) {
       // components = "auto": rank 0 runs the pilots, every rank applies the same plan.

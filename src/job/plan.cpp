@@ -18,6 +18,7 @@
 #include "geometry/embree_scene.h"
 #include "io/bsdf_file.h"
 #include "job/effects_planner.h"
+#include "job/scalar_validity.h"
 #include "job/symmetry.h"
 #include "job/transport.h"
 #include "scattering/path_tracer.h"
@@ -190,6 +191,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     p["energy_balance"] = {{"worst_at_pilots", worst}, {"tolerance", job.scene.tolerance},
                            {"lossless", job.material.lossless()}};
   }
+  p["scalar_validity"] = toJson(scalarValidity(job));
   // Rank 0 writes every slice (rotated ones too) with a flush and a journal fsync: measured by
   // writing up to 3 slices of this job's layout to a scratch file.
   double writeSeconds = 0;
@@ -311,6 +313,9 @@ std::string formatPlan(const nlohmann::json& p) {
             : std::string())
     << "\n"
     << "energy balance: " << fmtBalance(p["energy_balance"]) << "\n"
+    << (p.contains("scalar_validity") && p["scalar_validity"]["applies"].get<bool>()
+            ? "scalar model:   " + p["scalar_validity"]["note"].get<std::string>() + "\n"
+            : std::string())
     << "total:          " << n(p["estimate"]["core_hours"]) << " core-hours; "
     << n(p["estimate"]["wall_seconds_on_these_cores"]) << " s on these cores\n"
     << (p.contains("progressive")

@@ -38,7 +38,13 @@ double apertureReference(double L, double lambda, double n1, Complex n2, Vec3 wi
       double ph = (j + 0.5) * 2 * kPi / np;
       Vec3 wo = sphericalDirection(th, ph);
       if (transmission == fromAbove) wo.z = -wo.z;
-      KirchhoffValue kv = kirchhoffIntegrand({0, 0, 0}, m, wi, wo, k0, nI, nO, F, transmission);
+      // Transmission from the denser medium: the reverse path's integrand, as the estimators
+      // evaluate it (wave::integrandAt).
+      const bool reverse = transmission && nI > nO;
+      KirchhoffValue kv =
+          reverse ? kirchhoffIntegrand({0, 0, 0}, -m, wo, wi, k0, nO, nI,
+                                       fresnelAmplitudes(std::abs(wo.z), nO, Complex(nI, 0)), true)
+                  : kirchhoffIntegrand({0, 0, 0}, m, wi, wo, k0, nI, nO, F, transmission);
       double a = L * L * sinc(kv.qx * L / 2) * sinc(kv.qy * L / 2);
       double p = 0.5 * (std::norm(kv.s) + std::norm(kv.p)) * a * a *
                  kirchhoffPowerScale(L * L, cosI, nI, nO);
