@@ -1,4 +1,4 @@
-// microbsdf: the command-line entry point (DESIGN.md "Command line").
+// microbsdf: the command-line entry point (README "Running").
 //   microbsdf run JOB.toml [-o OUT.h5] [--threads N] [--log-dir DIR] [--resume] [--max-hours H] [-v]
 //   microbsdf info OUT.h5 [--json]
 //   microbsdf slice OUT.h5 --theta-i DEG [--phi-i DEG] [--model GM] [--transmission|--both]
@@ -175,11 +175,13 @@ void printInfo(const nlohmann::json& j) {
                     ? "complete:    " + j["done_count"].dump() + "/" + j["incidence_count"].dump() + " slices\n"
                     : "incomplete:  " + j["done_count"].dump() + " of " + j["incidence_count"].dump() +
                           " slices (a run that has not finished; the missing slices are not listed below)\n");
-  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  ± s.e.     reflected  transmitted  truncated  rel.error  balance\n"
+  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  ± s.e.     reflected  transmitted  truncated  rel.error  balance     lost\n"
             << "(albedo: the components the file holds, without the lost diagnostic, ± its standard error (the\n"
             << " mean over λ of each λ's); rel.error: the largest estimated relative per-bin error of a slice over\n"
             << " its components but lost, and wavelengths; balance: reflected + transmitted + lost paths − 1, the\n"
-            << " largest over λ, for a material that absorbs only an excess over 1 — the model's energy error)\n";
+            << " largest over λ, for a material that absorbs only an excess over 1 — the model's energy error;\n"
+            << " lost: the energy of the lost component (paper Eq. 20, mean over λ), which WM + lost should bring\n"
+            << " to GM's energy; — when the file has no lost component)\n";
   int reached = 0, budget = 0;
   for (const auto& s : j["slices"]) {
     if (!s["done"].get<bool>()) continue;
@@ -188,11 +190,14 @@ void printInfo(const nlohmann::json& j) {
       for (auto& v : a) m += v.get<double>();
       return a.empty() ? 0.0 : m / a.size();
     };
-    double refl = 0, trans = 0;
-    for (auto& [c, v] : s["energy"]["reflected"].items())
-      if (c != "lost") refl += mean(v);
-    for (auto& [c, v] : s["energy"]["transmitted"].items())
-      if (c != "lost") trans += mean(v);
+    double refl = 0, trans = 0, lost = std::nan("");
+    for (const char* side : {"reflected", "transmitted"})
+      for (auto& [c, v] : s["energy"][side].items()) {
+        if (c == "lost")
+          lost = (std::isnan(lost) ? 0.0 : lost) + mean(v);
+        else
+          (side[0] == 'r' ? refl : trans) += mean(v);
+      }
     double rel = 0;
     if (s.contains("rel_error"))
       for (auto& [c, v] : s["rel_error"].items())
@@ -203,10 +208,11 @@ void printInfo(const nlohmann::json& j) {
     if (s.contains("energy_balance"))
       for (auto& x : s["energy_balance"])
         if (!(std::abs(x.get<double>()) <= std::abs(balance))) balance = x.get<double>();
-    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.2e %12.6f %12.6f %10.2e %10.2e %+8.4f\n", s["index"].get<int>(),
+    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.2e %12.6f %12.6f %10.2e %10.2e %+8.4f %s\n", s["index"].get<int>(),
                 s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
                 (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(), refl + trans, se, refl,
-                trans, mean(s["truncated"]), rel, balance);
+                trans, mean(s["truncated"]), rel, balance,
+                std::isnan(lost) ? "       —" : fmt::format("{:+8.4f}", lost).c_str());
     if (s["sampling_stop"] == "target") ++reached;
     if (s["sampling_stop"] == "budget") ++budget;
   }

@@ -1,4 +1,4 @@
-// Spectral -> colour (PHYSICS.md §7): CIE 1931 2° XYZ, linear sRGB (D65, with Bradford adaptation
+// Spectral -> colour (docs/physics.md §7): CIE 1931 2° XYZ, linear sRGB (D65, with Bradford adaptation
 // from the equal-energy white E so that an equal-energy spectrum is neutral grey), and the paper's
 // normalised CIE RGB (CIE 1931 RGB primaries, white E = (1, 1, 1)).
 #pragma once

@@ -60,7 +60,7 @@ DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
                      double t0 = t * dTheta, t1 = (t + 1) * dTheta;
                      double om = dPhi * (std::cos(t0) - std::cos(t1));
                      double s0 = std::sin(t0), s1 = std::sin(t1);
-                     double op = dPhi * (s1 * s1 - s0 * s0) / 2;  // PHYSICS.md §2
+                     double op = dPhi * (s1 * s1 - s0 * s0) / 2;  // docs/physics.md §2
                      for (int p = 0; p < g.nPhi; ++p) {
                        omega_[t * g.nPhi + p] = om;
                        omegaProj_[t * g.nPhi + p] = op;

@@ -1,4 +1,4 @@
-// Binning of directions on the full sphere (PHYSICS.md §2). Bin index = hemisphere * binsPerHemisphere
+// Binning of directions on the full sphere (docs/physics.md §2). Bin index = hemisphere * binsPerHemisphere
 // + local index, upper hemisphere (z >= 0) first. Two layouts, a closed set of value types:
 //  - ThetaPhiGrid: n_theta x n_phi bins per hemisphere, uniform in theta on [0, pi/2] and phi on
 //    [0, 2 pi) (the paper's tabulation, 75 x 300).

@@ -2,7 +2,7 @@
 //  - Gauss–Legendre nodes (Golub–Welsch-free Newton iteration on P_n, Numerical Recipes §4.6).
 //  - Tanh–sinh (double-exponential) quadrature (Takahasi & Mori 1974; Bailey, "Tanh-sinh
 //    high-precision quadrature", 2006): converges exponentially even with integrable endpoint
-//    singularities such as the log singularity of Chandrasekhar's H integrand (PHYSICS.md §9).
+//    singularities such as the log singularity of Chandrasekhar's H integrand (docs/physics.md §9).
 #pragma once
 #include <functional>
 #include <vector>

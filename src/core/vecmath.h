@@ -1,4 +1,4 @@
-// Small double-precision vector type. PHYSICS.md §1: directions point away from the surface,
+// Small double-precision vector type. docs/physics.md §1: directions point away from the surface,
 // macro normal n = +z, theta from +z, phi from +x.
 #pragma once
 #include <algorithm>

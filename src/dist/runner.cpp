@@ -94,7 +94,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   }
 
   const int nTiles = int(job.incidence.size());
-  // Reciprocity (PHYSICS.md §8): each pair of incidence bins gets the wave term once.
+  // Reciprocity (docs/physics.md §8): each pair of incidence bins gets the wave term once.
   std::optional<ReciprocalPairs> pairs;
   if (wave && job.halvesWaveByReciprocity()) pairs.emplace(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere());
   if (wave && mpi.rank() == 0)

@@ -1,4 +1,4 @@
-// Embree 3 scene of a microgeometry patch with periodic ray wrapping (PHYSICS.md §4 step 2).
+// Embree 3 scene of a microgeometry patch with periodic ray wrapping (docs/physics.md §4 step 2).
 // RAII around RTCDevice/RTCScene; the device's error callback is installed before anything else so
 // that every Embree error becomes an exception with Embree's message.
 //

@@ -1,4 +1,4 @@
-// Procedural microgeometry (DESIGN.md geometry kinds). All lengths in µm, all patches centred and
+// Procedural microgeometry (README "[geometry]"). All lengths in µm, all patches centred and
 // periodic unless said otherwise. Each generator documents its shape; parameters come from the job
 // file's [geometry] table (README "Job file reference").
 #pragma once

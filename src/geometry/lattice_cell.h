@@ -2,7 +2,7 @@
 // 5 µm in a 20 µm patch; a 20 µm sine grating of period 5 µm: 4 x 1; a regularly triangulated flat
 // patch: one texel).
 //
-// Why it matters (PHYSICS.md §5, orders_estimator.h): a patch made of nx x ny copies of a cell has
+// Why it matters (docs/physics.md §5, orders_estimator.h): a patch made of nx x ny copies of a cell has
 // order amplitudes Ĥ_G only on the cell's reciprocal lattice G = 2π (a nx/Lx, b ny/Ly) — for any
 // other G of the patch's lattice the copies' phases e^{i G·t} sum to zero — and there
 // Ĥ_G(patch) = nx ny Ĥ_G(cell), the visibility being periodic with the cell too. So the lobes of the

@@ -1,8 +1,8 @@
 // The explicit microgeometry: a triangle mesh in micrometres over a rectangular footprint
 // [-sizeX/2, sizeX/2] x [-sizeY/2, sizeY/2] centred on the origin (Embree is float: keeping the
 // patch centred keeps the absolute coordinates, and so the float rounding, small).
-// Triangle normals (counter-clockwise winding) point into the upper medium (PHYSICS.md §1).
-// periodic = true: the patch repeats in x and y (PHYSICS.md §4 step 2).
+// Triangle normals (counter-clockwise winding) point into the upper medium (docs/physics.md §1).
+// periodic = true: the patch repeats in x and y (docs/physics.md §4 step 2).
 #pragma once
 #include <array>
 #include <cmath>

@@ -1,4 +1,4 @@
-// Uniform sampling of points by surface area on a microgeometry (PHYSICS.md §5: "uniform area
+// Uniform sampling of points by surface area on a microgeometry (docs/physics.md §5: "uniform area
 // sampling with a shadow ray"), with the triangle chosen from the cumulative area table. The table
 // follows a Morton (Z-order) curve through the triangle centroids, so that stratifying the first
 // random number stratifies the points over the surface.

@@ -390,7 +390,7 @@ void BsdfFileWriter::create(const std::string& filename) {
   const bool halved = job.halvesWaveByReciprocity();
   setStringAttr(f, "reciprocity",
                 halved ? "wave term computed once per pair of incidence bins on the same side; the other half of "
-                         "/bsdf/incoherent is f_ws(o->i) - coherent(i->o) (PHYSICS.md section 8)"
+                         "/bsdf/incoherent is f_ws(o->i) - coherent(i->o) (docs/physics.md section 8)"
                        : "not used: " + job.reciprocityOffReason());
 
   const int nB = grid.binCount(), nL = int(job.lambda_nm.size()), nI = int(job.incidence.size());
@@ -637,7 +637,7 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
     while (e < nI && pairs.incidenceBin(e) - c0 < block) ++e;
     const hsize_t w = hsize_t(pairs.incidenceBin(e - 1) - c0 + 1);
     // f_ws(j -> bin(i)) = incoherent + coherent of row j, with its variance se_inc² − se_coh²
-    // (the two were combined in quadrature, PHYSICS.md §3).
+    // (the two were combined in quadrature, docs/physics.md §3).
     const std::vector<double> cInc = readColumns(f, inc, hsize_t(c0), w), cIncE = readColumns(f, incE, hsize_t(c0), w),
                               cCoh = readColumns(f, coh, hsize_t(c0), w), cCohE = readColumns(f, cohE, hsize_t(c0), w);
     auto col = [&](int j, int l, int bin) { return (size_t(j) * nL + l) * w + size_t(bin - c0); };
@@ -659,7 +659,7 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
           const size_t k = col(j, l, bi), x = size_t(l) * nB + o;
           const double fws = cInc[k] + cCoh[k];
           const double varWs = std::max(0.0, cIncE[k] * cIncE[k] - cCohE[k] * cCohE[k]);
-          v[x] = fws - ch[x];  // reflection: f(i -> o) = f(o -> i), PHYSICS.md §8
+          v[x] = fws - ch[x];  // reflection: f(i -> o) = f(o -> i), docs/physics.md §8
           se[x] = std::sqrt(varWs + chE[x] * chE[x]);
           if (!std::isfinite(v[x]) || !std::isfinite(se[x]))
             throw std::runtime_error("reciprocity fill: slice " + std::to_string(j) + " has no finite value at bin " +

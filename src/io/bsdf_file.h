@@ -1,4 +1,4 @@
-// The output file (DESIGN.md "HDF5 file"): a self-describing, versioned HDF5 schema.
+// The output file (README "The output file"): a self-describing, versioned HDF5 schema.
 //   /                       attributes Conventions, schema_version, program_version, job_text, seed,
 //                           geometry_hash, input_files (JSON: key, path and SHA-256 of each file the
 //                           job reads), geometry_kind, material, grid_kind
@@ -20,10 +20,11 @@
 // The writer writes each tile as it arrives and flushes; it writes to `<path>.partial` and renames
 // on completion, so an existing output is never damaged by a failed run.
 //
-// Crash safety (DESIGN.md "Distribution"): the partial file is written in HDF5's single-writer /
-// multiple-reader mode (SWMR, libver latest), whose ordered metadata flushes keep the file readable
-// whenever the writer dies. A slice's rows are written (each dataset closed, with the close checked:
-// HDF5's chunk cache writes there), flushed and fsync'ed; then its done flag, flushed and fsync'ed;
+// Crash safety (README "What a run checks before it computes, and while it writes"): the partial
+// file is written in HDF5's single-writer / multiple-reader mode (SWMR, libver latest), whose
+// ordered metadata flushes keep the file readable whenever the writer dies. A slice's rows are
+// written (each dataset closed, with the close checked: HDF5's chunk cache writes there), flushed
+// and fsync'ed; then its done flag, flushed and fsync'ed;
 // then its tile number is appended to `<path>.journal` and fsync'ed. Every failed write throws (a
 // WriteError where the operating system refused it). `--resume` opens the old partial file as a
 // SWMR reader, checks that the job text, the input files' digests and the geometry hash match (an
@@ -31,7 +32,7 @@
 // listed in the journal, copies them into a fresh partial file and goes on with the rest. A SIGKILL
 // therefore loses at most the tiles in flight; a full disk loses none that the journal lists.
 //
-// Reciprocity (PHYSICS.md §8, scattering/reciprocity.h): when the job halves the wave term, each
+// Reciprocity (docs/physics.md §8, scattering/reciprocity.h): when the job halves the wave term, each
 // tile leaves the reflection bins it did not compute as NaN in /bsdf/incoherent, and completeReciprocal()
 // fills them from the reciprocal tiles once every slice is done, before the file gets its final
 // name. The stored slices are complete (every reader reads one row), the root attribute
@@ -115,7 +116,7 @@ struct SliceStats {
 std::vector<double> energyStdError(const TileResult& r, Component c, int side, const DirectionGrid& grid);
 
 // Estimated relative standard error of a slice of one component, per wavelength:
-// sqrt(Σ_b (σ_b Ω⊥_b)²) / Σ_b |f_b| Ω⊥_b (PHYSICS.md §3 units; the bins of a path-traced component
+// sqrt(Σ_b (σ_b Ω⊥_b)²) / Σ_b |f_b| Ω⊥_b (docs/physics.md §3 units; the bins of a path-traced component
 // are negatively correlated, so this is an upper bound for its hemispherical integral).
 std::vector<double> sliceRelativeError(const TileResult& r, Component c, const DirectionGrid& grid);
 

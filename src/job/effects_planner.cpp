@@ -244,7 +244,7 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
   return d;
 }
 
-// The wave estimator ([sampling] wave_estimator = "auto" with components = "auto", issue 10 item 7),
+// The wave estimator ([sampling] wave_estimator = "auto" with components = "auto"),
 // from the tolerance and the pilots' measured errors. The static rule (Job::resolvedWaveEstimator)
 // picks by regime and measured cost ratios; a Monte Carlo pick (`orders`, `area`) gives way to a
 // deterministic estimator that applies (`exact` where the cell's order lobes stay apart and its
@@ -434,7 +434,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   WaveSettings ws = waveSettingsOf(job);
   ws.computeMasked = false;
   // Where the grating-order regime holds (a periodic patch under a window much wider than it), the
-  // deterministic `exact` evaluator gives the pilot without sampling noise (issue 10), so a
+  // deterministic `exact` evaluator gives the pilot without sampling noise, so a
   // difference is judged against the tolerance alone; it is used when the facet sums stay cheap.
   {
     const std::vector<double> lambdas = job.lambda_um();

@@ -1,6 +1,6 @@
 // The effects planner behind `components = "auto"`: which components a scene calls for, decided
-// from physics and short pilot runs, never from the geometry's name (issue "simulate only the
-// effects a scene calls for"). Each decision carries its reason and the pilot figure it rests on:
+// from physics and short pilot runs, never from the geometry's name. Each decision carries its
+// reason and the pilot figure it rests on:
 //  - coherent: always (the geometric single scattering every model starts from).
 //  - multiple: on when the pilot's multiply scattered energy Σ f·Ω⊥ (+ 3 standard errors) of any
 //    pilot slice and wavelength exceeds [scene] tolerance: leaving it out changes that slice by

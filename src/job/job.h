@@ -1,4 +1,4 @@
-// A validated job (DESIGN.md "Job file"). Building it reads every key through ParamDict, checks
+// A validated job (README "Job file reference"). Building it reads every key through ParamDict, checks
 // ranges and files, builds the microgeometry and finally reports unused keys; any problem is an
 // InputError naming file, line and key, raised before any output file is touched.
 #pragma once
@@ -40,7 +40,7 @@ struct SceneNeeds {
 };
 
 // [geometry] kind = "statistical": a surface known only by its NDF, simulated by the microflake
-// volume model (PHYSICS.md §9).
+// volume model (docs/physics.md §9).
 struct StatisticalSurface {
   Ndf ndf = BeckmannNdf{};
   FlakeKind flakes = FlakeKind::Specular;
@@ -124,7 +124,7 @@ struct Job {
   // `exact` there when it costs no more (8 x the cell's facets <= wave_samples_per_bin); `fft` for a periodic
   // heightfield under a narrower window on a disk grid without the lost component; otherwise `area`.
   std::string resolvedWaveEstimator() const;
-  // Why the wave term of this job is not halved by reciprocity (PHYSICS.md §8), or "" when it is:
+  // Why the wave term of this job is not halved by reciprocity (docs/physics.md §8), or "" when it is:
   // it needs incidence = "all" with bin-averaged incidence (the bin-to-bin table is then exactly
   // reciprocal), the incoherent component without `lost` (the masked power is not reciprocal) and
   // an estimator whose cost is per exit bin (area, paper).

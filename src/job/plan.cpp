@@ -161,7 +161,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     waveSeconds = (waveSeconds - waveSetupSeconds) * scale / double(pilots.size());
     waveBytes = est->memoryBytes();
   }
-  // Reciprocity (PHYSICS.md §8): the wave term of each pair of incidence bins once. The pilot ran
+  // Reciprocity (docs/physics.md §8): the wave term of each pair of incidence bins once. The pilot ran
   // the whole slice; on average a tile computes the pairs' fraction of it.
   if (job.components.has(Component::Incoherent)) {
     if (job.halvesWaveByReciprocity()) {

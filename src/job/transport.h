@@ -1,5 +1,5 @@
 // The geometric-optics transport of a job: the explicit path tracer through the microgeometry
-// (PHYSICS.md §4), or the microflake random walk for a statistical surface (§9). Both produce the
+// (docs/physics.md §4), or the microflake random walk for a statistical surface (§9). Both produce the
 // same TileResult (coherent = single scattering, multiple = the rest), so the runner, the planner
 // and the comparison tool treat them alike. Owns what each needs (Embree scene or NDF tables).
 //

@@ -3,7 +3,7 @@
 // Source: the closed form quoted by Dupuy, Heitz & d'Eon 2016 (seed paper Eq. 31, after
 // Stibbs & Weir 1959):
 //   H(u) = exp( −(u/π) ∫_0^{π/2} log(1 − a t cot t) / (u² sin² t + cos² t) dt ).
-// PHYSICS.md §9. Used as the reference for the microflake walk with the constant full-sphere NDF.
+// docs/physics.md §9. Used as the reference for the microflake walk with the constant full-sphere NDF.
 #pragma once
 
 namespace mbsdf {

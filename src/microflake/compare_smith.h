@@ -1,5 +1,5 @@
 // `microbsdf compare-smith`: how far the Smith microflake model is from explicit geometry with the
-// same NDF (issue 6, PHYSICS.md §9 last item). Builds a periodic Gaussian heightfield whose facet
+// same NDF (docs/physics.md §9, last item). Builds a periodic Gaussian heightfield whose facet
 // slope distribution is the Beckmann NDF of roughness α (Gaussian correlation, heights rescaled so
 // the measured rms facet slope is exactly α), traces it with the explicit path tracer and runs the
 // microflake walk with Beckmann(α), both with the same material, wavelength, grid and collimated

@@ -1,5 +1,5 @@
-// Microflake normal distributions for statistically described surfaces (PHYSICS.md §9).
-// Sources: Dupuy, Heitz & d'Eon 2016 (the seed paper, ../shared/papers), Heitz 2014 ("Understanding
+// Microflake normal distributions for statistically described surfaces (docs/physics.md §9).
+// Sources: Dupuy, Heitz & d'Eon 2016 (Additional Progress Towards the Unification of Microfacet and Microflake Theories, EGSR), Heitz 2014 ("Understanding
 // the masking-shadowing function in microfacet-based BRDFs": Λ, G2) and Heitz & d'Eon 2014
 // ("Importance sampling microfacet-based BSDFs using the distribution of visible normals").
 //

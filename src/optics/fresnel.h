@@ -2,8 +2,8 @@
 // (possibly complex) medium n2 = eta + i kappa. Convention: fields ∝ exp(i(k·x − ωt)), so an
 // absorbing medium has kappa > 0 and the transmitted wave must decay: we pick the branch of
 // n2 cos θt = sqrt(n2² − n1² sin² θi) with Im ≥ 0 (Born & Wolf §1.5, §14.1). The s/p amplitudes are
-// the ones the Kirchhoff integrand needs (PHYSICS.md §5); powers for unpolarised light are the mean
-// of s and p (PHYSICS.md §4).
+// the ones the Kirchhoff integrand needs (docs/physics.md §5); powers for unpolarised light are the mean
+// of s and p (docs/physics.md §4).
 #pragma once
 #include <complex>
 

@@ -1,4 +1,4 @@
-// Materials of the lower medium (PHYSICS.md §1, §7). A closed set of value types:
+// Materials of the lower medium (docs/physics.md §1, §7). A closed set of value types:
 //  - Conductor: tabulated complex index (Al, Ag, Au, Cu; Palik via pbrt, see material_data.cpp),
 //    a constant eta + i k, or the perfect conductor (reflectance 1, the white-furnace "mirror").
 //  - Dielectric: constant real index or a Sellmeier formula (BK7 built in: Schott catalogue

@@ -1,4 +1,4 @@
-// The `area` wave estimator (PHYSICS.md §5, "Estimating ∫|I|² over a bin"):
+// The `area` wave estimator (docs/physics.md §5, "Estimating ∫|I|² over a bin"):
 //  - points x uniformly by surface area (pdf 1/A_surface) with a shadow ray towards ωi: bounded
 //    weights, unlike footprint sampling whose 1/|m·ωi| weights have infinite variance on
 //    silhouettes;

@@ -1,9 +1,9 @@
-// The coherence window of PHYSICS.md §5 (paper Sec. 4): a Gaussian on the amplitude,
+// The coherence window of docs/physics.md §5 (paper Sec. 4): a Gaussian on the amplitude,
 // w(x) = exp(−|x_xy − c|² / (2σ²)), σ = δc / 6 for a coherence length δc (sunlight: 50 µm), centred
 // on the patch. On a periodic patch the integral runs over the tiled copies within ±4σ of the
 // centre; the copy sum is separable in x and y and is evaluated per point as
 //   C(x, q) = Σ_a Σ_b w(x + s_ab) e^{i q·s_ab},  s_ab = (a Lx, b Ly).
-// W2 = ∫ w² dA_xy over the same copies normalises the power (PHYSICS.md §5). Without a window
+// W2 = ∫ w² dA_xy over the same copies normalises the power (docs/physics.md §5). Without a window
 // (σ <= 0), w = 1 over exactly one copy and W2 = Lx Ly.
 #pragma once
 #include <algorithm>
@@ -20,7 +20,7 @@ namespace mbsdf {
 // The window model above is coherent over a Gaussian amplitude w, whose autocorrelation gives the
 // coherence function exp(−d²/(4σ²)). σ is chosen so that both have the same coherence area,
 // ∫|γ|² dA = λ̄²/(π α²) (α = θ/2; Mandel & Wolf §4.4) = 2πσ², which also matches their curvature at
-// d = 0 (γ ≈ 1 − v²/8): σ = √2 λ̄ / (π θ), and δc = 6σ as everywhere else (PHYSICS.md §5).
+// d = 0 (γ ≈ 1 − v²/8): σ = √2 λ̄ / (π θ), and δc = 6σ as everywhere else (docs/physics.md §5).
 // The sun (θ = 0.533°) then gives δc = 159.7 µm at 550 nm; the paper's 50 µm for sunlight is a
 // literature coherence width used directly as δc (a 3x narrower window): give
 // coherence_length_um = 50 to reproduce it.

@@ -1,4 +1,4 @@
-// The components of the tabulated BSDF (PHYSICS.md §3). The paper's models are sums:
+// The components of the tabulated BSDF (docs/physics.md §3). The paper's models are sums:
 // GS = coherent, GM = coherent + multiple, WS = coherent + incoherent,
 // WM = coherent + incoherent + multiple.
 #pragma once

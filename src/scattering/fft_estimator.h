@@ -1,6 +1,6 @@
 // The `fft` wave estimator: the Kirchhoff single-scattering BSDF of a periodic heightfield from the
 // FFT of its facet fields (heightfield_spectrum.h) instead of sampled points — deterministic, no
-// Monte Carlo noise (issue "exact wave evaluator", item 6).
+// Monte Carlo noise.
 //
 // Two regimes of the coherence window σ against the patch (the copy sum by Poisson summation,
 // orders_estimator.h: I(q) = (1/A_fp) Σ_G ŵ(q_xy − G) Ĥ_G(q_z, k2), ŵ(k) = 2πσ² e^{−σ²|k|²/2}):

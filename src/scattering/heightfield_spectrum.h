@@ -1,7 +1,7 @@
-// The order amplitudes of a periodic heightfield for every grating order at once, by FFT (issue
-// "exact wave evaluator", item 6: the paper's future work, "integration in the Fourier domain").
+// The order amplitudes of a periodic heightfield for every grating order at once, by FFT (the
+// "integration in the Fourier domain" Falster et al. 2020 leave to future work).
 //
-// PHYSICS.md §5 with the copy sum written by Poisson summation (orders_estimator.h) needs, per
+// docs/physics.md §5 with the copy sum written by Poisson summation (orders_estimator.h) needs, per
 // order G = 2π(a/Lx, b/Ly), the amplitude
 //   Ĥ_G(q_z, k2) = Σ_T V_T (g_T A_T) e^{i (G·c_T,xy + q_z c_T,z)}
 // summed over the facets T with the phase taken at the facet centroid c_T (the one-point rule,

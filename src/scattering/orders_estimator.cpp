@@ -158,7 +158,7 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
 
 // Shadowing of the first-level points of every facet towards ωi (bit k: point k is lit; 0 for a
 // facet facing away), computed once per incidence direction and shared by every order and
-// wavelength: the shared visibility table of issue 10 for the rays that do not depend on ωo.
+// wavelength: the shared visibility table (visibility_table.h) for the rays that do not depend on ωo.
 // Only the facets of `cell` (one cell of a patch that repeats it) are visited; `table` (may be
 // null) answers where it can.
 std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,

@@ -2,7 +2,7 @@
 // patch (σ ≫ L / 2π): the far field is then a set of narrow lobes around the grating orders, and
 // each lobe is integrated exactly instead of being hit by random exit directions.
 //
-// Derivation (PHYSICS.md §5 with the copy sum written by Poisson summation):
+// Derivation (docs/physics.md §5 with the copy sum written by Poisson summation):
 //   Σ_s w(x + s) e^{i q·s} = (1/A_fp) Σ_G ŵ(q_xy − G) e^{i (G − q_xy)·x_xy},  ŵ(k) = 2πσ² e^{−σ²|k|²/2},
 // G = 2π (a/Lx, b/Ly). Near order G, I(q) ≈ ŵ(q_xy − G) Ĥ_G / A_fp with the order amplitude
 //   Ĥ_G = ∫_patch V(x,ωi) V(x,ω_G) g(x, ω_G) e^{i (G·x_xy + q_z(ω_G) z)} dA
@@ -17,7 +17,7 @@
 // (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)), with a delete-a-group jackknife standard error. Points and shadow rays are
 // shared by all orders and wavelengths; each (point, order direction) needs one masking ray.
 //
-// `exact` (issue "exact wave evaluator", first step): the same lobes, but Ĥ_G summed over the facets
+// `exact`: the same lobes, but Ĥ_G summed over the facets
 // with the phase integrated in closed form (triangle_fourier.h): over a flat facet g is constant,
 // so Ĥ_G = Σ_T V_T g_T ∫_T e^{i q·x} dA. Visibility (shadowing towards ωi, masking towards ω_G) is
 // tested at the centroid and three inset points of each facet; a facet whose points disagree is

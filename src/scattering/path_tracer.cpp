@@ -59,7 +59,7 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
     if (tr.kind == TraceResult::Kind::Hit) {
       if (rec) rec->vertices.push_back(tr.p);
       ++depth;
-      // PHYSICS.md §4 step 6: the specular direction leaving the first hit is blocked.
+      // docs/physics.md §4 step 6: the specular direction leaving the first hit is blocked.
       if (depth == 2 && settings_.tallyGeoMasked) tally(grid_.binOf(d), Component::GeoMasked);
       if (depth > settings_.maxDepth) {
         addTo(out.truncated);

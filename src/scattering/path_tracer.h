@@ -1,4 +1,4 @@
-// Geometric-optics path tracer through the explicit microgeometry (PHYSICS.md §4; paper Sec. 3.2,
+// Geometric-optics path tracer through the explicit microgeometry (docs/physics.md §4; paper Sec. 3.2,
 // Eqs. 9–12). Estimates, for one incidence bin, the `coherent` (depth 1) and `multiple`
 // (depth >= 2) components, the `geo_masked` tally used by the lost component (§4 step 6, §6), and
 // the truncated energy.

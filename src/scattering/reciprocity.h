@@ -1,4 +1,4 @@
-// Reciprocity (PHYSICS.md §8) used to halve the work of the wave term on a full-sphere job:
+// Reciprocity (docs/physics.md §8) used to halve the work of the wave term on a full-sphere job:
 //   reflection    f(ωi, ωo) = f(ωo, ωi).
 // For bin-averaged incidence the bin-to-bin table obeys it exactly (both bins are averaged with the
 // weight cos θ dω), so each unordered pair of incidence bins on the same side of the surface needs

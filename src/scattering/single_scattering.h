@@ -1,4 +1,4 @@
-// Geometric single scattering (the `coherent` component, PHYSICS.md §3–4: paths of depth 1, the
+// Geometric single scattering (the `coherent` component, docs/physics.md §3–4: paths of depth 1, the
 // paper's GS, Sec. 3.2 Eq. 9 with one bounce) as a deterministic sum over the facets, for jobs that
 // need no path of depth ≥ 2 (neither `multiple` nor `lost`'s geo_masked tally). Where nothing
 // scatters twice the path tracer spends its rays on what a sum gives exactly: facet t, lit from

@@ -1,5 +1,5 @@
 // The result of one tile (one incidence bin x a block of wavelengths): bin-averaged BSDF values and
-// their standard errors per component, plus the energy bookkeeping that PHYSICS.md §4 asks for
+// their standard errors per component, plus the energy bookkeeping that docs/physics.md §4 asks for
 // (truncated, leaked, missed paths). Serialised to doubles for MPI.
 #pragma once
 #include <array>
@@ -18,7 +18,7 @@ struct TileResult {
   int incidenceBin = 0;    // sphere bin of the incidence direction
   int nLambda = 0, nBins = 0;
   // value[c] and stderr[c] hold nLambda * nBins entries (lambda-major) when component c was
-  // computed, else are empty. Units: 1/sr (bin-averaged BSDF, PHYSICS.md §3).
+  // computed, else are empty. Units: 1/sr (bin-averaged BSDF, docs/physics.md §3).
   std::array<std::vector<double>, kComponentCount> value, stdError;
   // Per wavelength, as fractions of the incident power.
   std::vector<double> truncated;  // paths cut at max depth (or wrapping forever)

@@ -1,5 +1,4 @@
-// The Fourier integral of a flat triangle, ∫_T e^{i q·x} dA, in closed form (issue "exact wave
-// evaluator", item 1): the phase of the Kirchhoff integrand (PHYSICS.md §5) is linear over a flat
+// The Fourier integral of a flat triangle, ∫_T e^{i q·x} dA, in closed form: the phase of the Kirchhoff integrand (docs/physics.md §5) is linear over a flat
 // facet, so over a fully visible facet under a constant window the integral is exact.
 //
 // With x = a + u e1 + v e2 (e1 = b − a, e2 = c − a; u, v >= 0, u + v <= 1), dA = 2A du dv:

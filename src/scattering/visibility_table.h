@@ -1,4 +1,4 @@
-// The shared visibility table of the `exact` evaluator (issue "exact wave evaluator", item 3):
+// The shared visibility table of the `exact` evaluator:
 // whether each facet's four first-level points see each direction of a fixed grid, computed once
 // per geometry and shared by every tile, incidence node, order and wavelength, and by every thread.
 // Shadowing towards ωi and masking towards an order direction ω_G are the same question — does the

@@ -48,6 +48,17 @@ inline KirchhoffValue integrandAt(const Media& media, int l, const Vec3& x, cons
   if (!transmission) return kirchhoffIntegrand(x, m, wi, wo, k0, nI, nI, media.fresnel(l, dot(m, wi), fromAbove), false);
   const double nO = media.other(l, fromAbove);
   if (nI <= nO) return kirchhoffIntegrand(x, m, wi, wo, k0, nI, nO, media.fresnel(l, dot(m, wi), fromAbove), true);
+  // The reverse path's amplitude does not vanish as the facet turns edge-on to ωi (the forward
+  // one does, with t): a facet that ωi only grazes within rounding — a vertical wall under
+  // normal incidence — takes no light, or rounding would light one wall of a symmetric ridge and
+  // not the other.
+  if (dot(m, wi) < 1e-9) {
+    KirchhoffValue none;
+    const Vec3 q = wi * (-nI * k0) - wo * (nO * k0);
+    none.qx = q.x;
+    none.qy = q.y;
+    return none;
+  }
   return kirchhoffIntegrand(x, -m, wo, wi, k0, nO, nI, media.fresnel(l, -dot(m, wo), !fromAbove), true);
 }
 
@@ -55,7 +66,7 @@ inline KirchhoffValue integrandAt(const Media& media, int l, const Vec3& x, cons
 // side (up when `up`), i.e. the point sees direction d.
 bool escapes(const PeriodicScene& scene, const Vec3& x, const Vec3& side, const Vec3& d, unsigned prim, bool up);
 
-// V(x, ωo) of PHYSICS.md §5 for a point x with normal m facing the incident medium.
+// V(x, ωo) of docs/physics.md §5 for a point x with normal m facing the incident medium.
 //  Visible: front-facing on the side the light leaves by, and unblocked.
 //  Blocked: front-facing but blocked by other geometry — the masked field of §6 (1 − V).
 //  BackFacing: the facet itself faces away. V = 0, but it is not part of the masked field either:

@@ -1,4 +1,4 @@
-// Estimators of the scalar-diffraction single-scattering BSDF f_ws (PHYSICS.md §5) and of the power
+// Estimators of the scalar-diffraction single-scattering BSDF f_ws (docs/physics.md §5) and of the power
 // diffracted by masked points P_msk (§6), behind one interface so that they can be compared
 // (the `paper` baseline against better ones) and new ones plugged in.
 //
@@ -90,7 +90,7 @@ int incidenceRuleOrder(int directions);
 // "area", "orders", "exact", "fft" or "paper"; throws std::invalid_argument.
 std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx);
 
-// Adds the wave components to a path-traced tile (PHYSICS.md §3, §6):
+// Adds the wave components to a path-traced tile (docs/physics.md §3, §6):
 //   incoherent = f_ws − coherent,   lost = P_msk / Ω⊥ − geo_masked,
 // with standard errors combined in quadrature. `tile` must hold coherent (and geo_masked for lost).
 // Bins the wave estimator skipped get NaN (filled later from the reciprocal tile).

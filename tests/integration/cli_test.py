@@ -304,7 +304,7 @@ def test_effects_auto():
     for k, (name, (geo, mat, scene, expected, incidence)) in enumerate(scenes.items()):
         inc = {"incidence": incidence} if incidence else {}
         auto = effects_job(os.path.join(TMP, f"auto{k}.toml"), geo, mat, scene, **inc)
-        # The full table (every component the file can hold, DESIGN.md) and the paper's WM alone.
+        # The full table (every component the file can hold) and the paper's WM alone.
         full = effects_job(os.path.join(TMP, f"full{k}.toml"), geo, mat, scene,
                            ["coherent", "incoherent", "multiple", "lost"], **inc)
         wm = effects_job(os.path.join(TMP, f"wm{k}.toml"), geo, mat, scene, ["coherent", "incoherent", "multiple"], **inc)

@@ -10,7 +10,7 @@
 namespace mbsdf::test {
 
 // Cosine-weighted average of f(wo) over a bin — what the Monte Carlo estimator estimates
-// (PHYSICS.md §3) — by a 24 x 24 stratified midpoint rule on the bin's cosine-distributed map.
+// (docs/physics.md §3) — by a 24 x 24 stratified midpoint rule on the bin's cosine-distributed map.
 inline double binAverage(const DirectionGrid& grid, int bin, const std::function<double(const Vec3&)>& f) {
   const int n = 24;
   double sum = 0;

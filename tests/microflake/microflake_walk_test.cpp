@@ -1,4 +1,4 @@
-// The microflake random walk against analytic references (issue 6 acceptance): depth 1 against the
+// The microflake random walk against analytic references: depth 1 against the
 // single-scattering microfacet BRDF, white furnace, reciprocity (with the n² scaling for
 // transmission), Chandrasekhar's isotropic medium (seed Eqs. 25 and 30) and the vMF limits.
 #include "microflake/microflake_walk.h"
@@ -179,7 +179,7 @@ TEST(MicroflakeWalk, DielectricConservesEnergy) {
 }
 
 // Bin-averaged incidence makes the table exactly reciprocal in bins: f(I→O) Ω⊥... = f(O→I); for
-// transmission f(I→O)/n_O² = f(O→I)/n_I² (radiance BSDF, PHYSICS.md §8).
+// transmission f(I→O)/n_O² = f(O→I)/n_I² (radiance BSDF, docs/physics.md §8).
 void checkReciprocity(const Ndf& ndf, const Material& mat, const std::vector<std::pair<double, double>>& bins,
                       const std::string& what) {
   WalkCase c(ndf, mat, ThetaPhiGrid{5, 8}, settings(600000, 1000));

@@ -1,5 +1,5 @@
 // NDFs, extinction and visible-normal sampling against independent quadrature, and the Smith
-// functions simulated in the medium against their closed forms (issue 6; seed Eqs. 4, 6, 17–22).
+// functions simulated in the medium against their closed forms (Dupuy et al. 2016, Eqs. 4, 6, 17–22).
 #include "microflake/ndf.h"
 
 #include <gtest/gtest.h>
@@ -55,7 +55,7 @@ TEST(Ndf, ProjectedAreaIsOneEq17) {
 }
 
 // σ(d) = ∫ ⟨−d, m⟩ D(m) dm (seed Eq. 4) by quadrature, against the closed forms of Eqs. 18–19
-// (Λ of PHYSICS.md §9) and the vMF table.
+// (Λ of docs/physics.md §9) and the vMF table.
 TEST(Ndf, ExtinctionMatchesQuadratureEq4) {
   for (auto& [name, ndf] : ndfs()) {
     MicroflakeDistribution dist(ndf);

@@ -1,4 +1,4 @@
-// The numerical torture suite of issue 9 (item 4): every estimator on inputs at the edges of
+// The numerical torture suite: every estimator on inputs at the edges of
 // validity stays finite, keeps energy within bounds, and reports honest errors.
 //  - critical angle ± 1e-6 rad from inside glass (geometric and wave)
 //  - λ from 0.2 µm to 2 µm on one patch

@@ -1,4 +1,4 @@
-// White furnace, reciprocity and determinism of the path tracer (issue 2 acceptance).
+// White furnace, reciprocity and determinism of the path tracer.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -48,7 +48,7 @@ TEST(WhiteFurnace, MirrorFacetsReflectEverything) {
   }
 }
 
-// f(i, o) = f(o, i) for reflection (PHYSICS.md §8), bin-averaged, on a rough aluminium gaussian
+// f(i, o) = f(o, i) for reflection (docs/physics.md §8), bin-averaged, on a rough aluminium gaussian
 // surface, for 24 random bin pairs: |z| < 4 with z from the estimators' own standard errors.
 TEST(Reciprocity, RoughConductorBinPairs) {
   PathTracerSettings s;

@@ -1,4 +1,4 @@
-// Flat interfaces against Fresnel (issue 2 acceptance): conductors put all energy in the specular
+// Flat interfaces against Fresnel: conductors put all energy in the specular
 // bin with albedo = unpolarised Fresnel reflectance; dielectrics conserve energy, refract into the
 // Snell bin and show total internal reflection without NaN.
 #include <gtest/gtest.h>

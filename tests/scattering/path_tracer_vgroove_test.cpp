@@ -1,5 +1,5 @@
 // 90° V-groove grating with perfect-mirror facets, light in the plane across the grooves
-// (issue 2 acceptance). Closed-form geometry, derived here:
+// against closed-form geometry, derived here:
 // Profile: valley at x = 0, ridge at x = Λ/2 (height Λ/2), facets A (z = x, normal (−1,0,1)/√2) and
 // B (z = Λ − x, normal (1,0,1)/√2). Light from wi = (sin θ, 0, cos θ), 0 <= θ < 45°: both facets are
 // fully lit; the power on A is (1 − tan θ)/2 and on B (1 + tan θ)/2 of the total.

@@ -1,4 +1,4 @@
-// Reciprocity (PHYSICS.md §8): the pair rule that halves the wave term, the exit mask of the
+// Reciprocity (docs/physics.md §8): the pair rule that halves the wave term, the exit mask of the
 // estimators, and the physics it relies on — the bin-averaged Kirchhoff BSDF computed both ways,
 // f(i → o) against f(o → i) · n_i² / n_o², within the estimators' own standard errors.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Scalar diffraction against references (issue 3 acceptance): grating efficiencies, the geometric
+// Scalar diffraction against references: grating efficiencies, the geometric
 // limit, unbiasedness and convergence of the estimators, energy closure with the lost component,
 // and finiteness at grazing angles.
 #include <gtest/gtest.h>

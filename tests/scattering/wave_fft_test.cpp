@@ -1,6 +1,6 @@
 // The `fft` wave estimator (fft_estimator.h, heightfield_spectrum.h): Ĥ_G of every order of a
 // heightfield from FFTs. References: Fresnel for flat interfaces, the `exact` facet sums in the
-// orders regime (1 % in Σ|Δf|Ω⊥ / Σ f Ω⊥, the criterion), energy conservation and the
+// orders regime (1 % in Σ|Δf|Ω⊥ / Σ f Ω⊥), energy conservation and the
 // `area` Monte Carlo estimator in the speckle regime (windows narrower than the patch).
 #include <gtest/gtest.h>
 

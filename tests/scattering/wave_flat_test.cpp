@@ -1,4 +1,4 @@
-// Scalar diffraction on flat interfaces (issue 3 acceptance): the hemispherical integral of f_ws
+// Scalar diffraction on flat interfaces: the hemispherical integral of f_ws
 // equals the Fresnel reflectance (and transmittance, from outside and from inside) within 1 %,
 // `incoherent` integrates to ~0 and `lost` is ~0.
 //  - With a coherence window (δc = 50 µm, σ = 8.3 µm) on a small periodic patch the field is the
