@@ -1,5 +1,5 @@
 // Path-tracer speed against raw Embree on the same scene, measured in the same run
-// (non-negotiable 4). Scene: the `hemispheres` patch (20 x 20 µm, radius 2 µm, spacing 5 µm,
+// (speed is a ratio against a baseline of the same run). Scene: the `hemispheres` patch (20 x 20 µm, radius 2 µm, spacing 5 µm,
 // perfect-mirror facets), incidence 30°, all cores.
 //   ours: rays/s of PathTracer::run (periodic wrapping, Fresnel, tallies, deterministic merging)
 //   raw:  rays/s of bare rtcIntersect1 calls on the same Embree scene, with rays drawn like our
@@ -207,7 +207,7 @@ void BM_ExplicitHeightfieldPaths(benchmark::State& state) {
 }
 BENCHMARK(BM_ExplicitHeightfieldPaths)->Arg(1 << 20)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// issue 10's benchmark: one slice of a 512² periodic Gaussian heightfield (texel 0.05 µm, rms
+// The fft estimator's benchmark: one slice of a 512² periodic Gaussian heightfield (texel 0.05 µm, rms
 // 0.08 µm, correlation 1 µm), σ = 4 µm window (δc = 24 µm), λ = 500 nm, normal incidence, 128 x 128
 // disk grid, no masking (none at normal incidence below the steepest slope), with `fft`; beside it
 // `exact` (facet sums x orders) on a 128² crop of the same statistics, scaled by facets x orders.

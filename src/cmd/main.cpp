@@ -180,7 +180,7 @@ void printInfo(const nlohmann::json& j) {
             << " mean over λ of each λ's); rel.error: the largest estimated relative per-bin error of a slice over\n"
             << " its components but lost, and wavelengths; balance: reflected + transmitted + lost paths − 1, the\n"
             << " largest over λ, for a material that absorbs only an excess over 1 — the model's energy error;\n"
-            << " lost: the energy of the lost component (paper Eq. 20, mean over λ), which WM + lost should bring\n"
+            << " lost: the energy of the lost component (Falster et al. 2020, Eq. 20, mean over λ), which WM + lost should bring\n"
             << " to GM's energy; — when the file has no lost component)\n";
   int reached = 0, budget = 0;
   for (const auto& s : j["slices"]) {

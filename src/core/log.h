@@ -1,4 +1,4 @@
-// Logging through spdlog (non-negotiable 8): one file per rank, and rank 0 also on the console.
+// Logging through spdlog: one file per rank, and rank 0 also on the console.
 // Progress of long loops is reported as periodic log lines (done/total, rate, ETA).
 #pragma once
 #include <chrono>

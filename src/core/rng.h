@@ -1,7 +1,7 @@
 // Counter-based random numbers keyed by (seed, tile, sample, dimension): Philox4x32-10 from
 // Random123 (Salmon et al., SC'11). A sample's numbers depend only on these keys, so a job's output
-// is identical for any number of ranks and threads, and one failing sample can be replayed
-// (non-negotiable 6).
+// is identical for any number of ranks and threads, and one failing sample can be replayed from
+// its seed and indices.
 #pragma once
 #include <Random123/philox.h>
 

@@ -2,7 +2,7 @@
 // RAII around RTCDevice/RTCScene; the device's error callback is installed before anything else so
 // that every Embree error becomes an exception with Embree's message.
 //
-// Precision (non-negotiable 5): Embree works in float. The patch is centred on the origin, rays
+// Precision: Embree works in float. The patch is centred on the origin, rays
 // are re-based at every wrap so coordinates stay within the patch box, hit points are recomputed
 // in double from Embree's barycentric coordinates on the double-precision triangle (so they lie on
 // the triangle's plane to double precision), secondary rays skip the triangle they leave and start

@@ -1,5 +1,5 @@
 // Exports one BSDF slice (a model = sum of components) as a float EXR on the paper's disk
-// projection (x = sin θ cos φ, y = sin θ sin φ; paper Sec. 6) and as CSV per exit bin.
+// projection (x = sin θ cos φ, y = sin θ sin φ; Falster et al. 2020, Sec. 6) and as CSV per exit bin.
 #pragma once
 #include <string>
 #include <vector>

@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 
 #include "job/job.h"
@@ -11,15 +10,18 @@
 namespace mbsdf {
 namespace {
 
-// Largest |Δ| of an order's efficiency (FDTD − microbsdf), per validated period/λ (rows) and
-// depth/λ (columns): docs/validation/fdtd.json, the worst over both sides and all orders.
-constexpr std::array<double, 4> kPeriods = {2.0, 5.0, 10.0, 20.0};
-constexpr std::array<double, 4> kDepths = {0.2, 0.5, 1.0, 2.0};
-constexpr double kMaxDelta[4][4] = {
-    {0.0126, 0.0498, 0.1035, 0.4158},
-    {0.0037, 0.0154, 0.0224, 0.2814},
-    {0.0021, 0.0082, 0.0076, 0.1627},
-    {0.0016, 0.0068, 0.0053, 0.0838},
+// Largest |Δ| of an order's efficiency (WM − FDTD), per validated period/λ (rows) and depth/λ
+// (columns): docs/validation/fdtd.json's binary gratings at normal incidence, the worst over both
+// sides and all orders.
+constexpr ValidityMap kMap = {
+    {2.0, 5.0, 10.0, 20.0},
+    {0.2, 0.5, 1.0, 2.0},
+    {
+        {0.0093, 0.0539, 0.1382, 0.4032},
+        {0.0037, 0.0154, 0.0231, 0.2814},
+        {0.0022, 0.0082, 0.0074, 0.1624},
+        {0.0016, 0.0068, 0.0053, 0.0838},
+    },
 };
 
 // The structure's shortest period: the lattice cell along each axis the surface varies along (a
@@ -41,14 +43,17 @@ double shortestPeriod(const Job& job) {
 
 // The map's value on the unsafe side of (period/λ, depth/λ); empty outside it.
 std::optional<double> lookUp(double periodOverLambda, double depthOverLambda) {
-  if (periodOverLambda < kPeriods.front() || depthOverLambda > kDepths.back()) return std::nullopt;
-  size_t row = 0, col = 0;
-  while (row + 1 < kPeriods.size() && kPeriods[row + 1] <= periodOverLambda) ++row;
-  while (col + 1 < kDepths.size() && kDepths[col] < depthOverLambda) ++col;
-  return kMaxDelta[row][col];
+  const int R = ValidityMap::kRows, C = ValidityMap::kCols;
+  if (periodOverLambda < kMap.periodOverLambda[0] || depthOverLambda > kMap.depthOverLambda[C - 1]) return std::nullopt;
+  int row = 0, col = 0;
+  while (row + 1 < R && kMap.periodOverLambda[row + 1] <= periodOverLambda) ++row;
+  while (col + 1 < C && kMap.depthOverLambda[col] < depthOverLambda) ++col;
+  return kMap.maxDelta[row][col];
 }
 
 }  // namespace
+
+const ValidityMap& validityMap() { return kMap; }
 
 ScalarValidity scalarValidity(const Job& job) {
   ScalarValidity v;

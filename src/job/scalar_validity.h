@@ -26,6 +26,16 @@ struct ScalarValidity {
 };
 
 ScalarValidity scalarValidity(const Job& job);
+
+// The map itself: the largest |Δ| per validated period/λ (rows) and depth/λ (columns), taken from
+// docs/validation/fdtd.json (a test holds the two together).
+struct ValidityMap {
+  static constexpr int kRows = 4, kCols = 4;
+  double periodOverLambda[kRows];
+  double depthOverLambda[kCols];
+  double maxDelta[kRows][kCols];
+};
+const ValidityMap& validityMap();
 nlohmann::json toJson(const ScalarValidity& v);
 
 }  // namespace mbsdf

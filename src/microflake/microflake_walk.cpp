@@ -54,7 +54,7 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
   double z = 0;                   // depth in the local medium (z <= 0)
   int depth = 0;
   while (true) {
-    // Free flight (seed Eqs. 9–11); escape through z = 0 when travelling upward.
+    // Free flight (Dupuy et al. 2016, Eqs. 9–11); escape through z = 0 when travelling upward.
     const double ell = dist_.freePath(d, s.get1D());
     const double zNext = z + ell * d.z;
     if (d.z > 0 && !(zNext < 0)) {  // depth >= 1: the first flight is downward

@@ -1,4 +1,4 @@
-// The random walk in the homogeneous microflake volume (docs/physics.md §9; seed paper Eqs. 4–11 and
+// The random walk in the homogeneous microflake volume (docs/physics.md §9; Dupuy et al. 2016, Eqs. 4–11 and
 // Sec. 3; the dielectric continuation follows Heitz, Hanika, d'Eon & Dachsbacher 2016,
 // "Multiple-scattering microfacet BSDFs with the Smith model", Sec. 5).
 //

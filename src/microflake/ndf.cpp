@@ -217,7 +217,7 @@ double MicroflakeDistribution::sigma(const Vec3& d) const {
   if (const auto* v = std::get_if<VonMisesFisherNdf>(&ndf_)) return v->kappa == 0 ? 1.0 : sigmaTable(d.z);
   if (std::holds_alternative<TabulatedNdf>(ndf_)) return sigmaTable(d.z);
   if (d.z >= 0) return sigmaUpHeightfield(d);
-  return -d.z + sigmaUpHeightfield(-d);  // seed Eq. 19: (1 + Λ(−d)) |d_z|
+  return -d.z + sigmaUpHeightfield(-d);  // Dupuy et al. 2016, Eq. 19: (1 + Λ(−d)) |d_z|
 }
 
 double MicroflakeDistribution::freePath(const Vec3& d, double u) const {

@@ -5,14 +5,14 @@
 //
 // A closed set of value types:
 //  - BeckmannNdf, GgxNdf: heightfield NDFs (zero below the horizon), anisotropic (αx, αy),
-//    normalised by ∫ D(m) ⟨m, z⟩ dm = 1 (seed Eq. 17).
-//  - VonMisesFisherNdf: the full-sphere family D ∝ exp(κ m·z) of seed Sec. 4.3, with the same
+//    normalised by ∫ D(m) ⟨m, z⟩ dm = 1 (Dupuy et al. 2016, Eq. 17).
+//  - VonMisesFisherNdf: the full-sphere family D ∝ exp(κ m·z) of Dupuy et al. 2016, Sec. 4.3, with the same
 //    normalisation (Eq. 17). κ → ∞ is a flat mirror, large κ is Beckmann-like with α² ≈ 2/κ and
 //    κ = 0 is the constant NDF D = 1/π (σ = 1, isotropic phase function with mirror flakes:
 //    Chandrasekhar's medium).
 //
 // The medium (density 1, z ≤ 0) has the extinction σ(d) = ∫ ⟨−d, m⟩ D(m) dm for travel direction d
-// (seed Eq. 4); for heightfield NDFs σ = Λ(d) d_z upward and (1 + Λ(−d)) |d_z| downward (Eqs. 18–19),
+// (Dupuy et al. 2016, Eq. 4); for heightfield NDFs σ = Λ(d) d_z upward and (1 + Λ(−d)) |d_z| downward (Eqs. 18–19),
 // in closed form; for the vMF family from a numeric table. Collisions pick a visible normal with
 // density ⟨−d, m⟩ D(m) / σ(d) (Eq. 6), sampled exactly (slope-space rejection for heightfields,
 // vMF proposal with rejection for the sphere family; both have bounded expected cost because the
@@ -67,15 +67,15 @@ class MicroflakeDistribution {
   double D(const Vec3& m) const;
   // Smith Λ for a direction above the horizon (heightfield NDFs only).
   double lambda(const Vec3& w) const;
-  // Smith masking G1 = 1 / (1 + Λ(w)) (seed Eq. 20).
+  // Smith masking G1 = 1 / (1 + Λ(w)) (Dupuy et al. 2016, Eq. 20).
   double G1(const Vec3& w) const { return 1.0 / (1.0 + lambda(w)); }
   // Height-correlated masking–shadowing G2 = 1 / (1 + Λ(wi) + Λ(wo)) (heightfield NDFs).
   double G2(const Vec3& wi, const Vec3& wo) const { return 1.0 / (1.0 + lambda(wi) + lambda(wo)); }
   // Extinction coefficient σ(d) for travel direction d (unit).
   double sigma(const Vec3& d) const;
-  // Free path along d for a uniform number u (seed Eq. 10); +inf when σ(d) = 0.
+  // Free path along d for a uniform number u (Dupuy et al. 2016, Eq. 10); +inf when σ(d) = 0.
   double freePath(const Vec3& d, double u) const;
-  // A normal with density ⟨v, m⟩ D(m) / σ(−v) (seed Eq. 6 with v = −d, the direction the light
+  // A normal with density ⟨v, m⟩ D(m) / σ(−v) (Dupuy et al. 2016, Eq. 6 with v = −d, the direction the light
   // came from). Empty only if the rejection loop hits its cap (reported as truncated).
   std::optional<Vec3> sampleVisible(const Vec3& v, Sampler& s) const;
 

@@ -1,4 +1,4 @@
-// The coherence window of docs/physics.md §5 (paper Sec. 4): a Gaussian on the amplitude,
+// The coherence window of docs/physics.md §5 (Falster et al. 2020, Sec. 4): a Gaussian on the amplitude,
 // w(x) = exp(−|x_xy − c|² / (2σ²)), σ = δc / 6 for a coherence length δc (sunlight: 50 µm), centred
 // on the patch. On a periodic patch the integral runs over the tiled copies within ±4σ of the
 // centre; the copy sum is separable in x and y and is evaluated per point as

@@ -1,9 +1,9 @@
-// The Kirchhoff integrand with ray-traced shadowing and masking (docs/physics.md §5; paper Eqs. 13–18,
+// The Kirchhoff integrand with ray-traced shadowing and masking (docs/physics.md §5; Falster et al. 2020, Eqs. 13–18,
 // after Kajiya 1985, Sancer 1969, Caron et al. 2002):
 //   I(ωo) = ∫ V(x,ωi) V(x,ωo) w(x) g(x,ωo) e^{i (k1 − k2)·x} dA
 //   reflection:   g = m · [ (k1 − k2) r − (k1 + k2) ]
 //   transmission: g = m · (kt + k2) t,  kt = k1 − (k1·m) m + (kt·m) m,
-//                 kt·m = −sqrt(k2² − k1² + (k1·m)²)   (paper Eq. 15; negative radicand: t = 0)
+//                 kt·m = −sqrt(k2² − k1² + (k1·m)²)   (Falster et al. 2020, Eq. 15; negative radicand: t = 0)
 // with k1 = −n_i k0 ωi, k2 = n_o k0 ωo, k0 = 2π/λ, m the facet normal facing the incident medium,
 // and r, t the Fresnel amplitudes at the local angle |m·ωi|, s and p separately.
 // Power per unit solid angle as a fraction of the incident power (docs/physics.md §5):

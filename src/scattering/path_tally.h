@@ -1,8 +1,8 @@
 // Deterministic Monte Carlo tallies over independent paths, shared by every geometric-optics
 // estimator (the explicit path tracer, the microflake random walk). A path tallies its weights
 // (one per wavelength of its group) into (component, exit bin); paths run in fixed chunks on TBB
-// threads and the chunks are merged in order, so the sums do not depend on the thread count
-// (non-negotiable 6). The result is the bin-averaged BSDF f(Ωo) = Σ w / (N Ω⊥(Ωo)) with the
+// threads and the chunks are merged in order, so the sums do not depend on the thread count. The
+// result is the bin-averaged BSDF f(Ωo) = Σ w / (N Ω⊥(Ωo)) with the
 // standard error of that mean (docs/physics.md §3–4).
 #pragma once
 #include <cstdint>

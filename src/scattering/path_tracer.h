@@ -1,4 +1,4 @@
-// Geometric-optics path tracer through the explicit microgeometry (docs/physics.md §4; paper Sec. 3.2,
+// Geometric-optics path tracer through the explicit microgeometry (docs/physics.md §4; Falster et al. 2020, Sec. 3.2,
 // Eqs. 9–12). Estimates, for one incidence bin, the `coherent` (depth 1) and `multiple`
 // (depth >= 2) components, the `geo_masked` tally used by the lost component (§4 step 6, §6), and
 // the truncated energy.
@@ -6,7 +6,7 @@
 // Sampling: the incidence direction is drawn with density ∝ cos θ inside the incidence bin (so every
 // path carries weight 1 for the cosine-weighted incident power E of §3) and the entry point
 // uniformly on the footprint at the top of the slab: for a periodic patch this is exactly the
-// illuminated-area sampling of paper Sec. 5 (Eq. 21), with A = footprint area.
+// illuminated-area sampling of Falster et al. 2020, Sec. 5 (Eq. 21), with A = footprint area.
 // Estimator: f(Ωo) = Σ tallies / (N Ω⊥(Ωo)).
 //
 // Spectral: when directions do not depend on λ (conductors, constant-index dielectrics) one path

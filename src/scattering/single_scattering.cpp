@@ -41,7 +41,7 @@ double visibleFraction(const Vec3& a, const Vec3& b, const Vec3& c, const Test& 
 }
 
 // Fixed blocks of sub-direction rows summed on their own and reduced in order: the result does not
-// depend on the thread count (non-negotiable 6).
+// depend on the thread count.
 constexpr int kBlocks = 8;
 
 }  // namespace

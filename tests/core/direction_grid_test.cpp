@@ -27,7 +27,7 @@ TEST(DirectionGrid, DiskMeasuresSumToSphere) {
   }
   EXPECT_NEAR(op, 2 * kPi, 2e-4);
   EXPECT_NEAR(om, 4 * kPi, 0.02);  // rim pixels: 1/cos singularity, midpoint quadrature
-  // Interior pixel: projected solid angle is the pixel area 4/(WH) (paper Eq. 11).
+  // Interior pixel: projected solid angle is the pixel area 4/(WH) (Falster et al. 2020, Eq. 11).
   EXPECT_NEAR(g.projectedSolidAngle(g.binOf({0.01, 0.01, 1})), 4.0 / (64 * 64), 1e-12);
 }
 

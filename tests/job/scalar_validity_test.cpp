@@ -4,7 +4,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <fstream>
 #include <sstream>
+
+#include <nlohmann/json.hpp>
 
 #include "job/job.h"
 
@@ -68,4 +73,29 @@ TEST(ScalarValidity, OnlyForPeriodicPatchesUnderAWindow) {
       "[scene]\ncoherence_length_um = 50.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n",
       "t.toml", "");
   EXPECT_FALSE(scalarValidity(flat).applies);
+}
+
+// The map in the code is the one `scripts/validate-fdtd` measured: per validated case, the largest
+// |Δ| of the binary gratings at normal incidence in docs/validation/fdtd.json (rounded to 1e-4).
+TEST(ScalarValidity, MapMatchesTheValidationData) {
+  std::ifstream in(std::string(MICROBSDF_SOURCE_DIR) + "/docs/validation/fdtd.json");
+  ASSERT_TRUE(in.good());
+  const nlohmann::json rows = nlohmann::json::parse(in);
+  const ValidityMap& map = validityMap();
+  int matched = 0;
+  for (int r = 0; r < ValidityMap::kRows; ++r)
+    for (int c = 0; c < ValidityMap::kCols; ++c) {
+      double worst = -1;
+      for (const auto& row : rows) {
+        if (row.value("set", "binary") != "binary") continue;
+        const double p = row["period_um"].get<double>() / 0.5, d = row["depth_um"].get<double>() / 0.5;
+        if (std::abs(p - map.periodOverLambda[r]) < 1e-9 && std::abs(d - map.depthOverLambda[c]) < 1e-9)
+          worst = std::max(worst, std::abs(row["delta"].get<double>()));
+      }
+      ASSERT_GE(worst, 0) << "no validation data for period " << map.periodOverLambda[r] << " λ, depth "
+                          << map.depthOverLambda[c] << " λ";
+      EXPECT_NEAR(map.maxDelta[r][c], worst, 6e-5) << map.periodOverLambda[r] << " λ, " << map.depthOverLambda[c] << " λ";
+      ++matched;
+    }
+  EXPECT_EQ(matched, ValidityMap::kRows * ValidityMap::kCols);
 }

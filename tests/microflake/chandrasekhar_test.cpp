@@ -1,4 +1,4 @@
-// Chandrasekhar's H function (seed Eq. 31) against its moments and tabulated value.
+// Chandrasekhar's H function (Dupuy et al. 2016, Eq. 31) against its moments and tabulated value.
 #include "microflake/chandrasekhar.h"
 
 #include <gtest/gtest.h>

@@ -1,6 +1,6 @@
 // The microflake random walk against analytic references: depth 1 against the
 // single-scattering microfacet BRDF, white furnace, reciprocity (with the n² scaling for
-// transmission), Chandrasekhar's isotropic medium (seed Eqs. 25 and 30) and the vMF limits.
+// transmission), Chandrasekhar's isotropic medium (Dupuy et al. 2016, Eqs. 25 and 30) and the vMF limits.
 #include "microflake/microflake_walk.h"
 
 #include <gtest/gtest.h>

@@ -54,7 +54,7 @@ TEST(Ndf, ProjectedAreaIsOneEq17) {
   }
 }
 
-// σ(d) = ∫ ⟨−d, m⟩ D(m) dm (seed Eq. 4) by quadrature, against the closed forms of Eqs. 18–19
+// σ(d) = ∫ ⟨−d, m⟩ D(m) dm (Dupuy et al. 2016, Eq. 4) by quadrature, against the closed forms of Eqs. 18–19
 // (Λ of docs/physics.md §9) and the vMF table.
 TEST(Ndf, ExtinctionMatchesQuadratureEq4) {
   for (auto& [name, ndf] : ndfs()) {

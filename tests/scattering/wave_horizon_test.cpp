@@ -53,8 +53,9 @@ void checkTile(const WaveScenario& sc, const WaveTileResult& r, bool conductor, 
     auto [R, eR] = sc.integral(r.fws, r.fwsErr, l, fromAbove);
     auto [T, eT] = sc.integral(r.fws, r.fwsErr, l, !fromAbove);
     const double total = R + (conductor ? 0.0 : T), err = conductor ? eR : std::hypot(eR, eT);
-    if (bounded)
+    if (bounded) {
       EXPECT_LE(total, 1 + kModelExcess + 4 * err) << what << " λ " << sc.lambda_um[l] << ": R " << R << " T " << T;
+    }
   }
 }
 
