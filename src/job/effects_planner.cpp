@@ -458,7 +458,12 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   // sides can be had without noise — a deterministic wave pilot (`exact`, `fft`) and the facet sum of
   // single scattering (scattering/single_scattering.h) affordable at the pilot bins — the
   // diffraction decision averages both over the incidence bins as the job does (below).
-  auto beam = [&](int p) { return grid.centre(job.incidence[size_t(p)].bin); };
+  // A job of collimated beams (`incidence_sampling = "exact"`) is piloted along its own directions:
+  // a grating lit exactly along its grooves scatters nothing twice, where the bin's centre may.
+  auto beam = [&](int p) {
+    const IncidenceDirection& inc = job.incidence[size_t(p)];
+    return job.exactIncidence ? sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg)) : grid.centre(inc.bin);
+  };
   for (int p : pilots)
     geo.push_back(transport.run(p, p, job.incidence[size_t(p)].bin, beam(p),
                                 pilotProgress("geometric pilot", job.incidence[size_t(p)])));

@@ -120,3 +120,27 @@ TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
       EXPECT_NE(x["reason"].get<std::string>().find("deterministic; no estimator pilot"), std::string::npos) << x.dump();
     }
 }
+
+// Pilots are the job's own beams: a binary mirror grating (grooves along y) lit exactly along its
+// grooves (φ = 90°, `incidence_sampling = "exact"`) reflects off ridge tops and groove floors within
+// the plane of the grooves and never reaches a wall: nothing scatters twice and `multiple` is
+// dropped. Piloted through the incidence bin's centre (φ = 67.5° on 8 φ bins) the light meets the
+// walls; the same job with bin-averaged incidence, whose slices do average over such directions,
+// keeps `multiple`.
+TEST(EffectsPlanner, PilotsFollowTheJobsExactDirections) {
+  auto multiple = [](const std::string& sampling) {
+    const Job job = loadJobFromString(
+        "[geometry]\nkind = \"binary-grating\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\ndepth_um = 1.0\nduty = 0.5\n"
+        "[material]\nname = \"mirror\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 9\nn_phi = 8\n"
+        "incidence = [[40.0, 90.0]]\nincidence_sampling = \"" + sampling + "\"\n[scene]\ncoherence_length_um = 0.0\n"
+        "[sampling]\npaths_per_slice = 20000\n",
+        "t.toml", "");
+    const nlohmann::json p = planEffects(job);
+    for (const auto& d : p["decisions"])
+      if (d["effect"] == "multiple") return d;
+    return nlohmann::json{};
+  };
+  const nlohmann::json exact = multiple("exact"), averaged = multiple("bin");
+  EXPECT_FALSE(exact["on"].get<bool>()) << exact.dump();
+  EXPECT_TRUE(averaged["on"].get<bool>()) << averaged.dump();
+}
