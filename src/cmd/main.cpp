@@ -111,6 +111,10 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
       waveSamples += st.waveSamples;
       s["seconds"] = st.seconds;
       s["sampling_stop"] = st.samplingStop == 1 ? "target" : st.samplingStop == 2 ? "budget" : "fixed";
+      if (!std::isnan(st.multipleCheck)) {
+        s["multiple_check"] = st.multipleCheck;
+        s["multiple_reenabled"] = st.multipleReenabled;
+      }
       s["truncated"] = st.truncated;
       s["leaked"] = st.leaked;
       s["missed"] = st.missed;
@@ -182,7 +186,9 @@ void printInfo(const nlohmann::json& j) {
             << " largest over λ, for a material that absorbs only an excess over 1 — the model's energy error;\n"
             << " lost: the energy of the lost component (Falster et al. 2020, Eq. 20, mean over λ), which WM + lost should bring\n"
             << " to GM's energy; — when the file has no lost component)\n";
-  int reached = 0, budget = 0;
+  int reached = 0, budget = 0, verified = 0;
+  std::vector<int> reenabled;
+  double worstCheck = 0;
   for (const auto& s : j["slices"]) {
     if (!s["done"].get<bool>()) continue;
     auto mean = [](const nlohmann::json& a) {
@@ -215,10 +221,24 @@ void printInfo(const nlohmann::json& j) {
                 std::isnan(lost) ? "       —" : fmt::format("{:+8.4f}", lost).c_str());
     if (s["sampling_stop"] == "target") ++reached;
     if (s["sampling_stop"] == "budget") ++budget;
+    if (s.contains("multiple_check")) {
+      ++verified;
+      if (s["multiple_reenabled"].get<bool>()) reenabled.push_back(s["index"].get<int>());
+      worstCheck = std::max(worstCheck, s["multiple_check"].get<double>());
+    }
   }
   if (reached + budget > 0)
     std::printf("progressive sampling: %d slices reached target_rel_error, %d stopped at max_paths_per_slice first\n",
                 reached, budget);
+  if (verified > 0) {
+    std::string which;
+    for (int i : reenabled) which += (which.empty() ? "" : " ") + std::to_string(i);
+    std::printf("multiple scattering: skipped by the effects planner, verified on %d slice(s) (largest energy + 3 s.e. "
+                "%.4f): %s\n",
+                verified, worstCheck,
+                reenabled.empty() ? "the skip held on every one"
+                                  : ("beyond the tolerance, computed after all, on slice(s) " + which).c_str());
+  }
 }
 
 // `run`: every rank loads the job; rank 0 checks the output location and takes its lock before any

@@ -65,6 +65,51 @@ void checkDiskSpace(const std::string& outPath, const Job& job, const DirectionG
                  outPath, free / 1e6, upper / 1e6);
 }
 
+// Full-depth paths that bound a skipped `multiple` on a tile whose single scattering came from the
+// facet sum: its energy (+ 3 standard errors) is resolved to about 0.01 at this many.
+constexpr uint64_t kMultipleCheckPaths = 4096;
+
+// The largest over λ of the `multiple` energy (both hemispheres) + 3 standard errors of a path tile.
+double multipleBound(const TileResult& r, const DirectionGrid& grid) {
+  const std::vector<double> se = r.pathEnergyStdError({Component::Multiple}, -1);
+  double bound = 0;
+  for (int l = 0; l < r.nLambda; ++l) {
+    double e = 0;
+    for (int b = 0; b < r.nBins; ++b) e += r.at(Component::Multiple, l, b) * grid.projectedSolidAngle(b);
+    bound = std::max(bound, e + 3 * (se.empty() ? 0.0 : se[size_t(l)]));
+  }
+  return bound;
+}
+
+// A `multiple` the effects planner skipped (Job::guarded), verified on tile t. A path tile traced
+// it anyway: it is kept, and the bound says whether the skip would have held. A facet-sum tile
+// (single scattering without paths) runs a few thousand full-depth paths; past the tolerance the
+// tile is traced in full after all, otherwise its `multiple` is stored as zero (within the
+// tolerance by the bound). Either way the slice records the bound and whether it was re-enabled.
+void verifySkippedMultiple(const Job& job, const DirectionGrid& grid, int t, const GeometricTransport* check,
+                           const GeometricTransport* full, const std::function<void(uint64_t)>& cb, TileResult& r) {
+  const auto& inc = job.incidence[size_t(t)];
+  std::optional<Vec3> exact;
+  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  if (r.has(Component::Multiple)) {
+    r.multipleCheck = multipleBound(r, grid);
+  } else {
+    r.multipleCheck = multipleBound(check->run(t, t, inc.bin, exact, cb), grid);
+    if (r.multipleCheck > job.scene.tolerance) {
+      r = full->run(t, t, inc.bin, exact, cb);
+      r.multipleCheck = multipleBound(r, grid);
+    } else {
+      r.value[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+      r.stdError[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+    }
+  }
+  r.multipleReenabled = r.multipleCheck > job.scene.tolerance;
+  if (r.multipleReenabled)
+    spdlog::warn("tile {} (theta_i {:.3g} deg, phi_i {:.3g} deg): multiple scattering up to {:.4f} (+3 standard errors), "
+                 "beyond the tolerance {}: the effects planner's pilots did not see it, this slice has it",
+                 t, inc.theta_deg, inc.phi_deg, r.multipleCheck, job.scene.tolerance);
+}
+
 }  // namespace
 
 RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& options) {
@@ -74,7 +119,16 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
 
   const std::string outPath = options.outputPath.empty() ? job.outputPath : options.outputPath;
   DirectionGrid grid(job.gridLayout);
-  GeometricTransport transport(job, grid, job.pathsPerSlice);
+  // The tile computes the planner's components first (a skipped `multiple` lets single scattering
+  // come from the facet sum); a guarded skip is then verified on the tile (Job::guarded).
+  Job planned = job;
+  for (Component c : job.guarded.list()) planned.components.remove(c);
+  GeometricTransport transport(planned, grid, job.pathsPerSlice);
+  std::unique_ptr<GeometricTransport> checkTransport, fullTransport;
+  if (job.guarded.has(Component::Multiple) && transport.mayUseFacetSum()) {
+    checkTransport = std::make_unique<GeometricTransport>(job, grid, std::min<uint64_t>(job.pathsPerSlice, kMultipleCheckPaths));
+    fullTransport = std::make_unique<GeometricTransport>(job, grid, job.pathsPerSlice);
+  }
   std::unique_ptr<WaveEstimator> wave;
   if (job.needsWave()) {
     wave = makeJobWaveEstimator(job, grid, *transport.scene(), waveSettingsOf(job));
@@ -153,6 +207,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
         r.poolPaths(transport.run(t, t, inc.bin, exact, cb, r.samples));
       }
     }
+    if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(job, grid, t, checkTransport.get(), fullTransport.get(), cb, r);
     pathSecondsSum += since(ts);
     if (wave) {
       auto tw = Clock::now();

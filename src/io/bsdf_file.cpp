@@ -142,6 +142,8 @@ std::vector<std::string> rowDatasets(const Job& job) {
                         "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/stats/energy_balance",
                         "/stats/energy_balance_stderr", "/bsdf/done"})
     v.push_back(n);
+  if (job.guarded.has(Component::Multiple))
+    for (const char* n : {"/stats/multiple_check", "/stats/multiple_reenabled"}) v.push_back(n);
   return v;
 }
 
@@ -487,6 +489,15 @@ void BsdfFileWriter::create(const std::string& filename) {
     write1D(s, "seconds", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "s", "wall time of the tile");
     write1D(s, "sampling_stop", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
             "0: fixed budget; 1: target_rel_error reached; 2: max_paths_per_slice spent first");
+    if (job.guarded.has(Component::Multiple)) {
+      write1D(s, "multiple_check", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "1",
+              "multiple scattering the effects planner skipped, verified on the slice: its energy + 3 standard "
+              "errors (largest over wavelengths; by a few thousand full-depth paths where single scattering came "
+              "from the facet sum)");
+      write1D(s, "multiple_reenabled", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
+              "1 when multiple_check exceeded [scene] tolerance: the slice holds multiple scattering after all "
+              "(elsewhere /bsdf/multiple is the traced value, or 0 where the facet sum computed single scattering)");
+    }
     {
       H5Dataset d = create3D(s, "energy_balance", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
       describe(d, "1", job.material.lossless()
@@ -548,6 +559,10 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
   writeRow(f, "/stats/wave_samples", i, {double(r.waveSamples)}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/seconds", i, {r.seconds}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/sampling_stop", i, {double(int(r.samplingStop))}, H5T_NATIVE_DOUBLE);
+  if (job_.guarded.has(Component::Multiple)) {
+    writeRow(f, "/stats/multiple_check", i, {r.multipleCheck}, H5T_NATIVE_DOUBLE);
+    writeRow(f, "/stats/multiple_reenabled", i, {r.multipleReenabled ? 1.0 : 0.0}, H5T_NATIVE_DOUBLE);
+  }
   {
     std::vector<Component> traced;
     for (Component c : job_.components.list())
@@ -755,6 +770,10 @@ SliceStats BsdfFileReader::stats(int incidence) const {
     s.waveSamples = uint64_t(readRow("/stats/wave_samples", incidence)[0]);
   if (H5Lexists(file_, "/stats/sampling_stop", H5P_DEFAULT) > 0)
     s.samplingStop = int(readRow("/stats/sampling_stop", incidence)[0]);
+  if (H5Lexists(file_, "/stats/multiple_check", H5P_DEFAULT) > 0) {
+    s.multipleCheck = readRow("/stats/multiple_check", incidence)[0];
+    s.multipleReenabled = readRow("/stats/multiple_reenabled", incidence)[0] != 0;
+  }
   s.truncated = readRow("/stats/truncated", incidence);
   s.leaked = readRow("/stats/leaked", incidence);
   s.missed = readRow("/stats/missed", incidence);

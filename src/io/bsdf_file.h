@@ -40,6 +40,7 @@
 // so that the fill reads a block of columns of every row once; it only writes entries a tile did
 // not compute, so it is idempotent (a kill during the fill is resumed by running it again).
 #pragma once
+#include <cmath>
 #include <map>
 #include <memory>
 #include <string>
@@ -99,6 +100,8 @@ struct SliceStats {
   uint64_t waveSamples = 0;  // Kirchhoff samples per wavelength (0 in files without the dataset)
   double seconds = 0;
   int samplingStop = 0;  // TileResult::SamplingStop
+  double multipleCheck = std::nan("");  // TileResult::multipleCheck (NaN: not verified)
+  bool multipleReenabled = false;
   std::vector<double> truncated, leaked, missed;
   std::map<std::string, std::vector<double>> energyReflected, energyTransmitted;
   std::map<std::string, std::vector<double>> relError;  // per component, per wavelength

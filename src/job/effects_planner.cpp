@@ -502,7 +502,8 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     auto d = decision("multiple", on,
                       "pilot multiply scattered energy " + fmt3(worstValue) + " (+3 SE: " + fmt3(worst) + ") at theta " +
                           fmt3(worstTheta) + " deg " + (worst > tol ? "exceeds" : "is below") + " the tolerance " +
-                          fmt3(tol) + (forced.has(Component::Multiple) && worst <= tol ? "; kept: requested" : ""));
+                          fmt3(tol) + (forced.has(Component::Multiple) && worst <= tol ? "; kept: requested" : "") +
+                          (on ? "" : "; verified on every tile, computed there after all past the tolerance"));
     d["pilot_energy"] = worstValue;
     d["pilot_energy_upper"] = worst;
     decisions.push_back(d);
@@ -765,6 +766,13 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
 void applyEffectsPlan(Job& job, const nlohmann::json& plan) {
   job.components = ComponentSet{};
   for (const auto& n : plan["components"]) job.components.add(*componentFromName(n.get<std::string>()));
+  // A skipped `multiple` is verified on every tile (job.h, guarded): the pilots saw a few incidences.
+  job.guarded = ComponentSet{};
+  for (const auto& d : plan["decisions"])
+    if (d["effect"] == "multiple" && !d["on"].get<bool>()) {
+      job.guarded.add(Component::Multiple);
+      job.components.add(Component::Multiple);
+    }
   job.waveTransmission = plan.value("wave_transmission", true);
   if (plan.contains("lambda_nm")) job.lambda_nm = plan["lambda_nm"].get<std::vector<double>>();
   if (plan.contains("wave_estimator")) job.waveEstimator = plan["wave_estimator"].get<std::string>();

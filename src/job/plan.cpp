@@ -124,7 +124,10 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   };
   auto ts = std::chrono::steady_clock::now();
   const uint64_t pilotPaths = std::min<uint64_t>(job.pathsPerSlice, options.pilotPaths);
-  GeometricTransport transport(job, grid, pilotPaths);
+  // As the run: a guarded skip (Job::guarded) is left out of what the tile computes first.
+  Job planned = job;
+  for (Component c : job.guarded.list()) planned.components.remove(c);
+  GeometricTransport transport(planned, grid, pilotPaths);
   const double sceneSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
   // Paths scale with paths_per_slice; a facet-sum tile (no paths, transport.h) is the tile's cost.
   double pathSeconds = 0, pilotSeconds = 0;

@@ -24,6 +24,7 @@ struct ComponentSet {
   unsigned bits = 0;
   bool has(Component c) const { return bits & (1u << int(c)); }
   void add(Component c) { bits |= 1u << int(c); }
+  void remove(Component c) { bits &= ~(1u << int(c)); }
   std::vector<Component> list() const {
     std::vector<Component> v;
     for (int i = 0; i < kComponentCount; ++i)

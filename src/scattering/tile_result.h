@@ -3,6 +3,7 @@
 // (truncated, leaked, missed paths). Serialised to doubles for MPI.
 #pragma once
 #include <array>
+#include <limits>
 #include <cstdint>
 #include <vector>
 
@@ -37,6 +38,11 @@ struct TileResult {
   int rounds = 1;
   SamplingStop samplingStop = SamplingStop::FixedBudget;
   uint64_t waveSamples = 0;       // Kirchhoff samples (point x direction) per wavelength, 0 without a wave term
+  // A `multiple` the effects planner skipped, verified on this tile (Job::guarded): the bound on its
+  // energy (largest over λ of energy + 3 standard errors; NaN when not verified) and whether it
+  // exceeded the tolerance, so that the tile computed it after all.
+  double multipleCheck = std::numeric_limits<double>::quiet_NaN();
+  bool multipleReenabled = false;
   uint64_t rays = 0;              // ray casts through the scene (for speed figures)
   double seconds = 0;
 

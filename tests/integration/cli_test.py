@@ -251,6 +251,44 @@ path = "out.h5"
     return path
 
 
+
+def test_effects_skip_verified():
+    """A skip the pilots could not see is caught on the tile: a mirror V-groove (period 2 µm, apex
+    125°) with listed incidences whose pilots (0°, 25°@90°, 32°@90°) stay below the grooves'
+    inter-reflection threshold, so the planner drops `multiple`; the unpiloted 20°@0° slice has
+    about 0.1 of it. Every slice verifies the skip; that one computes it after all. Per slice and
+    wavelength the auto table (WM) is within the tolerance of the full one, and `info` says which
+    slice was re-enabled."""
+    geo = 'kind = "ridged"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\napex_angle_deg = 125.0'
+    inc = "[[0.0, 0.0], [20.0, 0.0], [25.0, 90.0], [30.0, 90.0], [32.0, 90.0]]"
+    auto = effects_job(os.path.join(TMP, "vg-auto.toml"), geo, 'name = "mirror"', "", incidence=inc)
+    full = effects_job(os.path.join(TMP, "vg-full.toml"), geo, 'name = "mirror"', "", ["coherent", "incoherent", "multiple"],
+                       incidence=inc)
+    r = run(["run", auto, "-o", "vg-auto.h5"], mpi=2)
+    run(["run", full, "-o", "vg-full.h5"], mpi=2)
+    log = r.stdout + r.stderr
+    assert "multiple    off" in log, log
+    # The warning comes from the rank that computed tile 1 (its log file; rank 0 prints to the console too).
+    folder = os.path.join(TMP, "vg-auto.h5.logs")
+    logs = "".join(open(os.path.join(folder, n)).read() for n in sorted(os.listdir(folder)))
+    assert "tile 1 (theta_i 20 deg, phi_i 0 deg): multiple scattering up to" in logs + log, logs + log
+    with h5py.File(os.path.join(TMP, "vg-auto.h5"), "r") as a, h5py.File(os.path.join(TMP, "vg-full.h5"), "r") as b:
+        tol = json.loads(a.attrs["effects_plan"])["tolerance"]
+        assert list(a["/stats/multiple_reenabled"][:]) == [0, 1, 0, 0, 0], a["/stats/multiple_check"][:]
+        assert a["/stats/multiple_check"][1] > 0.05, a["/stats/multiple_check"][:]
+        op = a["/grid/projected_solid_angle"][:]
+        wm = lambda f: sum(f["/bsdf/" + c][:].astype(float) for c in ("coherent", "incoherent", "multiple"))  # noqa: E731
+        fa, fb = wm(a), wm(b)
+        for i in range(fa.shape[0]):
+            for l in range(fa.shape[1]):
+                d = float(np.sum(np.abs(fa[i, l] - fb[i, l]) * op))
+                assert d <= tol, f"slice {i}, λ {l}: auto differs from full by {d:.4f} (tolerance {tol})"
+        multiple_full = float(np.sum(b["/bsdf/multiple"][1, 0] * op))
+    info = run(["info", "vg-auto.h5"]).stdout
+    assert "computed after all, on slice(s) 1" in info, info
+    print(f"V-groove: multiple skipped by the pilots; slice 1 (20°@0°) re-enabled ({multiple_full:.3f} of multiple "
+          f"scattering in the full table); every slice within the tolerance {tol} of the full table")
+
 def program_seconds(result):
     """(pilot seconds, total seconds) of a `run` from its log: the run's "done: ... in X s" plus the
     effects pilots' "in X s" (0 without components = "auto"); mpirun's start-up, about 1-2 s here, is
@@ -315,10 +353,17 @@ def test_effects_auto():
         t_full = program_seconds(run(["run", full, "-o", f"full{k}.h5"], mpi=2))[1]
         t_wm = program_seconds(run(["run", wm, "-o", f"wm{k}.h5"], mpi=2))[1]
         with h5py.File(os.path.join(TMP, f"auto{k}.h5"), "r") as a, h5py.File(os.path.join(TMP, f"full{k}.h5"), "r") as b:
-            got = set(a["bsdf"].keys()) - {"done"}
-            assert got == expected, f"{name}: auto chose {sorted(got)}, expected {sorted(expected)}\n{plan}"
             recorded = json.loads(a.attrs["effects_plan"])
-            assert set(recorded["components"]) == expected, recorded
+            assert set(recorded["components"]) == expected, f"{name}: auto chose {sorted(recorded['components'])}, " \
+                f"expected {sorted(expected)}\n{plan}"
+            # A skipped `multiple` is verified on every slice: the file holds it (the traced value, or 0
+            # where the facet sum computed single scattering and a check bounded it) with the bound.
+            got = set(a["bsdf"].keys()) - {"done"}
+            assert got == expected | ({"multiple"} if "multiple" not in expected else set()), got
+            if "multiple" not in expected:
+                check = a["/stats/multiple_check"][:]
+                assert np.all(np.isfinite(check)), check
+                assert np.array_equal(a["/stats/multiple_reenabled"][:] != 0, check > recorded["tolerance"]), check
             brdf_only = 'needs = ["brdf"]' in scene
             assert not decisions["btdf"]["on"], decisions["btdf"]
             assert ("only the BRDF" if brdf_only else "conductor transmits nothing") in decisions["btdf"]["reason"]
