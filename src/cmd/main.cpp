@@ -1,4 +1,4 @@
-// microbsdf: the command-line entry point (README "Running").
+// microbsdf: the command-line entry point (README "A five-minute tour", docs/running.md).
 //   microbsdf run JOB.toml [-o OUT.h5] [--threads N] [--log-dir DIR] [--resume] [--max-hours H] [-v]
 //   microbsdf info OUT.h5 [--json]
 //   microbsdf slice OUT.h5 --theta-i DEG [--phi-i DEG] [--model GM] [--transmission|--both]

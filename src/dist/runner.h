@@ -1,4 +1,4 @@
-// Runs a job over MPI ranks (README "How the work is divided"). The work is cut into tiles (one incidence
+// Runs a job over MPI ranks (docs/running.md "How the work is divided"). The work is cut into tiles (one incidence
 // direction x all wavelengths, so rays are shared across wavelengths). Rank 0 schedules them
 // dynamically, most expensive first (cost estimate: grazing incidence first), computes tiles too,
 // serves the other ranks between its own batches, and writes each slice as it arrives (memory at

@@ -1,6 +1,6 @@
-// Procedural microgeometry (README "[geometry]"). All lengths in µm, all patches centred and
+// Procedural microgeometry (docs/job-reference.md "[geometry]"). All lengths in µm, all patches centred and
 // periodic unless said otherwise. Each generator documents its shape; parameters come from the job
-// file's [geometry] table (README "Job file reference").
+// file's [geometry] table (docs/job-reference.md).
 #pragma once
 #include <cstdint>
 #include <vector>

@@ -471,7 +471,7 @@ void BsdfFileWriter::create(const std::string& filename) {
       for (hid_t grp : {ser.get(), set.get()}) {
         H5Dataset d = create3D(grp, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
         describe(d, "1", "standard error of that hemispherical integral of " + name + " (path-traced: from the per-path "
-                         "energies; otherwise from the per-bin errors, see the README)");
+                         "energies; otherwise from the per-bin errors, see docs/output.md)");
       }
       {
         H5Dataset d = create3D(re, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);

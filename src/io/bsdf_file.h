@@ -1,4 +1,4 @@
-// The output file (README "The output file"): a self-describing, versioned HDF5 schema.
+// The output file (docs/output.md): a self-describing, versioned HDF5 schema.
 //   /                       attributes Conventions, schema_version, program_version, job_text, seed,
 //                           geometry_hash, input_files (JSON: key, path and SHA-256 of each file the
 //                           job reads), geometry_kind, material, grid_kind
@@ -20,7 +20,7 @@
 // The writer writes each tile as it arrives and flushes; it writes to `<path>.partial` and renames
 // on completion, so an existing output is never damaged by a failed run.
 //
-// Crash safety (README "What a run checks before it computes, and while it writes"): the partial
+// Crash safety (docs/running.md "What a run checks before it computes, and while it writes"): the partial
 // file is written in HDF5's single-writer / multiple-reader mode (SWMR, libver latest), whose
 // ordered metadata flushes keep the file readable whenever the writer dies. A slice's rows are
 // written (each dataset closed, with the close checked: HDF5's chunk cache writes there), flushed

@@ -464,7 +464,7 @@ std::string Job::resolvedWaveEstimator() const {
   }
   // Overlapping lobes (speckle) on a heightfield with a disk grid: the deterministic Fourier-domain
   // evaluator (no masked field, size within its limit), whose separable evaluation there is fast;
-  // Monte Carlo over such speckle needs far more samples (README "What accuracy costs in time"). On
+  // Monte Carlo over such speckle needs far more samples (docs/accuracy.md). On
   // other grids its direct sum over the orders in the window's reach can cost more than the Monte
   // Carlo budget (large bins against a small speckle), so it is chosen explicitly there.
   if (std::holds_alternative<DiskGrid>(gridLayout) &&

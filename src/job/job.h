@@ -1,4 +1,4 @@
-// A validated job (README "Job file reference"). Building it reads every key through ParamDict, checks
+// A validated job (docs/job-reference.md). Building it reads every key through ParamDict, checks
 // ranges and files, builds the microgeometry and finally reports unused keys; any problem is an
 // InputError naming file, line and key, raised before any output file is touched.
 #pragma once

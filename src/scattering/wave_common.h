@@ -39,7 +39,7 @@ class Media {
 // same amplitude, since n_o cos θ_o t_io = n_i cos θ_i t_oi for s and p (Born & Wolf §1.5.2): the
 // geometric limit is unchanged. Elsewhere they differ, and the denser side's is the worse: it drops every facet steeper
 // than the critical angle (t = 0 under total internal reflection), where the field the wave sends
-// on is not zero. Against a 3-D FDTD solution of glass hemispheres (README, "Transmission from
+// on is not zero. Against a 3-D FDTD solution of glass hemispheres (docs/testing.md, "Transmission from
 // the denser medium") the zero order transmits 0.068 both ways; the thinner side's tangent plane
 // gives 0.086, the denser side's gave 0.22.
 inline KirchhoffValue integrandAt(const Media& media, int l, const Vec3& x, const Vec3& m, const Vec3& wi,

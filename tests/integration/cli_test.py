@@ -289,6 +289,26 @@ def test_effects_skip_verified():
     print(f"V-groove: multiple skipped by the pilots; slice 1 (20°@0°) re-enabled ({multiple_full:.3f} of multiple "
           f"scattering in the full table); every slice within the tolerance {tol} of the full table")
 
+
+def test_tour():
+    """The README's five-minute tour runs top to bottom, line by line, from a copy of the
+    repository's layout (build/, jobs/, scripts/ linked), every line with exit status 0."""
+    with open(os.path.join(SRC, "README.md")) as f:
+        readme = f.read()
+    section = readme.split("## A five-minute tour", 1)[1].split("\n## ", 1)[0]
+    block = section.split("```sh\n", 1)[1].split("```", 1)[0]
+    lines = [l for l in block.splitlines() if l.strip() and not l.lstrip().startswith("#")]
+    assert len(lines) >= 8, lines
+    root = os.path.join(TMP, "tour")
+    os.makedirs(root)
+    for name, target in (("build", BUILD), ("jobs", os.path.join(SRC, "jobs")), ("scripts", os.path.join(SRC, "scripts"))):
+        os.symlink(target, os.path.join(root, name))
+    for line in lines:
+        p = subprocess.run(["bash", "-c", line], capture_output=True, text=True, timeout=600, env=ENV, cwd=root)
+        assert p.returncode == 0, f"{line}\nexit {p.returncode}\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}"
+    made = sorted(os.listdir(os.path.join(root, "out")))
+    print(f"README tour: {len(lines)} lines ran in order; out/ holds {', '.join(made)}")
+
 def program_seconds(result):
     """(pilot seconds, total seconds) of a `run` from its log: the run's "done: ... in X s" plus the
     effects pilots' "in X s" (0 without components = "auto"); mpirun's start-up, about 1-2 s here, is
