@@ -73,6 +73,64 @@ double availableMemoryBytes() {
   return avail;
 }
 
+namespace {
+// The largest relative error per slice of the single-scattering wave table f_ws of a pilot tile:
+// √Σ(σ_b Ω⊥_b)² / Σ|f_b| Ω⊥_b, the measure `info` prints, over wavelengths.
+double waveRelativeError(const WaveTileResult& w, const DirectionGrid& grid) {
+  double worst = 0;
+  for (int l = 0; l < w.nLambda; ++l) {
+    double v = 0, e = 0;
+    for (int b = 0; b < w.nBins; ++b) {
+      const size_t i = size_t(l) * size_t(w.nBins) + size_t(b);
+      const double op = grid.projectedSolidAngle(b);
+      v += std::pow(w.fwsErr[i] * op, 2);
+      e += std::abs(w.fws[i]) * op;
+    }
+    if (e > 0) worst = std::max(worst, std::sqrt(v) / e);
+  }
+  return worst;
+}
+
+// What accuracy costs for this job. A Monte Carlo part's relative error falls as 1/√N with its
+// budget N and its time grows as N, so from the pilot's error at its own budget the error at the
+// job's budget, and the budget (and core-hours) that reach 10 %, 3 % and 1 %, follow; a
+// deterministic part (the facet sum, `exact`, `fft`) has the error of its rules whatever the budget.
+nlohmann::json accuracyTable(const Job& job, double pathErrPilot, uint64_t pilotPaths, double pathSeconds, bool pathsDeterministic,
+                             double waveErrPilot, int wavePilotSamples, bool waveDeterministic, double waveSeconds,
+                             int computedTiles, int cores) {
+  nlohmann::json a;
+  const double pathErr = pathsDeterministic ? 0.0 : pathErrPilot * std::sqrt(double(pilotPaths) / double(job.pathsPerSlice));
+  a["paths"] = {{"rel_error", pathErr}, {"paths_per_slice", job.pathsPerSlice}, {"monte_carlo", !pathsDeterministic}};
+  const bool wave = job.needsWave();
+  double waveErr = 0;
+  if (wave) {
+    waveErr = waveDeterministic ? waveErrPilot
+                                : waveErrPilot * std::sqrt(double(wavePilotSamples) / double(job.waveSamplesPerBin));
+    a["wave"] = {{"rel_error", waveErr}, {"estimator", job.resolvedWaveEstimator()},
+                 {"samples_per_bin", job.waveSamplesPerBin}, {"monte_carlo", !waveDeterministic}};
+  }
+  nlohmann::json targets = nlohmann::json::array();
+  for (double target : {0.1, 0.03, 0.01}) {
+    // Budget factor per part: (error / target)², at least 1000 paths and 16 samples per bin.
+    const double fp = pathsDeterministic || pathErr <= 0
+                          ? 1.0
+                          : std::max(1000.0 / double(job.pathsPerSlice), std::pow(pathErr / target, 2));
+    const double fw = !wave || waveDeterministic || waveErr <= 0
+                          ? 1.0
+                          : std::max(16.0 / double(job.waveSamplesPerBin), std::pow(waveErr / target, 2));
+    nlohmann::json t = {{"rel_error", target},
+                        {"core_hours", (pathSeconds * fp + waveSeconds * fw) * computedTiles * cores / 3600.0}};
+    if (!pathsDeterministic) t["paths_per_slice"] = uint64_t(std::ceil(double(job.pathsPerSlice) * fp));
+    if (wave && !waveDeterministic) t["wave_samples_per_bin"] = uint64_t(std::ceil(double(job.waveSamplesPerBin) * fw));
+    t["reached"] = (pathsDeterministic || pathErr * std::sqrt(1 / fp) <= target * 1.0000001) &&
+                   (!wave || !waveDeterministic || waveErr <= target);
+    targets.push_back(t);
+  }
+  a["targets"] = targets;
+  return a;
+}
+}  // namespace
+
 nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   std::optional<tbb::global_control> threads;
   if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
@@ -133,16 +191,25 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   double pathSeconds = 0, pilotSeconds = 0;
   int facetTiles = 0;
   std::vector<TileResult> pilotTiles;
+  // The largest relative error per slice (sliceRelativeError) of the path-traced components at the
+  // pilot's budget; 0 when every pilot tile is deterministic (the facet sum).
+  double pathRelError = 0;
   for (int t : pilots) {
     spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
     pilotTiles.push_back(transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: path pilot")));
     const TileResult& r = pilotTiles.back();
+    if (r.samples > 0)
+      for (Component c : {Component::Coherent, Component::Multiple})
+        if (r.has(c) && planned.components.has(c))
+          for (double e : sliceRelativeError(r, c, grid)) pathRelError = std::max(pathRelError, e);
     pilotSeconds += r.seconds / double(pilots.size());
     pathSeconds += r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
     facetTiles += r.samples == 0;
   }
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
-  double waveSeconds = 0, waveBytes = 0, waveSetupSeconds = 0;
+  double waveSeconds = 0, waveBytes = 0, waveSetupSeconds = 0, waveRelError = 0;
+  int wavePilotSamples = 0;
+  bool waveDeterministic = true;
   if (job.needsWave()) {
     WaveSettings ws = waveSettingsOf(job);
     ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
@@ -150,11 +217,14 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
     // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
     const double scale = est->deterministic() ? 1.0 : double(job.waveSamplesPerBin) / double(ws.samplesPerBin);
+    waveDeterministic = est->deterministic();
+    wavePilotSamples = ws.samplesPerBin;
     for (size_t k = 0; k < pilots.size(); ++k) {
       const int t = pilots[k];
       spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
       const WaveTileResult w = est->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
       waveSeconds += w.seconds;
+      waveRelError = std::max(waveRelError, waveRelativeError(w, grid));
       if (pilotTiles[k].has(Component::Coherent))
         addWaveComponents(pilotTiles[k], w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
     }
@@ -237,6 +307,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
                         {"max_paths_per_slice", job.maxPathsPerSlice},
                         {"path_seconds_per_tile_max", pathSeconds * double(job.maxPathsPerSlice) / double(job.pathsPerSlice)}};
   }
+  p["accuracy"] = accuracyTable(job, pathRelError, pilotPaths, pathSeconds, facetTiles == int(pilots.size()), waveRelError,
+                                wavePilotSamples, waveDeterministic, waveSeconds, computedTiles, cores);
   p["estimate"] = {{"seconds_per_tile", tileSeconds},
                    {"path_seconds_per_tile", pathSeconds},
                    {"wave_seconds_per_tile", waveSeconds},
@@ -265,6 +337,30 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
 }
 
 namespace {
+// "accuracy: paths 2.1 % per slice ..., wave term ...", then budget → error → core-hours.
+std::string fmtAccuracy(const nlohmann::json& a) {
+  auto pct = [](double e) { return fmt::format("{:.2g} %", 100 * e); };
+  const auto& paths = a["paths"];
+  std::string o = "accuracy:       paths " +
+                  (paths["monte_carlo"].get<bool>()
+                       ? pct(paths["rel_error"].get<double>()) + " per slice at " + paths["paths_per_slice"].dump() + " paths"
+                       : std::string("deterministic (the facet sum)"));
+  if (a.contains("wave"))
+    o += "; wave term (" + a["wave"]["estimator"].get<std::string>() + ") " + pct(a["wave"]["rel_error"].get<double>()) +
+         (a["wave"]["monte_carlo"].get<bool>() ? " at " + a["wave"]["samples_per_bin"].dump() + " samples per bin"
+                                                : std::string(" (its rules' error, whatever the budget)"));
+  o += "\n                (largest relative error of a slice, √Σ(σ Ω⊥)² / Σ|f| Ω⊥, from the pilots; Monte Carlo errors fall as 1/√budget)\n";
+  for (const auto& t : a["targets"]) {
+    o += fmt::format("  for {:>4}: ", pct(t["rel_error"].get<double>()));
+    if (t.contains("paths_per_slice")) o += "paths_per_slice = " + t["paths_per_slice"].dump() + ", ";
+    if (t.contains("wave_samples_per_bin")) o += "wave_samples_per_bin = " + t["wave_samples_per_bin"].dump() + ", ";
+    o += fmt::format("{:.3g} core-hours", t["core_hours"].get<double>());
+    if (!t["reached"].get<bool>()) o += " (a deterministic part's own error stays above it)";
+    o += "\n";
+  }
+  return o;
+}
+
 std::string fmtBalance(const nlohmann::json& b) {
   const double worst = b["worst_at_pilots"].get<double>(), tol = b["tolerance"].get<double>();
   return fmt::format("{:+.4f} at the pilots (R + T + lost paths − 1{}); {}", worst,
@@ -316,6 +412,7 @@ std::string formatPlan(const nlohmann::json& p) {
             : std::string())
     << "\n"
     << "energy balance: " << fmtBalance(p["energy_balance"]) << "\n"
+    << (p.contains("accuracy") ? fmtAccuracy(p["accuracy"]) : std::string())
     << (p.contains("scalar_validity") && p["scalar_validity"]["applies"].get<bool>()
             ? "scalar model:   " + p["scalar_validity"]["note"].get<std::string>() + "\n"
             : std::string())
