@@ -86,11 +86,10 @@ double multipleBound(const TileResult& r, const DirectionGrid& grid) {
 // (single scattering without paths) runs a few thousand full-depth paths; past the tolerance the
 // tile is traced in full after all, otherwise its `multiple` is stored as zero (within the
 // tolerance by the bound). Either way the slice records the bound and whether it was re-enabled.
-void verifySkippedMultiple(const Job& job, const DirectionGrid& grid, int t, const GeometricTransport* check,
-                           const GeometricTransport* full, const std::function<void(uint64_t)>& cb, TileResult& r) {
+void verifySkippedMultiple(const Job& job, const DirectionGrid& grid, int t, const std::optional<Vec3>& exact,
+                           const GeometricTransport* check, const GeometricTransport* full,
+                           const std::function<void(uint64_t)>& cb, TileResult& r) {
   const auto& inc = job.incidence[size_t(t)];
-  std::optional<Vec3> exact;
-  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
   if (r.has(Component::Multiple)) {
     r.multipleCheck = multipleBound(r, grid);
   } else {
@@ -207,7 +206,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
         r.poolPaths(transport.run(t, t, inc.bin, exact, cb, r.samples));
       }
     }
-    if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(job, grid, t, checkTransport.get(), fullTransport.get(), cb, r);
+    if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(job, grid, t, exact, checkTransport.get(), fullTransport.get(), cb, r);
     pathSecondsSum += since(ts);
     if (wave) {
       auto tw = Clock::now();

@@ -339,7 +339,7 @@ WaveTileResult FftSpeckleEstimator::run(int tile, int incidenceBin, std::optiona
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   const bool transmissionWanted = !media.conductor() && wave::otherSideWanted(grid, fromAbove, exitMask);
   bool denseSide = false;
-  for (int l = 0; l < nL && transmissionWanted; ++l) denseSide = denseSide || media.incident(l, fromAbove) > media.other(l, fromAbove);
+  for (int l = 0; l < nL && transmissionWanted; ++l) denseSide = denseSide || media.reverseTransmission(l, fromAbove);
   const auto rule = wave::incidenceRule(grid, incidenceBin, exactDirection, ctx_.settings.incidenceDirections);
   WaveTileResult r(nL, nB, false);
   const size_t n = size_t(nL) * size_t(nB);

@@ -310,7 +310,7 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
       if (group.empty() && below.empty()) continue;
       const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
       const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
-      if (trans && nI > nO) continue;  // from the denser medium: facet sums (OrdersWaveEstimator::run)
+      if (trans && media.reverseTransmission(l, fromAbove)) continue;  // facet sums (OrdersWaveEstimator::run)
       const auto fields = spectrum.fields(wi, fromAbove, l, k0, nI, nO, bool(trans), media, lit);
       auto qzOf = [&](const Order& ord) { return -nI * k0 * wi.z - nO * k0 * ord.wo.z; };
       if (!group.empty()) {
@@ -707,7 +707,7 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     // a field shared by all orders; those take the facet sums.
     auto facetSum = [&](size_t o) {
       return amplitudes_ == OrderAmplitudes::Exact ||
-             (orders[o].transmission && media.incident(orders[o].lambda, fromAbove) > media.other(orders[o].lambda, fromAbove));
+             (orders[o].transmission && media.reverseTransmission(orders[o].lambda, fromAbove));
     };
     if (amplitudes_ == OrderAmplitudes::Fourier) {
       uint64_t fourierRays = 0;

@@ -20,6 +20,9 @@ class Media {
   // Fresnel amplitudes at the local cosine, from the incident medium into the other one.
   FresnelAmplitudes fresnel(int l, double cosLocal, bool fromAbove) const;
   bool conductor() const { return conductor_; }
+  // Whether transmission from this side is from the denser medium: the wave term then evaluates
+  // it on the reverse path (integrandAt below).
+  bool reverseTransmission(int l, bool fromAbove) const { return incident(l, fromAbove) > other(l, fromAbove); }
 
  private:
   double nUpper_;
@@ -37,17 +40,18 @@ class Media {
 // that reciprocity requires, f(i → o)/n_o² = f(o → i)/n_i², so the model is reciprocal by
 // construction. At stationary points (the facet refracts ωi into ωo) both tangent planes give the
 // same amplitude, since n_o cos θ_o t_io = n_i cos θ_i t_oi for s and p (Born & Wolf §1.5.2): the
-// geometric limit is unchanged. Elsewhere they differ, and the denser side's is the worse: it drops every facet steeper
-// than the critical angle (t = 0 under total internal reflection), where the field the wave sends
-// on is not zero. Against a 3-D FDTD solution of glass hemispheres (docs/testing.md, "Transmission from
-// the denser medium") the zero order transmits 0.068 both ways; the thinner side's tangent plane
-// gives 0.086, the denser side's gave 0.22.
+// geometric limit is unchanged. Elsewhere they differ, and the denser side's is the worse: it
+// drops every facet steeper than the critical angle (t = 0 under total internal reflection), where
+// the field the wave sends on is not zero. On a lattice of glass hemispheres (docs/validation.md)
+// Meep's zero order transmits 0.075–0.077 either way; the thinner side's tangent plane gives 0.085
+// both ways, the denser side's gave 0.22 from inside.
 inline KirchhoffValue integrandAt(const Media& media, int l, const Vec3& x, const Vec3& m, const Vec3& wi,
                                   const Vec3& wo, double k0, bool fromAbove, bool transmission) {
   const double nI = media.incident(l, fromAbove);
   if (!transmission) return kirchhoffIntegrand(x, m, wi, wo, k0, nI, nI, media.fresnel(l, dot(m, wi), fromAbove), false);
   const double nO = media.other(l, fromAbove);
-  if (nI <= nO) return kirchhoffIntegrand(x, m, wi, wo, k0, nI, nO, media.fresnel(l, dot(m, wi), fromAbove), true);
+  if (!media.reverseTransmission(l, fromAbove))
+    return kirchhoffIntegrand(x, m, wi, wo, k0, nI, nO, media.fresnel(l, dot(m, wi), fromAbove), true);
   // The reverse path's amplitude does not vanish as the facet turns edge-on to ωi (the forward
   // one does, with t): a facet that ωi only grazes within rounding — a vertical wall under
   // normal incidence — takes no light, or rounding would light one wall of a symmetric ridge and

@@ -19,6 +19,7 @@
 #include "microflake/microflake_walk.h"
 #include "microflake/ndf.h"
 #include "scattering/single_scattering.h"
+#include "scattering/tile_result.h"
 #include "scattering_test_util.h"
 #include "wave_test_util.h"
 
@@ -74,16 +75,16 @@ std::vector<double> flatWave(const WaveTileResult& r) {
   return v;
 }
 
-// Energy leaving a geometric tile (every component but lost and geo_masked, both hemispheres, plus
-// truncated, leaked and missed) and its standard error from the per-path moments.
+// Energy leaving a geometric tile (energyBalance + 1: every traced component, both hemispheres,
+// plus truncated, leaked and missed) and its standard error from the per-path moments.
 std::pair<double, double> geometricEnergy(const TileResult& r, const DirectionGrid& grid, int l) {
-  double e = r.truncated[size_t(l)] + r.leaked[size_t(l)] + r.missed[size_t(l)];
-  std::vector<Component> traced;
+  std::vector<Component> present, traced;
   for (Component c : {Component::Coherent, Component::Multiple}) {
     if (!r.has(c)) continue;
-    for (int b = 0; b < r.nBins; ++b) e += r.at(c, l, b) * grid.projectedSolidAngle(b);
+    present.push_back(c);
     if (!r.pathMoments[int(c)].empty()) traced.push_back(c);
   }
+  const double e = energyBalance(r, grid, present, true)[size_t(l)] + 1;
   const std::vector<double> se = traced.empty() ? std::vector<double>{} : r.pathEnergyStdError(traced, -1);
   return {e, se.empty() ? 0.0 : se[size_t(l)]};
 }
