@@ -28,8 +28,8 @@
 #include "core/stop.h"
 #include "io/hdf5_handle.h"
 #include "io/output_target.h"
-#include "dist/mpi_session.h"
-#include "dist/runner.h"
+#include "cluster/mpi_session.h"
+#include "cluster/runner.h"
 #include "geometry/microgeometry.h"
 #include "microflake/compare_smith.h"
 #include "microflake/ndf.h"
@@ -38,6 +38,7 @@
 #include "io/contact_sheet.h"
 #include "render/preview.h"
 #include "job/job.h"
+#include "job/job_keys.h"
 #include "job/effects_planner.h"
 #include "job/plan.h"
 #include "job/scalar_validity.h"
@@ -121,6 +122,7 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
       for (auto& [c, v] : st.energyReflected) s["energy"]["reflected"][c] = v;
       for (auto& [c, v] : st.energyTransmitted) s["energy"]["transmitted"][c] = v;
       for (auto& [c, v] : st.relError) s["rel_error"][c] = v;
+      if (!st.pathsRelError.empty()) s["paths_rel_error"] = st.pathsRelError;
       // Albedo of the model the file holds (its components summed, reflected + transmitted), per
       // wavelength; `lost` is a diagnostic, not part of any model, and is left out.
       std::vector<double> total(f.wavelengths_nm().size(), 0.0);
@@ -436,6 +438,10 @@ int main(int argc, char** argv) {
 
   auto* check = app.add_subcommand("check", "validate a job file and print what it describes");
 
+  bool keysMarkdown = false;
+  auto* keys = app.add_subcommand("keys", "every key a job file may hold: type, default, accepted values, meaning");
+  keys->add_flag("--markdown", keysMarkdown, "as the Markdown table of docs/job-reference.md");
+
   std::string planJson;
   auto* plan = app.add_subcommand("plan", "what a job will compute and cost (tiles, core-hours, output size), from a short pilot");
   plan->add_option("job", jobPath, "job file (TOML)")->required();
@@ -470,6 +476,10 @@ int main(int argc, char** argv) {
   if (run->parsed()) return runCommand(argc, argv, jobPath, outPath, logDir, threads, resume, maxHours, verbose);
 
   try {
+    if (keys->parsed()) {
+      std::cout << (keysMarkdown ? jobKeysMarkdown() : jobKeysText());
+      return 0;
+    }
     if (info->parsed()) {
       BsdfFileReader f(h5Path);
       nlohmann::json j = infoJson(f, h5Path);
@@ -535,6 +545,7 @@ int main(int argc, char** argv) {
       Job job = loadJob(jobPath);
       PlanOptions po;
       po.threads = threads;
+      po.writeSecondsPerSlice = measureWriteSecondsPerSlice;
       nlohmann::json p = planJob(job, po);
       std::cout << formatPlan(p);
       if (!planJson.empty()) {

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <chrono>
 #include <sstream>
 #include <cmath>
 #include <cstdio>
@@ -138,8 +139,8 @@ std::vector<std::string> rowDatasets(const Job& job) {
                           "/stats/energy_reflected_stderr/", "/stats/energy_transmitted_stderr/", "/stats/rel_error/"})
       v.push_back(g + n);
   }
-  for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/wave_samples", "/stats/seconds",
-                        "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/stats/energy_balance",
+  for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/wave_samples", "/stats/rays", "/stats/seconds",
+                        "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/stats/paths_rel_error", "/stats/energy_balance",
                         "/stats/energy_balance_stderr", "/bsdf/done"})
     v.push_back(n);
   if (job.guarded.has(Component::Multiple))
@@ -173,19 +174,31 @@ std::vector<double> readColumns(hid_t file, const std::string& path, hsize_t c0,
 
 }  // namespace
 
-std::vector<double> sliceRelativeError(const TileResult& r, Component c, const DirectionGrid& grid) {
-  std::vector<double> out(r.nLambda, 0.0);
-  for (int l = 0; l < r.nLambda; ++l) {
-    double var = 0, mass = 0;
-    for (int b = 0; b < r.nBins; ++b) {
-      double op = grid.projectedSolidAngle(b);
-      double e = r.stdError[int(c)][size_t(l) * r.nBins + b] * op;
-      var += e * e;
-      mass += std::abs(r.at(c, l, b)) * op;
-    }
-    out[l] = mass > 0 ? std::sqrt(var) / mass : 0.0;
+double measureWriteSecondsPerSlice(const Job& job, const DirectionGrid& grid) {
+  const std::string scratch =
+      (std::filesystem::temp_directory_path() / ("microbsdf-plan-" + std::to_string(::getpid()) + ".h5")).string();
+  const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  TileResult dummy;
+  dummy.nLambda = nL;
+  dummy.nBins = nB;
+  for (Component c : job.components.list()) {
+    dummy.value[int(c)].assign(size_t(nL) * nB, 0.0);
+    dummy.stdError[int(c)].assign(size_t(nL) * nB, 0.0);
   }
-  return out;
+  dummy.truncated = dummy.leaked = dummy.missed = std::vector<double>(size_t(nL), 0.0);
+  const int n = std::min<int>(3, int(job.incidence.size()));
+  double seconds = 0;
+  {
+    BsdfFileWriter w(scratch, job, grid);
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int t = 0; t < n; ++t) {
+      dummy.tile = dummy.incidenceIndex = t;
+      w.writeTile(dummy);
+    }
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / std::max(1, n);
+  }
+  for (const char* ext : {"", ".partial", ".journal"}) std::filesystem::remove(scratch + ext);
+  return seconds;
 }
 
 namespace {
@@ -486,6 +499,9 @@ void BsdfFileWriter::create(const std::string& filename) {
     write1D(s, "samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1", "paths per wavelength");
     write1D(s, "wave_samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1",
             "Kirchhoff samples (point x exit direction) per wavelength");
+    write1D(s, "rays", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1",
+            "ray casts through the scene (paths, facet sums, the wave term's visibility): the tile's work, "
+            "independent of the machine");
     write1D(s, "seconds", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "s", "wall time of the tile");
     write1D(s, "sampling_stop", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
             "0: fixed budget; 1: target_rel_error reached; 2: max_paths_per_slice spent first");
@@ -512,6 +528,10 @@ void BsdfFileWriter::create(const std::string& filename) {
       H5Dataset d = create3D(s, "paths_albedo_stderr", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
       describe(d, "1", "standard error of the summed energy (both hemispheres) of the path-traced components but "
                        "lost, from the per-path energies (0 without path-traced components)");
+      H5Dataset r = create3D(s, "paths_rel_error", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+      describe(r, "1", "estimated relative error of the slice of the path-traced table (the sum of the path-traced "
+                       "components but lost): sqrt(sum_b sum_c (stderr * projected solid angle)^2) / sum_b |sum_c f| "
+                       "projected solid angle; what target_rel_error aims at (0 without paths)");
     }
     for (const char* n : {"truncated", "leaked", "missed"}) {
       H5Dataset d = create3D(s, n, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
@@ -557,6 +577,7 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
   writeRow(f, "/stats/missed", i, r.missed, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/samples", i, {double(r.samples)}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/wave_samples", i, {double(r.waveSamples)}, H5T_NATIVE_DOUBLE);
+  writeRow(f, "/stats/rays", i, {double(r.rays)}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/seconds", i, {r.seconds}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/sampling_stop", i, {double(int(r.samplingStop))}, H5T_NATIVE_DOUBLE);
   if (job_.guarded.has(Component::Multiple)) {
@@ -570,6 +591,9 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
     std::vector<double> se = r.pathEnergyStdError(traced, -1);
     if (traced.empty()) se.assign(size_t(r.nLambda), 0.0);
     writeRow(f, "/stats/paths_albedo_stderr", i, se, H5T_NATIVE_DOUBLE);
+    std::vector<double> rel = relativeError(r, traced, grid_);
+    if (r.samples == 0) rel.assign(size_t(r.nLambda), 0.0);  // the facet sum: no paths
+    writeRow(f, "/stats/paths_rel_error", i, rel, H5T_NATIVE_DOUBLE);
   }
   const EnergyBalance balance = writeEnergyBalance(i);
   // The slice on disk (flushed and synced), then its done flag (flushed and synced), then the
@@ -631,7 +655,7 @@ void BsdfFileWriter::writeSliceStats(const TileResult& r, Component c) {
   for (int side = 0; side < 2; ++side)
     writeRow(file_, side == 0 ? "/stats/energy_reflected_stderr/" + name : "/stats/energy_transmitted_stderr/" + name,
              r.incidenceIndex, energyStdError(r, c, side, grid_), H5T_NATIVE_DOUBLE);
-  writeRow(file_, "/stats/rel_error/" + name, r.incidenceIndex, sliceRelativeError(r, c, grid_), H5T_NATIVE_DOUBLE);
+  writeRow(file_, "/stats/rel_error/" + name, r.incidenceIndex, relativeError(r, {c}, grid_), H5T_NATIVE_DOUBLE);
 }
 
 double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
@@ -779,6 +803,7 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   s.missed = readRow("/stats/missed", incidence);
   const bool energyErrors = H5Lexists(file_, "/stats/energy_reflected_stderr", H5P_DEFAULT) > 0;
   if (energyErrors) s.pathsAlbedoStdError = readRow("/stats/paths_albedo_stderr", incidence);
+  if (H5Lexists(file_, "/stats/paths_rel_error", H5P_DEFAULT) > 0) s.pathsRelError = readRow("/stats/paths_rel_error", incidence);
   if (H5Lexists(file_, "/stats/energy_balance", H5P_DEFAULT) > 0) {
     s.energyBalance = readRow("/stats/energy_balance", incidence);
     s.energyBalanceStdError = readRow("/stats/energy_balance_stderr", incidence);

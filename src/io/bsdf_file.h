@@ -105,6 +105,7 @@ struct SliceStats {
   std::vector<double> truncated, leaked, missed;
   std::map<std::string, std::vector<double>> energyReflected, energyTransmitted;
   std::map<std::string, std::vector<double>> relError;  // per component, per wavelength
+  std::vector<double> pathsRelError;  // of the path-traced table, per wavelength (empty in older files)
   // Standard errors of the energies above (empty in files without them), and of the summed energy
   // of the path-traced components (both hemispheres), per wavelength.
   std::map<std::string, std::vector<double>> energyReflectedStdError, energyTransmittedStdError;
@@ -118,10 +119,10 @@ struct SliceStats {
 // per-bin errors in quadrature.
 std::vector<double> energyStdError(const TileResult& r, Component c, int side, const DirectionGrid& grid);
 
-// Estimated relative standard error of a slice of one component, per wavelength:
-// sqrt(Σ_b (σ_b Ω⊥_b)²) / Σ_b |f_b| Ω⊥_b (docs/physics.md §3 units; the bins of a path-traced component
-// are negatively correlated, so this is an upper bound for its hemispherical integral).
-std::vector<double> sliceRelativeError(const TileResult& r, Component c, const DirectionGrid& grid);
+// Seconds the writer spends on one slice of this job's layout (a flush and a journal fsync each),
+// measured by writing up to 3 zero slices to a scratch file in the temporary directory: `plan`'s
+// estimate of rank 0's serial writing.
+double measureWriteSecondsPerSlice(const Job& job, const DirectionGrid& grid);
 
 class BsdfFileReader {
  public:

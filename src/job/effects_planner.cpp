@@ -13,6 +13,7 @@
 
 #include "core/colour.h"
 #include "core/log.h"
+#include "job/symmetry.h"
 #include "job/transport.h"
 #include "scattering/fft_estimator.h"
 #include "scattering/single_scattering.h"
@@ -41,14 +42,77 @@ constexpr int kAreaPilotStride = 8;
 }  // namespace
 
 std::vector<int> pilotIncidences(const Job& job) {
-  std::vector<int> order(job.incidence.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = int(i);
+  const int n = int(job.incidence.size());
+  std::vector<int> order(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) order[size_t(i)] = i;
   auto cosTheta = [&](int i) { return std::abs(std::cos(radians(job.incidence[size_t(i)].theta_deg))); };
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return cosTheta(a) > cosTheta(b); });
-  std::vector<int> picks{order.front(), order[order.size() / 2], order.back()};
-  std::sort(picks.begin(), picks.end());
-  picks.erase(std::unique(picks.begin(), picks.end()), picks.end());
+  auto dir = [&](int i) {
+    return sphericalDirection(radians(job.incidence[size_t(i)].theta_deg), radians(job.incidence[size_t(i)].phi_deg));
+  };
+  std::vector<int> picks;
+  auto add = [&](int i) {
+    if (std::find(picks.begin(), picks.end(), i) == picks.end()) picks.push_back(i);
+  };
+  add(order.back());   // the most grazing: inter-reflection and the specular spike are strongest there
+  add(order.front());  // the closest to normal
+  add(order[order.size() / 2]);
+  // Farthest-point spread: ties go to the lower index, so every rank and run picks the same.
+  while (int(picks.size()) < std::min(n, kMaxPilots)) {
+    int best = -1;
+    double bestDistance = -1;
+    for (int i = 0; i < n; ++i) {
+      double nearest = 1e300;
+      for (int p : picks) nearest = std::min(nearest, std::acos(std::clamp(dot(dir(i), dir(p)), -1.0, 1.0)));
+      if (nearest > bestDistance) bestDistance = nearest, best = i;
+    }
+    if (best < 0 || std::find(picks.begin(), picks.end(), best) != picks.end()) break;
+    picks.push_back(best);
+  }
   return picks;
+}
+
+std::optional<double> steepestFacet_deg(const Job& job) {
+  const Microgeometry& g = job.geometry;
+  if (job.statistical || !g.periodic || !job.closure.closed() || g.triangles.empty()) return std::nullopt;
+  double slope = 0;
+  for (size_t t = 0; t < g.triangles.size(); ++t) {
+    const Vec3 n = g.triangleNormal(t);
+    const double len = length(n);
+    if (len == 0) continue;  // degenerate: no area, no light
+    if (n.z <= 1e-9 * len) return std::nullopt;  // a wall or an overhang: not a graph
+    slope = std::max(slope, std::hypot(n.x, n.y) / n.z);
+  }
+  return degrees(std::atan(slope));
+}
+
+std::optional<double> singleBounceLimit_deg(const Job& job) {
+  const std::optional<double> steepest = steepestFacet_deg(job);
+  if (!steepest) return std::nullopt;
+  const double thetaS = radians(*steepest);
+  double limit = kPi / 2 - 3 * thetaS;
+  if (!job.material.isConductor()) {
+    double eta = 1e300;
+    for (double l : job.lambda_um()) eta = std::min(eta, job.material.ior(l).real());
+    const double s = eta * std::cos(2 * thetaS);
+    if (s < 1) limit = std::min(limit, std::asin(std::max(s, -1.0)) - thetaS);
+  }
+  if (limit <= 0) return std::nullopt;
+  return degrees(limit);
+}
+
+bool scattersOnce(const Job& job, const DirectionGrid& grid, int t, const std::optional<double>& limit_deg) {
+  if (!limit_deg) return false;
+  const IncidenceDirection& inc = job.incidence[size_t(t)];
+  if (job.exactIncidence) return inc.theta_deg < *limit_deg;
+  if (!grid.isUpper(inc.bin)) return false;
+  if (const auto* tp = std::get_if<ThetaPhiGrid>(&grid.layout()))  // the bin's outer ring
+    return double(inc.bin / tp->nPhi + 1) * 90.0 / tp->nTheta < *limit_deg;
+  double xmin, xmax, ymin, ymax;
+  grid.xyBounds(inc.bin, &xmin, &xmax, &ymin, &ymax);
+  // The bin's bounding box in the projected disk: its farthest corner bounds sin θ from above.
+  const double r = std::hypot(std::max(std::abs(xmin), std::abs(xmax)), std::max(std::abs(ymin), std::abs(ymax)));
+  return r < 1 && degrees(std::asin(r)) < *limit_deg;
 }
 
 namespace {
@@ -162,6 +226,9 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
     return decision("wavelengths", true,
                     std::to_string(nL) + " wavelengths, all kept although the renderer needs colour: diffraction changes "
                                          "with lambda (orders and speckle move), which is what the samples resolve; " + sharing);
+  if (geo.empty())
+    return decision("wavelengths", true,
+                    std::to_string(nL) + " wavelengths, all kept: the pilot budget allows no geometric pilot; " + sharing);
   std::vector<TileResult> geo2;
   replicate(&geo2);
   const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
@@ -257,7 +324,7 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
 // wavelengths. Every figure goes in the plan (with the samples per bin `area` would need): what
 // each accuracy costs on this job. Where no pilot can change the pick, none is run.
 nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen, const DirectionGrid& grid,
-                                     const PeriodicScene& scene, int pilot) {
+                                     const PeriodicScene& scene, int pilot, const std::string& unaffordable) {
   const std::string resolved = job.resolvedWaveEstimator();
   const double sigma = job.scene.coherenceLength_um / 6.0;
   const std::vector<double> lambdas = job.lambda_um();
@@ -281,6 +348,12 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
                                                   ? std::string(" is deterministic")
                                                   : std::string(" has no deterministic alternative here")) +
                                              skipped + "; no estimator pilot");
+    d["estimator"] = resolved;
+    return d;
+  }
+  if (!unaffordable.empty()) {
+    auto d = decision("estimator", true, resolved + ": the static rule (Job::resolvedWaveEstimator); no estimator pilot: " +
+                                             unaffordable);
     d["estimator"] = resolved;
     return d;
   }
@@ -428,7 +501,15 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   pilotJob.components.add(Component::Multiple);
   const uint64_t paths = std::min<uint64_t>(options.paths, job.pathsPerSlice);
   GeometricTransport transport(pilotJob, grid, paths);
-  const std::vector<int> pilots = pilotIncidences(job);
+  // The pilot budget (Job::pilotBudget), in tiles' work: the job computes `computed` tiles of
+  // paths_per_slice paths and one wave term each; a geometric pilot costs paths / paths_per_slice of
+  // a tile's paths, a wave pilot its samples against the job's (wavePilotCost below). The pilots run
+  // in priority order (pilotIncidences): the budget keeps the first ones.
+  const std::vector<int> planned = pilotIncidences(job);
+  const int computed = job.symmetryReduced() ? AzimuthalSymmetry(job, grid).representativeCount() : int(job.incidence.size());
+  const double budgetTiles = job.pilotBudget * computed;
+  std::vector<int> pilots = planned;
+  pilots.resize(std::min(planned.size(), size_t(std::max(0.0, std::floor(budgetTiles * double(job.pathsPerSlice) / double(paths) + 1e-9)))));
   // The job's wave estimator for the pilots, with at least options.waveSamplesPerBin samples and no
   // masked sums (`lost` is decided on request only).
   WaveSettings ws = waveSettingsOf(job);
@@ -485,32 +566,62 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   chosen.add(Component::Coherent);
   decisions.push_back(decision("coherent", true, "always: the geometric single scattering every model starts from"));
 
-  // Multiple scattering.
+  // Multiple scattering: the geometry's bound first (singleBounceLimit_deg), then the pilots at the
+  // incidences it leaves open.
   {
-    double worst = 0, worstValue = 0, worstTheta = 0;
-    for (size_t k = 0; k < geo.size(); ++k)
-      for (int l = 0; l < nL; ++l) {
-        double se;
-        const double e = energy(geo[k], Component::Multiple, l, &se);
-        if (e + 3 * se > worst) {
-          worst = e + 3 * se;
-          worstValue = e;
-          worstTheta = job.incidence[size_t(pilots[k])].theta_deg;
+    const std::optional<double> limit = singleBounceLimit_deg(job);
+    int open = 0;
+    for (int t = 0; t < int(job.incidence.size()); ++t) open += !scattersOnce(job, grid, t, limit);
+    const std::string bound = limit ? "the geometry (steepest facet " + fmt3(*steepestFacet_deg(job)) +
+                                          " deg) lets no path meet the surface twice below theta " + fmt3(*limit) + " deg"
+                                    : "";
+    nlohmann::json d;
+    bool on = false;
+    if (open == 0) {
+      d = decision("multiple", false, bound + ", which holds every incidence of the job");
+    } else {
+      double worst = -1, worstValue = 0, worstTheta = 0;
+      int judged = 0;
+      for (size_t k = 0; k < geo.size(); ++k) {
+        if (scattersOnce(job, grid, pilots[k], limit)) continue;
+        ++judged;
+        if (worst < 0) worst = 0, worstTheta = job.incidence[size_t(pilots[k])].theta_deg;
+        for (int l = 0; l < nL; ++l) {
+          double se;
+          const double e = energy(geo[k], Component::Multiple, l, &se);
+          if (e + 3 * se > worst) {
+            worst = e + 3 * se;
+            worstValue = e;
+            worstTheta = job.incidence[size_t(pilots[k])].theta_deg;
+          }
         }
       }
-    const bool on = worst > tol || forced.has(Component::Multiple);
-    auto d = decision("multiple", on,
-                      "pilot multiply scattered energy " + fmt3(worstValue) + " (+3 SE: " + fmt3(worst) + ") at theta " +
-                          fmt3(worstTheta) + " deg " + (worst > tol ? "exceeds" : "is below") + " the tolerance " +
-                          fmt3(tol) + (forced.has(Component::Multiple) && worst <= tol ? "; kept: requested" : "") +
-                          (on ? "" : "; verified on every tile, computed there after all past the tolerance"));
-    d["pilot_energy"] = worstValue;
-    d["pilot_energy_upper"] = worst;
+      on = worst > tol || judged == 0;
+      const std::string where = (bound.empty() ? "" : bound + " (" + std::to_string(open) + " of " +
+                                                          std::to_string(job.incidence.size()) + " incidences are above it); ");
+      d = decision("multiple", on,
+                   judged == 0 ? where + (pilots.empty() ? "the pilot budget (" + fmt3(job.pilotBudget) +
+                                                              " of the job's tiles) allows no pilot: kept"
+                                                        : "no pilot incidence above it: kept")
+                               : where + "pilot multiply scattered energy " + fmt3(worstValue) + " (+3 SE: " + fmt3(worst) +
+                                     ") at theta " + fmt3(worstTheta) + " deg (" + std::to_string(judged) + " pilot incidences) " +
+                                     (on ? "exceeds" : "is below") + " the tolerance " + fmt3(tol) +
+                                     (on ? "" : "; verified on every tile, computed there after all past the tolerance"));
+      d["pilot_energy"] = worstValue;
+      d["pilot_energy_upper"] = worst;
+    }
+    if (limit) d["single_bounce_below_deg"] = *limit;
+    if (forced.has(Component::Multiple) && !on) {
+      d["reason"] = d["reason"].get<std::string>() + "; kept: requested";
+      on = true;
+    }
+    d["on"] = on;
     decisions.push_back(d);
     if (on) chosen.add(Component::Multiple);
   }
 
   // Diffraction.
+  double waveSpent = 0;  // wave pilots' work, in the job's wave terms
   {
     nlohmann::json d;
     bool on = false;
@@ -553,7 +664,16 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       double upper = -1e300, lower = -1e300, worstL1 = 0, worstFloor = 0, worstTheta = 0;
       int wavePilotsRun = 0;
       int replicas = 0;
-      for (size_t k = 0; k < pilots.size(); ++k) {
+      // A wave pilot's work against one of the job's wave terms: its samples per bin against the job's
+      // for Monte Carlo, its incidence nodes against the job's for the deterministic ones.
+      const double ruleRatio = binAveraged ? std::pow((incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1.0) /
+                                                          incidenceRuleOrder(int(job.waveIncidenceDirections)),
+                                                      2)
+                                           : 1.0;
+      const double wavePilotCost =
+          est->deterministic() ? ruleRatio : double(ws.samplesPerBin) / double(std::max<int64_t>(1, job.waveSamplesPerBin));
+      const size_t waveAffordable = std::min(pilots.size(), size_t(std::floor(budgetTiles / wavePilotCost + 1e-9)));
+      for (size_t k = 0; k < waveAffordable && waveSpent + wavePilotCost <= budgetTiles + 1e-9; ++k) {
         const auto& inc = job.incidence[size_t(pilots[k])];
         const std::optional<Vec3> dir = binAveraged ? std::nullopt : std::optional<Vec3>(beam(pilots[k]));
         const WaveTileResult w = est->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot", inc));
@@ -597,7 +717,11 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
           // a floor of 34.2 claimed 1.99 beyond it at one incidence).
           marginal = marginal || (!est->deterministic() && f.l1 - f.floor - 2 * std::sqrt(f.var) > tol && f.floor > 0.5 * f.l1);
         }
-        if (marginal) {
+        waveSpent += wavePilotCost;
+        // A marginal pilot the budget cannot confirm decides nothing (its lower estimate is dropped).
+        const bool unconfirmed = marginal && waveSpent + wavePilotCost > budgetTiles + 1e-9;
+        if (marginal && !unconfirmed) {
+          waveSpent += wavePilotCost;
           WaveSettings other = ws;
           other.seed = ws.seed ^ 0x5851F42D4C957F2Dull;
           const WaveTileResult w2 = makeJobWaveEstimator(job, grid, *transport.scene(), other)
@@ -606,7 +730,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
           for (int l = 0; l < nL; ++l) fig[size_t(l)] = figures(l, &w2);
         }
         for (const Figures& f : fig) {
-          lower = std::max(lower, f.l1 - f.floor - 2 * std::sqrt(f.var));
+          if (!unconfirmed) lower = std::max(lower, f.l1 - f.floor - 2 * std::sqrt(f.var));
           if (f.l1 - f.floor + 2 * std::sqrt(f.var) > upper) {
             upper = f.l1 - f.floor + 2 * std::sqrt(f.var);
             worstL1 = f.l1;
@@ -620,9 +744,13 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
         if (lower > tol) break;
       }
       const double sigmaH = rmsHeight(job.geometry), slope = rmsSlope(job.geometry);
-      // Rayleigh roughness at the most grazing pilot (the smallest g, the strongest specular spike).
+      // Rayleigh roughness at the job's most grazing incidence (the smallest g, the strongest
+      // specular spike).
       double cosMin = 1;
-      for (int p : pilots) cosMin = std::min(cosMin, std::abs(grid.centre(job.incidence[size_t(p)].bin).z));
+      for (const IncidenceDirection& inc : job.incidence) cosMin = std::min(cosMin, std::abs(std::cos(radians(inc.theta_deg))));
+      // "On" needs one pilot incidence; "off" the first three of the planned ones (the most grazing,
+      // the closest to normal and the median), the spread after them as far as the budget goes.
+      const bool complete = wavePilotsRun >= std::min<int>(3, int(planned.size()));
       const double g = std::pow(4 * kPi * sigmaH * cosMin / meanLambda, 2);
       const double blurDeg = job.scene.coherenceLength_um > 0 ? degrees(meanLambda / job.scene.coherenceLength_um) : 0;
       std::string why = std::string(binAveraged ? "pilot (averaged over the incidence bins without noise: " + est->name() +
@@ -631,8 +759,8 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
                         "WS - GS difference sum|f_ws - f_coh| * proj. solid angle = " + fmt3(worstL1) +
                         " (noise floor " + fmt3(worstFloor) + "; beyond noise: lower estimate " + fmt3(lower) +
                         ", upper " + fmt3(upper) + ") at theta " + fmt3(worstTheta) + " deg" +
-                        (wavePilotsRun < int(pilots.size()) ? " (decided by the first " + std::to_string(wavePilotsRun) +
-                                                                  " of " + std::to_string(pilots.size()) + " wave pilots)"
+                        (wavePilotsRun < int(planned.size()) ? " (" + std::to_string(wavePilotsRun) + " of " +
+                                                                   std::to_string(planned.size()) + " wave pilots run)"
                                                             : "") +
                         (replicas > 0 ? " (" + std::to_string(replicas) + " marginal wave pilot(s) re-run with another seed: the floor is at "
                                                           "least the noise the two show)"
@@ -648,9 +776,30 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       const double lobeRad = 2 * slope;
       const double physical = 2 * std::exp(-std::min(g, 700.0)) + (lobeRad > 0 ? std::pow(blurRad / lobeRad, 2) : 1e300);
       const bool geometricRegime = corr >= 5 * meanLambda && slope > 0;
-      if (upper <= tol) {
+      const std::string budgetNote = "the pilot budget (" + fmt3(job.pilotBudget) + " of the job's " +
+                                     std::to_string(computed) + " computed tiles, a wave pilot costing " +
+                                     fmt3(wavePilotCost) + " of a tile's wave term) allows " + std::to_string(waveAffordable) +
+                                     " of " + std::to_string(planned.size()) + " wave pilots";
+      if (wavePilotsRun == 0) {
+        why = budgetNote;
+        if (geometricRegime) {
+          on = physical > tol;
+          why += "; Kirchhoff estimate 2 exp(-g) + (blur/lobe)^2 = " + fmt3(physical) + " (correlation length " +
+                 fmt3(corr) + " um >= 5 lambda) " + (on ? "exceeds" : "is below") + " the tolerance " + fmt3(tol);
+        } else {
+          on = true;
+          why += ": kept on";
+        }
+      } else if (upper <= tol && !complete && !geometricRegime) {
+        on = true;
+        why += " is below the tolerance " + fmt3(tol) + ", but " + budgetNote + ": kept on";
+      } else if (upper <= tol && !complete) {
+        on = physical > tol;
+        why += " is below the tolerance " + fmt3(tol) + ", but " + budgetNote + "; Kirchhoff estimate " + fmt3(physical) +
+               (on ? " exceeds it: kept on" : " is below it too");
+      } else if (upper <= tol) {
         on = false;
-        why += " is below the tolerance " + fmt3(tol);
+        why += " is below the tolerance " + fmt3(tol) + (wavePilotsRun < int(planned.size()) ? " (" + budgetNote + ")" : "");
       } else if (lower > tol) {
         on = true;
         why += " exceeds the tolerance " + fmt3(tol);
@@ -699,8 +848,15 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     if (on) chosen.add(Component::Incoherent);
   }
   // The wave estimator, from the tolerance and the measured cost (on the middle pilot incidence).
+  // Its pilots cost one or two of the job's wave terms (and `area` on an eighth of the bins).
   if (chosen.has(Component::Incoherent) && job.waveEstimator == "auto" && !job.statistical) {
-    nlohmann::json d = waveEstimatorDecision(job, chosen, grid, *transport.scene(), pilots[pilots.size() / 2]);
+    const std::string budgetNote = !pilots.empty() && budgetTiles - waveSpent >= 2
+                                       ? ""
+                                       : "the pilot budget (" + fmt3(job.pilotBudget) + " of the job's " +
+                                             std::to_string(computed) + " computed tiles) has no room for it";
+    nlohmann::json d = waveEstimatorDecision(job, chosen, grid, *transport.scene(), pilots.empty() ? -1 : pilots[pilots.size() / 2],
+                                             budgetNote);
+    if (d.contains("candidates")) waveSpent += double(d["candidates"].size());  // at most one wave term each
     plan["wave_estimator"] = d["estimator"];
     decisions.push_back(d);
   }
@@ -758,6 +914,10 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   plan["coherence_source"] = job.scene.coherenceSource;
   if (job.scene.sourceAngularDiameter_deg > 0) plan["source_angular_diameter_deg"] = job.scene.sourceAngularDiameter_deg;
   plan["pilots"] = pilots;
+  plan["pilots_planned"] = planned;
+  plan["pilot_budget"] = {{"fraction", job.pilotBudget}, {"computed_tiles", computed}, {"tiles", budgetTiles},
+                          {"path_tiles_spent", double(pilots.size()) * double(paths) / double(job.pathsPerSlice)},
+                          {"wave_tiles_spent", waveSpent}};
   plan["pilot_paths"] = paths;
   plan["pilot_seconds"] = std::chrono::duration<double>(Clock::now() - t0).count();
   return plan;

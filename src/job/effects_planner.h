@@ -20,10 +20,13 @@
 //  - BTDF: a conductor transmits nothing; a dielectric's transmission is traced with its
 //    reflection.
 //  - wavelengths: whether paths are shared by all wavelengths (only Fresnel depends on λ).
-// Pilots: collimated beams through the bin centres of the job's incidence directions closest to
-// normal, the median and the most grazing one. The wave pilot uses the job's estimator, or the
-// deterministic `exact` one (no sampling noise) in the grating-order regime when facets × orders
-// (π sizeX sizeY / λ²) stays below 2e5.
+// Pilots: the job's own incidences (its exact directions, or its bins), every one when the job has
+// at most kMaxPilots, else a spread (pilotIncidences). Where the geometry alone proves that no path
+// meets the surface twice (singleBounceLimit_deg), `multiple` is decided without pilots there. The
+// pilots' work is bounded by [effects] pilot_budget, a fraction of the job's own tiles; a decision
+// the budget leaves without enough pilots keeps the effect on and says so. The wave pilot uses the
+// job's estimator, or the deterministic `exact` one (no sampling noise) in the grating-order regime
+// when facets × orders (π sizeX sizeY / λ²) stays below 2e5.
 
 #pragma once
 #include <nlohmann/json.hpp>
@@ -43,12 +46,33 @@ struct EffectsPilotOptions {
 // 0 keeps the bins.
 std::vector<int> resolutionCells(const DirectionGrid& grid, double resolution_deg);
 
-// Pilot incidence indices (sorted, distinct): the incidence closest to normal, the median and the
-// most grazing one. Used by the effects planner and by `plan`'s cost pilot.
+// Pilot incidence indices (distinct), in the order pilots run (a budget keeps the first ones): the
+// most grazing incidence of the job, the one closest to normal, the median in θ, then each time the
+// direction farthest (in angle) from those already picked, so that azimuths are covered as well as
+// polar angles; every incidence when the job has at most kMaxPilots. Used by the effects planner
+// and by `plan`'s cost pilot.
+constexpr int kMaxPilots = 6;
 std::vector<int> pilotIncidences(const Job& job);
 
+// The largest polar angle of incidence (degrees) below which no path meets the surface twice, from
+// the geometry alone, or none. A periodic closed patch whose facets all face up is a graph over its
+// footprint; with its steepest facet slope angle θs, light reflected from any facet leaves at
+// θo <= θi + 2θs, i.e. at an elevation above θs when θi < 90° − 3θs, and a ray rising (or, refracted
+// into a dielectric, falling) more steeply than any facet never meets the surface again (the
+// surface rises at most tan θs per unit of horizontal distance). Refraction into the dielectric
+// (index n, its smallest real part over the job's wavelengths) leaves the facet within
+// asin(sin(θi + θs)/n) of its inward normal, which adds sin(θi + θs) < n cos 2θs. Light from inside a
+// dielectric has no such bound (it can leave along the surface).
+std::optional<double> singleBounceLimit_deg(const Job& job);
+// The steepest facet's slope angle (degrees) of such a graph, or none.
+std::optional<double> steepestFacet_deg(const Job& job);
+// Whether incidence t lies wholly below that limit (every direction of its bin, or its exact
+// direction), so that its `multiple` is zero by the geometry.
+bool scattersOnce(const Job& job, const DirectionGrid& grid, int t, const std::optional<double>& limit_deg);
+
 // The decisions as JSON: {"components": [...], "decisions": [{"effect", "on", "reason", ...}],
-// "tolerance", "coherence_length_um", "coherence_source", "pilots", "pilot_seconds"}.
+// "tolerance", "coherence_length_um", "coherence_source", "pilots", "pilots_planned", "pilot_budget",
+// "pilot_seconds"}.
 nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options = {});
 // Sets job.components and job.effectsPlan from a plan (the same on every rank).
 void applyEffectsPlan(Job& job, const nlohmann::json& plan);

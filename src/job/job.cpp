@@ -301,6 +301,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   }
 
   job.reciprocity = eff.getBool("reciprocity", true);
+  job.pilotBudget = eff.positive("pilot_budget", 0.5);
 
   ParamDict samp = root.table("sampling");
   job.pathsPerSlice = uint64_t(samp.positiveInt("paths_per_slice", 1000000));

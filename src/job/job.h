@@ -82,6 +82,10 @@ struct Job {
   ComponentSet components;
   std::vector<std::string> requestedComponents;
   bool reciprocity = true;  // [effects] reciprocity: halve the wave term when the job allows it
+  // [effects] pilot_budget: the effects planner's pilots cost at most this fraction of the job's
+  // computed tiles, counted in tiles' work (paths, wave samples), never in seconds (the decisions
+  // must not depend on the machine). Where the budget cuts a decision short, the effect is kept.
+  double pilotBudget = 0.5;
   // components = "auto": the effects planner (effects_planner.h) chooses `components` from pilots
   // before the run; effectsPlan is its decisions as JSON (recorded in the output file).
   bool autoComponents = false;

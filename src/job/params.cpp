@@ -1,8 +1,10 @@
 #include "job/params.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 #include "core/error.h"
 
@@ -46,6 +48,16 @@ void ParamDict::fail(const std::string& key, const std::string& message) const {
   throw InputError(where(key) + ": " + message);
 }
 
+void ParamDict::expect(const std::string& key, std::initializer_list<KeyType> types) const {
+  // The parser may read only registered keys, as their registered type: the registry is what
+  // `microbsdf keys` and the job reference show, so a key read here but missing there is a bug.
+  const JobKey* k = findJobKey(path(key));
+  if (!k) throw std::logic_error("the parser reads '" + path(key) + "', which src/job/job_keys.cpp does not register");
+  if (std::find(types.begin(), types.end(), k->type) == types.end())
+    throw std::logic_error("the parser reads '" + path(key) + "' as another type than its registered " +
+                           std::string(keyTypeName(k->type)));
+}
+
 const toml::node* ParamDict::lookup(const std::string& key) const {
   if (!table_) return nullptr;
   const toml::node* n = table_->get(key);
@@ -55,9 +67,14 @@ const toml::node* ParamDict::lookup(const std::string& key) const {
 
 bool ParamDict::has(const std::string& key) const { return table_ && table_->contains(key); }
 
-const toml::node* ParamDict::node(const std::string& key) const { return lookup(key); }
+const toml::node* ParamDict::node(const std::string& key) const {
+  expect(key, {KeyType::Table, KeyType::String, KeyType::Strings, KeyType::Number, KeyType::Numbers, KeyType::Integer,
+               KeyType::Boolean, KeyType::StringOrNumbers, KeyType::NumbersOrTable});
+  return lookup(key);
+}
 
 ParamDict ParamDict::table(const std::string& key) const {
+  expect(key, {KeyType::Table, KeyType::NumbersOrTable});
   const toml::node* n = lookup(key);
   if (!n) return ParamDict(state_, nullptr, path(key));
   if (!n->is_table()) fail(key, "expected a table [" + path(key) + "]");
@@ -65,6 +82,7 @@ ParamDict ParamDict::table(const std::string& key) const {
 }
 
 double ParamDict::getDouble(const std::string& key, double def) const {
+  expect(key, {KeyType::Number, KeyType::Numbers});
   const toml::node* n = lookup(key);
   if (!n) return def;
   if (auto v = n->value<double>()) {
@@ -75,6 +93,7 @@ double ParamDict::getDouble(const std::string& key, double def) const {
 }
 
 int64_t ParamDict::getInt(const std::string& key, int64_t def) const {
+  expect(key, {KeyType::Integer});
   const toml::node* n = lookup(key);
   if (!n) return def;
   if (n->is_integer()) return *n->value<int64_t>();
@@ -82,6 +101,7 @@ int64_t ParamDict::getInt(const std::string& key, int64_t def) const {
 }
 
 bool ParamDict::getBool(const std::string& key, bool def) const {
+  expect(key, {KeyType::Boolean});
   const toml::node* n = lookup(key);
   if (!n) return def;
   if (n->is_boolean()) return *n->value<bool>();
@@ -89,6 +109,7 @@ bool ParamDict::getBool(const std::string& key, bool def) const {
 }
 
 std::string ParamDict::getString(const std::string& key, const std::string& def) const {
+  expect(key, {KeyType::String, KeyType::StringOrNumbers});
   const toml::node* n = lookup(key);
   if (!n) return def;
   if (n->is_string()) return *n->value<std::string>();
@@ -96,6 +117,7 @@ std::string ParamDict::getString(const std::string& key, const std::string& def)
 }
 
 std::vector<double> ParamDict::getDoubles(const std::string& key, const std::vector<double>& def) const {
+  expect(key, {KeyType::Number, KeyType::Numbers, KeyType::NumbersOrTable});
   const toml::node* n = lookup(key);
   if (!n) return def;
   if (auto v = n->value<double>(); v && !n->is_array()) {
@@ -114,6 +136,7 @@ std::vector<double> ParamDict::getDoubles(const std::string& key, const std::vec
 }
 
 std::vector<std::string> ParamDict::getStrings(const std::string& key, const std::vector<std::string>& def) const {
+  expect(key, {KeyType::String, KeyType::Strings});
   const toml::node* n = lookup(key);
   if (!n) return def;
   if (n->is_string()) return {*n->value<std::string>()};
@@ -150,7 +173,9 @@ void ParamDict::reportUnused() const {
     for (const auto& [k, v] : t) {
       std::string p = prefix.empty() ? std::string(k.str()) : prefix + "." + std::string(k.str());
       if (!state_->used.count(p)) {
-        unused.push_back(formatLocation(state_->file, int(v.source().begin.line), p) + ": unknown key");
+        const std::string nearest = nearestJobKey(p);
+        unused.push_back(formatLocation(state_->file, int(v.source().begin.line), p) + ": unknown key" +
+                         (nearest.empty() ? "" : " (did you mean '" + nearest + "'?)") + "; `microbsdf keys` lists every key");
       } else if (v.is_table()) {
         self(self, *v.as_table(), p);
       }

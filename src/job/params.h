@@ -1,15 +1,20 @@
 // One typed dictionary for every parameter of a job file (pbrt-v4's ParameterDictionary with
 // ReportUnused; Mitsuba's unreferenced-property check). Every lookup records the key; after the job
-// is built, reportUnused() turns any key nobody asked for into an error naming file, line and key.
-// Type errors and range errors name the same.
+// is built, reportUnused() turns any key nobody asked for into an error naming file, line and key
+// (with the registry's nearest name). Type errors and range errors name the same. Every lookup is
+// of a key the registry (job_keys.h) holds, as its registered type.
 #pragma once
 #include <toml++/toml.h>
+
+#include <initializer_list>
 
 #include <memory>
 #include <optional>
 #include <set>
 #include <string>
 #include <vector>
+
+#include "job/job_keys.h"
 
 namespace mbsdf {
 
@@ -55,6 +60,7 @@ class ParamDict {
   ParamDict(std::shared_ptr<State> s, const toml::table* t, std::string prefix)
       : state_(std::move(s)), table_(t), prefix_(std::move(prefix)) {}
   const toml::node* lookup(const std::string& key) const;
+  void expect(const std::string& key, std::initializer_list<KeyType> types) const;
   std::shared_ptr<State> state_;
   const toml::table* table_ = nullptr;
   std::string prefix_;

@@ -16,7 +16,6 @@
 
 #include "core/log.h"
 #include "geometry/embree_scene.h"
-#include "io/bsdf_file.h"
 #include "job/effects_planner.h"
 #include "job/scalar_validity.h"
 #include "job/symmetry.h"
@@ -92,22 +91,39 @@ double waveRelativeError(const WaveTileResult& w, const DirectionGrid& grid) {
 }
 
 // What accuracy costs for this job. A Monte Carlo part's relative error falls as 1/√N with its
-// budget N and its time grows as N, so from the pilot's error at its own budget the error at the
-// job's budget, and the budget (and core-hours) that reach 10 %, 3 % and 1 %, follow; a
-// deterministic part (the facet sum, `exact`, `fft`) has the error of its rules whatever the budget.
-nlohmann::json accuracyTable(const Job& job, double pathErrPilot, uint64_t pilotPaths, double pathSeconds, bool pathsDeterministic,
-                             double waveErrPilot, int wavePilotSamples, bool waveDeterministic, double waveSeconds,
-                             int computedTiles, int cores) {
+// budget N and its time grows as N, so from the pilots' errors at their own budget the error at the
+// job's budget (per pilot incidence, and the largest), and the budget (and core-hours) that reach
+// 10 %, 3 % and 1 %, follow; a deterministic part (the facet sum, `exact`, `fft`) has the error of
+// its rules whatever the budget.
+nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, const std::vector<double>& pathErrPilot,
+                             uint64_t pilotPaths, double pathSeconds, bool pathsDeterministic,
+                             const std::vector<double>& waveErrAtJob, double waveRate, bool waveDeterministic,
+                             double waveSeconds, int computedTiles, int cores) {
   nlohmann::json a;
-  const double pathErr = pathsDeterministic ? 0.0 : pathErrPilot * std::sqrt(double(pilotPaths) / double(job.pathsPerSlice));
-  a["paths"] = {{"rel_error", pathErr}, {"paths_per_slice", job.pathsPerSlice}, {"monte_carlo", !pathsDeterministic}};
+  // Each pilot's error scaled to the job's budget, listed by incidence, and the largest.
+  auto scaled = [&](const std::vector<double>& atPilot, double factor, double* worst) {
+    nlohmann::json list = nlohmann::json::array();
+    *worst = 0;
+    for (size_t k = 0; k < atPilot.size() && k < pilots.size(); ++k) {
+      const auto& inc = job.incidence[size_t(pilots[k])];
+      list.push_back({{"incidence", pilots[k]}, {"theta_deg", inc.theta_deg}, {"phi_deg", inc.phi_deg},
+                      {"rel_error", atPilot[k] * factor}});
+      *worst = std::max(*worst, atPilot[k] * factor);
+    }
+    return list;
+  };
+  double pathErr = 0;
+  const nlohmann::json pathList =
+      scaled(pathErrPilot, pathsDeterministic ? 0.0 : std::sqrt(double(pilotPaths) / double(job.pathsPerSlice)), &pathErr);
+  a["paths"] = {{"rel_error", pathErr}, {"per_pilot", pathList}, {"paths_per_slice", job.pathsPerSlice},
+                {"monte_carlo", !pathsDeterministic}};
   const bool wave = job.needsWave();
   double waveErr = 0;
   if (wave) {
-    waveErr = waveDeterministic ? waveErrPilot
-                                : waveErrPilot * std::sqrt(double(wavePilotSamples) / double(job.waveSamplesPerBin));
-    a["wave"] = {{"rel_error", waveErr}, {"estimator", job.resolvedWaveEstimator()},
+    const nlohmann::json waveList = scaled(waveErrAtJob, 1.0, &waveErr);
+    a["wave"] = {{"rel_error", waveErr}, {"per_pilot", waveList}, {"estimator", job.resolvedWaveEstimator()},
                  {"samples_per_bin", job.waveSamplesPerBin}, {"monte_carlo", !waveDeterministic}};
+    if (!waveDeterministic) a["wave"]["rate"] = waveRate;
   }
   nlohmann::json targets = nlohmann::json::array();
   for (double target : {0.1, 0.03, 0.01}) {
@@ -115,15 +131,32 @@ nlohmann::json accuracyTable(const Job& job, double pathErrPilot, uint64_t pilot
     const double fp = pathsDeterministic || pathErr <= 0
                           ? 1.0
                           : std::max(1000.0 / double(job.pathsPerSlice), std::pow(pathErr / target, 2));
-    const double fw = !wave || waveDeterministic || waveErr <= 0
-                          ? 1.0
-                          : std::max(16.0 / double(job.waveSamplesPerBin), std::pow(waveErr / target, 2));
+    // The wave term's budget from its measured rate; a rate near 0 (an error the pilots could not
+    // see fall) buys nothing by samples.
+    const bool waveByBudget = wave && !waveDeterministic && waveErr > 0 && waveRate > 0.05;
+    const double fw = !waveByBudget ? 1.0
+                                    : std::max(16.0 / double(job.waveSamplesPerBin), std::pow(waveErr / target, 1 / waveRate));
     nlohmann::json t = {{"rel_error", target},
                         {"core_hours", (pathSeconds * fp + waveSeconds * fw) * computedTiles * cores / 3600.0}};
-    if (!pathsDeterministic) t["paths_per_slice"] = uint64_t(std::ceil(double(job.pathsPerSlice) * fp));
-    if (wave && !waveDeterministic) t["wave_samples_per_bin"] = uint64_t(std::ceil(double(job.waveSamplesPerBin) * fw));
+    if (!pathsDeterministic) {
+      t["paths_per_slice"] = uint64_t(std::ceil(double(job.pathsPerSlice) * fp));
+      // The same accuracy bought progressively ([sampling] target_rel_error): rounds of the job's
+      // paths_per_slice until each slice reaches it, so a slice pays for its own error, not the
+      // worst one's; the budget is the worst pilot's rounds.
+      double meanRounds = 0, maxRounds = 1;
+      for (double e : pathErrPilot) {
+        const double rounds = std::max(1.0, std::ceil(std::pow(e * std::sqrt(double(pilotPaths) / double(job.pathsPerSlice)) /
+                                                               target, 2) - 1e-9));
+        meanRounds += rounds / double(pathErrPilot.size());
+        maxRounds = std::max(maxRounds, rounds);
+      }
+      t["progressive"] = {{"target_rel_error", target},
+                          {"max_paths_per_slice", uint64_t(maxRounds) * job.pathsPerSlice},
+                          {"core_hours", (pathSeconds * meanRounds + waveSeconds * fw) * computedTiles * cores / 3600.0}};
+    }
+    if (waveByBudget) t["wave_samples_per_bin"] = uint64_t(std::ceil(std::min(double(job.waveSamplesPerBin) * fw, 9e18)));
     t["reached"] = (pathsDeterministic || pathErr * std::sqrt(1 / fp) <= target * 1.0000001) &&
-                   (!wave || !waveDeterministic || waveErr <= target);
+                   (!wave || waveErr <= target || (waveByBudget && waveErr * std::pow(fw, -waveRate) <= target * 1.0000001));
     targets.push_back(t);
   }
   a["targets"] = targets;
@@ -164,8 +197,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   p["components"] = comps;
   if (job.needsWave()) p["wave_estimator"] = job.resolvedWaveEstimator();
 
-  // Pilots at a reduced budget: the incidence closest to normal, the median and the most grazing
-  // (the cost depends on θi differently for explicit geometry, which bounces more at grazing
+  // Pilots at a reduced budget, spread as the effects planner spreads them (the most grazing, the
+  // closest to normal, the median, then the farthest in angle: the cost depends on θi differently for explicit geometry, which bounces more at grazing
   // incidence, and for the microflake walk, which goes deeper at normal incidence); a tile's cost is
   // their mean.
   const std::vector<int> pilots = pilotIncidences(job);
@@ -191,40 +224,65 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   double pathSeconds = 0, pilotSeconds = 0;
   int facetTiles = 0;
   std::vector<TileResult> pilotTiles;
-  // The largest relative error per slice (sliceRelativeError) of the path-traced components at the
-  // pilot's budget; 0 when every pilot tile is deterministic (the facet sum).
-  double pathRelError = 0;
+  // The relative error per pilot slice (relativeError, largest over wavelengths) of the path-traced
+  // table at the pilot's budget; 0 where the tile is deterministic (the facet sum).
+  std::vector<Component> traced;
+  for (Component c : {Component::Coherent, Component::Multiple})
+    if (planned.components.has(c)) traced.push_back(c);
+  std::vector<double> pathRelErrors;
   for (int t : pilots) {
     spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
     pilotTiles.push_back(transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: path pilot")));
     const TileResult& r = pilotTiles.back();
-    if (r.samples > 0)
-      for (Component c : {Component::Coherent, Component::Multiple})
-        if (r.has(c) && planned.components.has(c))
-          for (double e : sliceRelativeError(r, c, grid)) pathRelError = std::max(pathRelError, e);
+    const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
+    pathRelErrors.push_back(*std::max_element(e.begin(), e.end()));
     pilotSeconds += r.seconds / double(pilots.size());
     pathSeconds += r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
     facetTiles += r.samples == 0;
   }
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
-  double waveSeconds = 0, waveBytes = 0, waveSetupSeconds = 0, waveRelError = 0;
-  int wavePilotSamples = 0;
+  double waveSeconds = 0, waveBytes = 0, waveSetupSeconds = 0;
+  std::vector<double> waveRelErrors;
+  double waveRate = 0.5;  // the wave term's error ∝ samples^−waveRate
   bool waveDeterministic = true;
   if (job.needsWave()) {
     WaveSettings ws = waveSettingsOf(job);
     ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
                                      ws.estimator == "area" ? 2 * int(job.wavePointsPerDirection) : 16);
     auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
-    // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
-    const double scale = est->deterministic() ? 1.0 : double(job.waveSamplesPerBin) / double(ws.samplesPerBin);
     waveDeterministic = est->deterministic();
-    wavePilotSamples = ws.samplesPerBin;
+    // A Monte Carlo wave term's error falls as 1/√N only once its samples resolve the lobes (with a
+    // few samples per bin the per-bin errors are themselves rough: `orders` on a rough patch went
+    // 0.13, 0.11, 0.072, 0.030 at 16, 64, 256, 1024 samples per bin). A second pass at 4× the pilot's
+    // samples (at most the job's) measures the rate, e(N) ∝ N^−a with a in [0, 1/2] (never faster
+    // than 1/√N), and the error at the job's budget follows from the second pass; so does the time.
+    WaveSettings ws2 = ws;
+    ws2.samplesPerBin = std::min<int>(int(job.waveSamplesPerBin), 4 * ws.samplesPerBin);
+    const bool twoPasses = !waveDeterministic && ws2.samplesPerBin > ws.samplesPerBin;
+    std::unique_ptr<WaveEstimator> est2 = twoPasses ? makeJobWaveEstimator(job, grid, *transport.scene(), ws2) : nullptr;
+    const int timedSamples = twoPasses ? ws2.samplesPerBin : ws.samplesPerBin;
+    // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
+    const double scale = waveDeterministic ? 1.0 : double(job.waveSamplesPerBin) / double(timedSamples);
+    const double N = double(job.waveSamplesPerBin);
     for (size_t k = 0; k < pilots.size(); ++k) {
       const int t = pilots[k];
       spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
       const WaveTileResult w = est->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
-      waveSeconds += w.seconds;
-      waveRelError = std::max(waveRelError, waveRelativeError(w, grid));
+      const double e1 = waveRelativeError(w, grid);
+      if (waveDeterministic) {
+        waveRelErrors.push_back(e1);
+        waveSeconds += w.seconds;
+      } else if (!twoPasses) {
+        waveRelErrors.push_back(e1 * std::sqrt(double(ws.samplesPerBin) / N));
+        waveSeconds += w.seconds;
+      } else {
+        const WaveTileResult w2 = est2->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
+        const double e2 = waveRelativeError(w2, grid);
+        const double rate = e1 > 0 && e2 > 0 ? std::clamp(std::log(e1 / e2) / std::log(double(ws2.samplesPerBin) / ws.samplesPerBin), 0.0, 0.5) : 0.5;
+        waveRate = std::min(waveRate, rate);
+        waveRelErrors.push_back(e2 * std::pow(N / double(ws2.samplesPerBin), -rate));
+        waveSeconds += w2.seconds;
+      }
       if (pilotTiles[k].has(Component::Coherent))
         addWaveComponents(pilotTiles[k], w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
     }
@@ -265,32 +323,9 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
                            {"lossless", job.material.lossless()}};
   }
   p["scalar_validity"] = toJson(scalarValidity(job));
-  // Rank 0 writes every slice (rotated ones too) with a flush and a journal fsync: measured by
-  // writing up to 3 slices of this job's layout to a scratch file.
-  double writeSeconds = 0;
-  {
-    const std::string scratch =
-        (std::filesystem::temp_directory_path() / ("microbsdf-plan-" + std::to_string(::getpid()) + ".h5")).string();
-    TileResult dummy;
-    dummy.nLambda = nL;
-    dummy.nBins = nB;
-    for (Component c : job.components.list()) {
-      dummy.value[int(c)].assign(size_t(nL) * nB, 0.0);
-      dummy.stdError[int(c)].assign(size_t(nL) * nB, 0.0);
-    }
-    dummy.truncated = dummy.leaked = dummy.missed = std::vector<double>(size_t(nL), 0.0);
-    const int n = std::min(3, nTiles);
-    {
-      BsdfFileWriter w(scratch, job, grid);
-      auto tw = std::chrono::steady_clock::now();
-      for (int t = 0; t < n; ++t) {
-        dummy.tile = dummy.incidenceIndex = t;
-        w.writeTile(dummy);
-      }
-      writeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count() / n;
-    }
-    for (const char* ext : {"", ".partial", ".journal"}) std::filesystem::remove(scratch + ext);
-  }
+  // Rank 0 writes every slice (rotated ones too) with a flush and a journal fsync: measured by the
+  // caller's writer (PlanOptions::writeSecondsPerSlice), which this layer does not know.
+  const double writeSeconds = options.writeSecondsPerSlice ? options.writeSecondsPerSlice(job, grid) : 0.0;
   const double coreHours = (tileSeconds * computedTiles + waveSetupSeconds) * cores / 3600.0;
   p["pilot"] = {{"tile", pilot},
                 {"tiles", pilots},
@@ -307,8 +342,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
                         {"max_paths_per_slice", job.maxPathsPerSlice},
                         {"path_seconds_per_tile_max", pathSeconds * double(job.maxPathsPerSlice) / double(job.pathsPerSlice)}};
   }
-  p["accuracy"] = accuracyTable(job, pathRelError, pilotPaths, pathSeconds, facetTiles == int(pilots.size()), waveRelError,
-                                wavePilotSamples, waveDeterministic, waveSeconds, computedTiles, cores);
+  p["accuracy"] = accuracyTable(job, pilots, pathRelErrors, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
+                                waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
   p["estimate"] = {{"seconds_per_tile", tileSeconds},
                    {"path_seconds_per_tile", pathSeconds},
                    {"wave_seconds_per_tile", waveSeconds},
@@ -347,15 +382,24 @@ std::string fmtAccuracy(const nlohmann::json& a) {
                        : std::string("deterministic (the facet sum)"));
   if (a.contains("wave"))
     o += "; wave term (" + a["wave"]["estimator"].get<std::string>() + ") " + pct(a["wave"]["rel_error"].get<double>()) +
-         (a["wave"]["monte_carlo"].get<bool>() ? " at " + a["wave"]["samples_per_bin"].dump() + " samples per bin"
-                                                : std::string(" (its rules' error, whatever the budget)"));
-  o += "\n                (largest relative error of a slice, √Σ(σ Ω⊥)² / Σ|f| Ω⊥, from the pilots; Monte Carlo errors fall as 1/√budget)\n";
+         (a["wave"]["monte_carlo"].get<bool>()
+              ? " at " + a["wave"]["samples_per_bin"].dump() + " samples per bin" +
+                    (a["wave"].contains("rate") && a["wave"]["rate"].get<double>() < 0.45
+                         ? fmt::format(" (falling as samples^-{:.2g} between the pilots' two budgets, not yet 1/√N)",
+                                       a["wave"]["rate"].get<double>())
+                         : std::string())
+              : std::string(" (its rules' error, whatever the budget)"));
+  o += "\n                (largest relative error of a slice of that table, √Σ(σ Ω⊥)² / Σ|f| Ω⊥, from the pilots; Monte Carlo errors fall as 1/√budget)\n";
   for (const auto& t : a["targets"]) {
     o += fmt::format("  for {:>4}: ", pct(t["rel_error"].get<double>()));
     if (t.contains("paths_per_slice")) o += "paths_per_slice = " + t["paths_per_slice"].dump() + ", ";
     if (t.contains("wave_samples_per_bin")) o += "wave_samples_per_bin = " + t["wave_samples_per_bin"].dump() + ", ";
     o += fmt::format("{:.3g} core-hours", t["core_hours"].get<double>());
-    if (!t["reached"].get<bool>()) o += " (a deterministic part's own error stays above it)";
+    if (t.contains("progressive") && t["progressive"]["core_hours"].get<double>() < 0.95 * t["core_hours"].get<double>())
+      o += fmt::format("; or target_rel_error = {}, max_paths_per_slice = {}: {:.3g} core-hours",
+                       t["progressive"]["target_rel_error"].get<double>(), t["progressive"]["max_paths_per_slice"].dump(),
+                       t["progressive"]["core_hours"].get<double>());
+    if (!t["reached"].get<bool>()) o += " (not reached by budget: a deterministic part's own error, or a wave error the pilots did not see fall, stays above it)";
     o += "\n";
   }
   return o;

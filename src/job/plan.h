@@ -5,6 +5,8 @@
 #pragma once
 #include <nlohmann/json.hpp>
 
+#include <functional>
+
 #include "job/job.h"
 
 namespace mbsdf {
@@ -13,6 +15,9 @@ struct PlanOptions {
   uint64_t pilotPaths = 20000;
   int pilotWaveDivisor = 16;  // the pilot uses 1/16 of the wave samples (at least 2 per bin)
   int threads = 0;            // 0: all cores
+  // Seconds rank 0 spends writing one slice of this job's layout (the output writer lives above
+  // this layer: `microbsdf plan` passes io's measureWriteSecondsPerSlice); unset: not counted.
+  std::function<double(const Job&, const DirectionGrid&)> writeSecondsPerSlice;
 };
 
 // Resident memory of one rank running `job`: the scene (Embree + double copies), one tile result

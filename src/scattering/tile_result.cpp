@@ -151,4 +151,24 @@ std::vector<double> energyBalance(const TileResult& r, const DirectionGrid& grid
   return b;
 }
 
+std::vector<double> relativeError(const TileResult& r, const std::vector<Component>& comps, const DirectionGrid& grid) {
+  std::vector<double> out(size_t(r.nLambda), 0.0);
+  for (int l = 0; l < r.nLambda; ++l) {
+    double var = 0, mass = 0;
+    for (int b = 0; b < r.nBins; ++b) {
+      const double op = grid.projectedSolidAngle(b);
+      double f = 0;
+      for (Component c : comps) {
+        if (!r.has(c)) continue;
+        const size_t i = size_t(l) * size_t(r.nBins) + size_t(b);
+        f += r.value[int(c)][i];
+        var += std::pow(r.stdError[int(c)][i] * op, 2);
+      }
+      mass += std::abs(f) * op;
+    }
+    out[size_t(l)] = mass > 0 ? std::sqrt(var) / mass : 0.0;
+  }
+  return out;
+}
+
 }  // namespace mbsdf

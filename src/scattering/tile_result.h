@@ -71,4 +71,12 @@ struct TileResult {
 std::vector<double> energyBalance(const TileResult& r, const DirectionGrid& grid, const std::vector<Component>& model,
                                   bool lossless);
 
+// The estimated relative error of a slice of the table Σ_c∈comps f_c, per wavelength:
+// √(Σ_b Σ_c (σ_c,b Ω⊥_b)²) / Σ_b |Σ_c f_c,b| Ω⊥_b — the expected L2 distance of the slice from its
+// expectation against its mass. The components a path tracer tallies exclude each other in a path,
+// so their errors add in quadrature; a component that carries little energy adds little error, so a
+// rare multiple bounce does not dominate the table's error. For one path-traced component it bounds
+// the error of the hemispherical integral from above (its bins are negatively correlated).
+std::vector<double> relativeError(const TileResult& r, const std::vector<Component>& comps, const DirectionGrid& grid);
+
 }  // namespace mbsdf

@@ -46,7 +46,7 @@ TEST(EffectsPlanner, DiffractionJudgedAtTheRenderersResolution) {
     const Job job = loadJobFromString(
         "[geometry]\nkind = \"flat\"\nsize_um = [2.5, 2.5]\n[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [500.0]\n"
         "[directions]\nn_theta = 64\nn_phi = 16\nincidence = [[0.0, 0.0]]\n[scene]\ncoherence_length_um = 10.0\n"
-        "tolerance = 0.05\nangular_resolution_deg = " + std::to_string(res_deg) + "\n[sampling]\npaths_per_slice = 20000\n",
+        "tolerance = 0.05\nangular_resolution_deg = " + std::to_string(res_deg) + "\n[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n",
         "t.toml", "");
     const nlohmann::json p = planEffects(job);
     for (const auto& d : p["decisions"])
@@ -72,7 +72,7 @@ TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
   const std::string text =
       "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.1\ncorrelation_um = 1.0\n[material]\nname = \"Al\"\n"
       "[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\nincidence = [[20.0, 0.0]]\n"
-      "[scene]\ncoherence_length_um = 20.0\ntolerance = 0.02\n[sampling]\npaths_per_slice = 20000\n"
+      "[scene]\ncoherence_length_um = 20.0\ntolerance = 0.02\n[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n"
       "wave_samples_per_bin = 1024\nseed = 5\n";
   const Job job = loadJobFromString(text, "t.toml", "");
   ASSERT_EQ(job.resolvedWaveEstimator(), "area");
@@ -133,7 +133,7 @@ TEST(EffectsPlanner, PilotsFollowTheJobsExactDirections) {
         "[geometry]\nkind = \"binary-grating\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\ndepth_um = 1.0\nduty = 0.5\n"
         "[material]\nname = \"mirror\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 9\nn_phi = 8\n"
         "incidence = [[40.0, 90.0]]\nincidence_sampling = \"" + sampling + "\"\n[scene]\ncoherence_length_um = 0.0\n"
-        "[sampling]\npaths_per_slice = 20000\n",
+        "[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n",
         "t.toml", "");
     const nlohmann::json p = planEffects(job);
     for (const auto& d : p["decisions"])
@@ -143,4 +143,129 @@ TEST(EffectsPlanner, PilotsFollowTheJobsExactDirections) {
   const nlohmann::json exact = multiple("exact"), averaged = multiple("bin");
   EXPECT_FALSE(exact["on"].get<bool>()) << exact.dump();
   EXPECT_TRUE(averaged["on"].get<bool>()) << averaged.dump();
+}
+
+namespace {
+
+Job vGrooveJob(double apex_deg, const std::string& material, const std::string& incidence) {
+  return loadJobFromString("[geometry]\nkind = \"ridged\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\napex_angle_deg = " +
+                               std::to_string(apex_deg) + "\n[material]\n" + material +
+                               "\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 9\nn_phi = 8\n"
+                               "incidence = " + incidence + "\nincidence_sampling = \"exact\"\n[scene]\n"
+                               "coherence_length_um = 0.0\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n"
+                               "[sampling]\npaths_per_slice = 20000\nseed = 9\n",
+                           "t.toml", "");
+}
+
+double multipleEnergy(const Job& job, int t) {
+  const DirectionGrid grid(job.gridLayout);
+  GeometricTransport transport(job, grid, job.pathsPerSlice);
+  const auto& inc = job.incidence[size_t(t)];
+  const TileResult r = transport.run(t, t, inc.bin, sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg)));
+  double e = 0;
+  for (int b = 0; b < grid.binCount(); ++b) e += r.at(Component::Multiple, 0, b) * grid.projectedSolidAngle(b);
+  return e;
+}
+
+}  // namespace
+
+// The geometry's single-bounce bound against the path tracer, which knows nothing of it: V-grooves
+// of walls θs = (180° − apex)/2 from 5° to 27.5°, mirror and glass (n = 1.5); past 30° (apex 110°:
+// 35°) there is none. Below the bound (0.5°
+// under it, across the grooves, diagonally and along them) no path meets the surface twice; across
+// the grooves the bound is tight for the mirror (light reflected from one wall leaves at θi + 2θs
+// and meets the other wall once that exceeds 90° − θs), so 3° above it some paths do.
+TEST(EffectsPlanner, SingleBounceBoundHoldsForThePathTracer) {
+  EXPECT_FALSE(singleBounceLimit_deg(vGrooveJob(110.0, "name = \"mirror\"", "[[0.0, 0.0]]")).has_value());
+  for (double apex : {170.0, 160.0, 150.0, 140.0, 130.0, 125.0}) {
+    const double thetaS = (180 - apex) / 2;
+    for (const std::string material : {"name = \"mirror\"", "kind = \"dielectric\"\nior = 1.5"}) {
+      const bool glass = material.find("dielectric") != std::string::npos;
+      double expected = 90 - 3 * thetaS;
+      if (glass && 1.5 * std::cos(radians(2 * thetaS)) < 1)
+        expected = std::min(expected, degrees(std::asin(1.5 * std::cos(radians(2 * thetaS)))) - thetaS);
+      const Job probe = vGrooveJob(apex, material, "[[0.0, 0.0]]");
+      const std::optional<double> limit = singleBounceLimit_deg(probe);
+      ASSERT_TRUE(limit.has_value()) << "apex " << apex;
+      EXPECT_NEAR(*limit, expected, 1e-6) << "apex " << apex << ", " << material;
+      ASSERT_NEAR(*steepestFacet_deg(probe), thetaS, 1e-6);
+      const double below = *limit - 0.5, above = 90 - 3 * thetaS + 3;
+      std::string list = "[[" + std::to_string(below) + ", 0.0], [" + std::to_string(below) + ", 45.0], [" +
+                         std::to_string(below) + ", 90.0]";
+      if (!glass && above < 89) list += ", [" + std::to_string(above) + ", 0.0]";
+      const Job job = vGrooveJob(apex, material, list + "]");
+      const DirectionGrid grid(job.gridLayout);
+      for (int t = 0; t < 3; ++t) {
+        EXPECT_TRUE(scattersOnce(job, grid, t, limit));
+        EXPECT_EQ(multipleEnergy(job, t), 0.0) << "apex " << apex << ", " << material << ", incidence " << t;
+      }
+      if (job.incidence.size() == 4) {
+        EXPECT_FALSE(scattersOnce(job, grid, 3, limit));
+        EXPECT_GT(multipleEnergy(job, 3), 0.0) << "apex " << apex << " at " << above << " deg";
+      }
+    }
+  }
+}
+
+// No bound where the surface is not a graph (vertical walls) or the light comes from inside.
+TEST(EffectsPlanner, SingleBounceBoundOnlyForGraphs) {
+  const Job walls = loadJobFromString(
+      "[geometry]\nkind = \"binary-grating\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\ndepth_um = 1.0\nduty = 0.5\n"
+      "[material]\nname = \"mirror\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 9\nn_phi = 8\n"
+      "incidence = [[10.0, 0.0]]\n[scene]\ncoherence_length_um = 0.0\n",
+      "t.toml", "");
+  EXPECT_FALSE(singleBounceLimit_deg(walls).has_value());
+  const Job inside = vGrooveJob(150.0, "kind = \"dielectric\"\nior = 1.5", "[[170.0, 0.0]]");
+  const DirectionGrid grid(inside.gridLayout);
+  EXPECT_FALSE(scattersOnce(inside, grid, 0, singleBounceLimit_deg(inside)));
+}
+
+// Every listed incidence when there are few; otherwise kMaxPilots spread over the set: the most
+// grazing first, then the closest to normal, and azimuths as well as polar angles.
+TEST(EffectsPlanner, PilotsSpreadOverTheIncidences) {
+  auto job = [](const std::string& incidence) {
+    return loadJobFromString("[geometry]\nkind = \"flat\"\nsize_um = [2.0, 2.0]\n[material]\nname = \"Al\"\n"
+                             "[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
+                             "incidence = " + incidence + "\nsymmetry = \"none\"\n[scene]\ncoherence_length_um = 0.0\n",
+                             "t.toml", "");
+  };
+  const Job few = job("[[10.0, 0.0], [50.0, 90.0], [30.0, 0.0], [0.0, 0.0]]");
+  EXPECT_EQ(pilotIncidences(few), (std::vector<int>{1, 3, 2, 0}));
+  const Job all = job("\"all\"");
+  const std::vector<int> p = pilotIncidences(all);
+  ASSERT_EQ(p.size(), size_t(kMaxPilots));
+  EXPECT_EQ(std::set<int>(p.begin(), p.end()).size(), p.size());
+  double maxTheta = 0, minTheta = 90;
+  for (const auto& inc : all.incidence) maxTheta = std::max(maxTheta, inc.theta_deg), minTheta = std::min(minTheta, inc.theta_deg);
+  EXPECT_EQ(all.incidence[size_t(p[0])].theta_deg, maxTheta);
+  EXPECT_EQ(all.incidence[size_t(p[1])].theta_deg, minTheta);
+  std::set<int> quadrants;
+  for (int i : p)
+    if (all.incidence[size_t(i)].theta_deg > 20) quadrants.insert(int(std::floor(all.incidence[size_t(i)].phi_deg / 90.0)) % 4);
+  EXPECT_GE(quadrants.size(), size_t(3)) << "pilots cover the azimuths";
+}
+
+// The pilots' work never exceeds [effects] pilot_budget x the computed tiles (in tiles' paths and
+// wave terms), and what the budget cannot judge is kept: a rough Al heightfield with three listed
+// incidences. At the default 0.5 no wave pilot fits (one would cost a whole tile's wave term
+// against 1.5): diffraction is kept on, saying why.
+TEST(EffectsPlanner, PilotBudgetBoundsThePilots) {
+  for (double budget : {0.1, 0.5, 2.0, 10.0}) {
+    const Job job = loadJobFromString(
+        "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0\n[material]\nname = \"Al\"\n"
+        "[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
+        "incidence = [[0.0, 0.0], [40.0, 0.0], [70.0, 30.0]]\n[scene]\ncoherence_length_um = 20.0\ntolerance = 0.02\n"
+        "[effects]\npilot_budget = " + std::to_string(budget) + "\n[sampling]\npaths_per_slice = 50000\n"
+        "wave_samples_per_bin = 256\nseed = 5\n",
+        "t.toml", "");
+    const nlohmann::json p = planEffects(job);
+    const auto& spent = p["pilot_budget"];
+    EXPECT_LE(spent["path_tiles_spent"].get<double>(), budget * 3 + 1e-9) << spent.dump();
+    EXPECT_LE(spent["wave_tiles_spent"].get<double>(), budget * 3 + 1e-9) << spent.dump();
+    for (const auto& d : p["decisions"])
+      if (d["effect"] == "incoherent" && budget == 0.5) {
+        EXPECT_TRUE(d["on"].get<bool>());
+        EXPECT_NE(d["reason"].get<std::string>().find("pilot budget"), std::string::npos) << d.dump();
+      }
+  }
 }

@@ -14,7 +14,7 @@
 #include <string>
 
 #include "core/error.h"
-#include "dist/mpi_session.h"
+#include "cluster/mpi_session.h"
 #include "job/job.h"
 
 namespace mbsdf {

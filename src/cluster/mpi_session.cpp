@@ -1,4 +1,4 @@
-#include "dist/mpi_session.h"
+#include "cluster/mpi_session.h"
 
 namespace mbsdf {
 

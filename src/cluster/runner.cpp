@@ -1,4 +1,4 @@
-#include "dist/runner.h"
+#include "cluster/runner.h"
 
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
@@ -16,6 +16,7 @@
 #include "geometry/embree_scene.h"
 #include "io/bsdf_file.h"
 #include "io/output_target.h"
+#include "job/effects_planner.h"
 #include "job/plan.h"
 #include "job/symmetry.h"
 #include "job/transport.h"
@@ -86,16 +87,25 @@ double multipleBound(const TileResult& r, const DirectionGrid& grid) {
 // (single scattering without paths) runs a few thousand full-depth paths; past the tolerance the
 // tile is traced in full after all, otherwise its `multiple` is stored as zero (within the
 // tolerance by the bound). Either way the slice records the bound and whether it was re-enabled.
+// An incidence below the geometry's single-bounce limit (effects_planner.h) has none: its check is 0.
 void verifySkippedMultiple(const Job& job, const DirectionGrid& grid, int t, const std::optional<Vec3>& exact,
-                           const GeometricTransport* check, const GeometricTransport* full,
-                           const std::function<void(uint64_t)>& cb, TileResult& r) {
+                           const std::optional<double>& singleBounceLimit, const GeometricTransport* check,
+                           const GeometricTransport* full, const std::function<void(uint64_t)>& cb, TileResult& r) {
   const auto& inc = job.incidence[size_t(t)];
   if (r.has(Component::Multiple)) {
     r.multipleCheck = multipleBound(r, grid);
+  } else if (scattersOnce(job, grid, t, singleBounceLimit)) {
+    r.multipleCheck = 0;
+    r.value[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+    r.stdError[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
   } else {
-    r.multipleCheck = multipleBound(check->run(t, t, inc.bin, exact, cb), grid);
+    const TileResult checked = check->run(t, t, inc.bin, exact, cb);
+    r.multipleCheck = multipleBound(checked, grid);
+    r.rays += checked.rays;  // the check is the tile's work too
     if (r.multipleCheck > job.scene.tolerance) {
+      const uint64_t spent = r.rays;
       r = full->run(t, t, inc.bin, exact, cb);
+      r.rays += spent;
       r.multipleCheck = multipleBound(r, grid);
     } else {
       r.value[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
@@ -124,6 +134,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   for (Component c : job.guarded.list()) planned.components.remove(c);
   GeometricTransport transport(planned, grid, job.pathsPerSlice);
   std::unique_ptr<GeometricTransport> checkTransport, fullTransport;
+  const std::optional<double> singleBounceLimit = job.guarded.has(Component::Multiple) ? singleBounceLimit_deg(job) : std::nullopt;
   if (job.guarded.has(Component::Multiple) && transport.mayUseFacetSum()) {
     checkTransport = std::make_unique<GeometricTransport>(job, grid, std::min<uint64_t>(job.pathsPerSlice, kMultipleCheckPaths));
     fullTransport = std::make_unique<GeometricTransport>(job, grid, job.pathsPerSlice);
@@ -185,14 +196,15 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     TileResult r = transport.run(t, t, inc.bin, exact, cb);
     if (job.targetRelError > 0 && r.samples > 0) {  // a facet-sum tile is deterministic
       // Progressive sampling: more rounds of fresh paths (the next path indices, so the result is
-      // the same estimator as one run of all of them) until the geometric components reach the
-      // target relative error or the budget is spent.
+      // the same estimator as one run of all of them) until the path-traced table (coherent +
+      // multiple: a rare component adds little to its error) reaches the target relative error
+      // or the budget is spent.
+      std::vector<Component> traced;
+      for (Component c : {Component::Coherent, Component::Multiple})
+        if (job.components.has(c)) traced.push_back(c);
       auto relError = [&](const TileResult& x) {
-        double e = 0;
-        for (Component c : {Component::Coherent, Component::Multiple})
-          if (job.components.has(c) && x.has(c))
-            for (double v : sliceRelativeError(x, c, grid)) e = std::max(e, v);
-        return e;
+        const std::vector<double> e = relativeError(x, traced, grid);
+        return e.empty() ? 0.0 : *std::max_element(e.begin(), e.end());
       };
       while (true) {
         if (relError(r) <= job.targetRelError) {
@@ -206,7 +218,8 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
         r.poolPaths(transport.run(t, t, inc.bin, exact, cb, r.samples));
       }
     }
-    if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(job, grid, t, exact, checkTransport.get(), fullTransport.get(), cb, r);
+    if (job.guarded.has(Component::Multiple))
+      verifySkippedMultiple(job, grid, t, exact, singleBounceLimit, checkTransport.get(), fullTransport.get(), cb, r);
     pathSecondsSum += since(ts);
     if (wave) {
       auto tw = Clock::now();

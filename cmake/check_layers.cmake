@@ -1,0 +1,30 @@
+# Fails when a source folder of src/ includes a header of a folder its layer may not use (an upward
+# or sideways dependency). Run by the build before any library compiles (target check_layers) and by
+# the test build.layers on a copy with an injected upward include:
+#   cmake -DSRC=<src dir> -DTABLE=<layers table> [-DSTAMP=<file to touch>] -P check_layers.cmake
+# The table (written by CMakeLists.txt) sets MICROBSDF_LAYERS and, per layer, LAYER_<name>_USES.
+cmake_minimum_required(VERSION 3.25)
+include(${TABLE})
+set(violations "")
+set(known ${MICROBSDF_LAYERS})
+foreach(layer IN LISTS MICROBSDF_LAYERS)
+  file(GLOB files ${SRC}/${layer}/*.h ${SRC}/${layer}/*.cpp)
+  foreach(f IN LISTS files)
+    file(STRINGS ${f} lines REGEX "^[ \t]*#[ \t]*include[ \t]+\"[a-z_]+/")
+    foreach(line IN LISTS lines)
+      string(REGEX MATCH "\"([a-z_]+)/" _ "${line}")
+      set(used ${CMAKE_MATCH_1})
+      if(used IN_LIST known AND NOT used STREQUAL layer AND NOT used IN_LIST LAYER_${layer}_USES)
+        file(RELATIVE_PATH rel ${SRC} ${f})
+        string(REPLACE ";" ", " allowed "${LAYER_${layer}_USES}")
+        string(APPEND violations "\n  src/${rel}: ${line}\n    (${layer} may use: ${allowed})")
+      endif()
+    endforeach()
+  endforeach()
+endforeach()
+if(violations)
+  message(FATAL_ERROR "upward includes break the layers of src/ (CMakeLists.txt, MICROBSDF_LAYERS):${violations}")
+endif()
+if(STAMP)
+  file(TOUCH ${STAMP})
+endif()
