@@ -79,7 +79,7 @@ std::vector<double> sum(const std::vector<double>& a, const std::vector<double>&
 // Wave-estimator settings of the study: 16 points per direction, seed = seedIndex + 1.
 WaveSettings waveSettings(const std::string& estimator, long samplesPerBin, int seedIndex, bool masked = false) {
   WaveSettings ws;
-  ws.estimator = estimator;
+  ws.estimator = waveEstimatorKind(estimator);
   ws.samplesPerBin = int(samplesPerBin);
   ws.pointsPerDirection = 16;
   ws.seed = uint64_t(seedIndex + 1);

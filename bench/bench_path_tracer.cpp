@@ -107,7 +107,7 @@ void BM_KirchhoffSamples(benchmark::State& state) {
   builtinMaterial("Al", &al);
   DirectionGrid grid(ThetaPhiGrid{30, 60});
   WaveSettings ws;
-  ws.estimator = "area";
+  ws.estimator = WaveEstimatorKind::Area;
   ws.samplesPerBin = int(state.range(0));
   WaveContext ctx{f.geometry, f.scene, al, kEightLambdas, grid, CoherenceWindow(0, 20, 20, true), ws};
   auto est = makeWaveEstimator(ctx);
@@ -133,7 +133,7 @@ void BM_PaperResolutionSlice(benchmark::State& state, std::string estimator) {
   Material al;
   builtinMaterial("Al", &al);
   WaveSettings ws;
-  ws.estimator = estimator;
+  ws.estimator = waveEstimatorKind(estimator);
   ws.samplesPerBin = 5000000 / f.grid.binsPerHemisphere();
   WaveContext ctx{f.geometry, f.scene, al, kEightLambdas, f.grid,
                   CoherenceWindow::fromCoherenceLength(estimator == "orders" || estimator == "exact" ? 50.0 : 0.0, 20, 20, true), ws};
@@ -221,7 +221,7 @@ void BM_FftHeightfieldSlice(benchmark::State& state, std::string estimator) {
   builtinMaterial("Al", &al);
   DirectionGrid grid(DiskGrid{128, 128});
   WaveSettings ws;
-  ws.estimator = estimator;
+  ws.estimator = waveEstimatorKind(estimator);
   WaveContext ctx{g, scene, al, {0.5}, grid, CoherenceWindow(4.0, L, L, true), ws};
   auto est = makeWaveEstimator(ctx);
   const Vec3 wi{0, 0, 1};

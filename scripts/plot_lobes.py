@@ -56,6 +56,13 @@ def main():
         if a.theta_i:
             idx = sorted({min(idx, key=lambda i: abs(th_i[i] - t)) for t in a.theta_i})
         data = {c: f["bsdf/" + c] for c in comps}
+        # The models this file can form from its components; the others are left out and said so.
+        shown = [m for m in a.models if all(c in data for c in MODELS[m])]
+        missing = [m for m in a.models if m not in shown]
+        if missing:
+            print(f"note: {a.file} holds {sorted(comps)}: no {', '.join(missing)}", file=sys.stderr)
+        if not shown:
+            sys.exit(f"{a.file}: none of the models {a.models} can be formed from its components {sorted(comps)}")
 
         fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
         styles = {"GS": ":", "GM": "-", "WS": "--", "WM": "-."}
@@ -68,9 +75,7 @@ def main():
                 d = np.abs((gph - phi + 180) % 360 - 180)
                 return np.where(upper & (d <= dphi / 2 + 1e-9))[0]
             fwd, back = column(ph_i[i] + 180), column(ph_i[i])
-            for m in a.models:
-                if not all(c in data for c in MODELS[m]):
-                    continue
+            for m in shown:
                 tab = sum(np.asarray(data[c][i, lam, :]) for c in MODELS[m])
                 if tab.ndim == 2:
                     tab = tab.mean(axis=0)
@@ -100,7 +105,7 @@ def main():
         fig.suptitle(title.decode() if isinstance(title, bytes) else str(title), fontsize=9)
         fig.tight_layout()
         fig.savefig(a.output, dpi=100)
-    print(f"wrote {a.output} ({len(idx)} slices, models {a.models})")
+    print(f"wrote {a.output} ({len(idx)} slices, models {shown})")
 
 
 if __name__ == "__main__":

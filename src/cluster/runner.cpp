@@ -167,7 +167,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
                                                         100 * pairs->computedFraction())
                                           : "not used (" + job.reciprocityOffReason() + ")");
   if (mpi.rank() == 0)
-    spdlog::info("job {}: {} ({}), {}, {} wavelengths, grid {} ({} bins), {} tiles on {} ranks, {} paths per slice",
+    spdlog::info("job {}: {} ({}), {}, {} wavelengths, grid {} ({} bins), {} slices on {} ranks, {} paths per slice",
                  job.file, job.geometryKind,
                  job.statistical ? transport.describe()
                                  : fmt::format("{} triangles, {:.3g} x {:.3g} µm{}, {}", job.geometry.triangles.size(),
@@ -348,7 +348,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) { return cost(a) > cost(b); });
   size_t next = 0;
   bool stopAssigning = false;
-  ProgressReporter progress("tiles", uint64_t(nTiles));
+  ProgressReporter progress("slices written", uint64_t(nTiles));  // symmetry copies count: a tile may write several
   int written = int(finished.size());
   // The energy balance of each slice (BsdfFileWriter::writeEnergyBalance): beyond [scene] tolerance
   // and its standard error it is the model's error (scalar theory on deep or steep structures), and
@@ -497,7 +497,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     for (auto& [c, e] : energySum)
       energies += fmt::format("{}{} {:.4f}", energies.empty() ? "" : ", ", c, e / std::max(1, summary.computed));
     if (filledIncoherent) energies += fmt::format(", incoherent {:.4f} (all slices, after the fill)", *filledIncoherent);
-    spdlog::info("summary: {} slices computed now, {} resumed; {:.1f} s wall; tile time summed over ranks: "
+    spdlog::info("summary: {} tiles computed now, {} slices resumed; {:.1f} s wall; tile time summed over ranks: "
                  "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
                  summary.computed, summary.resumed, since(t0), total[0], total[1], summary.paths, energies);
   }

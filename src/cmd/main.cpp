@@ -344,7 +344,7 @@ int runCommand(int argc, char** argv, const std::string& jobPath, std::string ou
     }
     if (s.stoppedEarly) return exitCode(ExitCode::Stopped);
     if (mpi.rank() == 0)
-      spdlog::info("done: {} tiles ({} computed now, {} resumed), {} paths in total, {:.2f} s, wrote {}", s.tiles,
+      spdlog::info("done: {} slices ({} tiles computed now, {} slices resumed), {} paths in total, {:.2f} s, wrote {}", s.tiles,
                    s.computed, s.resumed, s.paths, s.seconds, out);
   } catch (const std::bad_alloc&) {
     spdlog::error("run failed: out of memory (see `microbsdf plan` for the job's estimate per rank)");

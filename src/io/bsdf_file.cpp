@@ -395,7 +395,7 @@ void BsdfFileWriter::create(const std::string& filename) {
   setStringAttr(f, "incidence_sampling", job.exactIncidence ? "exact" : "bin");
   if (!job.effectsPlan.empty()) setStringAttr(f, "effects_plan", job.effectsPlan);
   if (job.components.has(Component::Incoherent) && !job.statistical)
-    setStringAttr(f, "wave_estimator", job.resolvedWaveEstimator());
+    setStringAttr(f, "wave_estimator", waveEstimatorName(job.resolvedWaveEstimator()));
   setStringAttr(f, "symmetry",
                 job.isotropic ? "isotropic: one incidence azimuth per theta ring computed, the other slices of the ring "
                                 "rotated from it (" + job.symmetryReason + ")"

@@ -15,6 +15,7 @@
 #include "core/log.h"
 #include "job/symmetry.h"
 #include "job/transport.h"
+#include "scattering/coherence_window.h"
 #include "scattering/fft_estimator.h"
 #include "scattering/single_scattering.h"
 #include "scattering/wave_estimator.h"
@@ -215,7 +216,7 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
       std::string(shared ? "paths shared by all of them (only Fresnel depends on lambda: per-wavelength weights)"
                          : "one path set per wavelength (dispersive dielectric: refraction depends on lambda)") +
       (chosen.has(Component::Incoherent) ? "; the wave term is evaluated per wavelength" : "");
-  if (job.scene.colour != "rgb")
+  if (job.scene.colour != SceneNeeds::Colour::Rgb)
     return decision("wavelengths", true, std::to_string(nL) + " wavelengths (the renderer needs the spectrum); " + sharing);
   if (nL <= 3)
     return decision("wavelengths", true, std::to_string(nL) + " wavelengths, no fewer for colour (needs 3); " + sharing);
@@ -325,26 +326,29 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
 // each accuracy costs on this job. Where no pilot can change the pick, none is run.
 nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen, const DirectionGrid& grid,
                                      const PeriodicScene& scene, int pilot, const std::string& unaffordable) {
-  const std::string resolved = job.resolvedWaveEstimator();
-  const double sigma = job.scene.coherenceLength_um / 6.0;
+  using enum WaveEstimatorKind;
+  const WaveEstimatorKind resolvedKind = job.resolvedWaveEstimator();
+  const std::string resolved = waveEstimatorName(resolvedKind);
+  const double sigma = windowSigma(job.scene.coherenceLength_um);
   const std::vector<double> lambdas = job.lambda_um();
   const double lambdaMin = *std::min_element(lambdas.begin(), lambdas.end());
   // The deterministic estimator a Monte Carlo pick could give way to: `exact` for `orders` (the
   // cell's order lobes stay apart) where its facet sums are cheap enough to pilot, `fft` for `area`
   // on a periodic heightfield. Otherwise no pilot can change the pick, and none is run.
-  std::string alternative, skipped;
-  if (resolved == "orders") {
+  std::optional<WaveEstimatorKind> alternative;
+  std::string skipped;
+  if (resolvedKind == Orders) {
     const double work = job.facetsPerCell() * kPi * job.cellSizeX() * job.cellSizeY() / (lambdaMin * lambdaMin);
     if (work <= kExactPilotMaxWork)
-      alternative = "exact";
+      alternative = Exact;
     else
       skipped = " (exact not piloted: facets x orders " + fmt3(work) + " > " + fmt3(kExactPilotMaxWork) + ")";
-  } else if (resolved == "area" && fftUnsuitable(job.geometry, job.material, lambdas, sigma, chosen.has(Component::Lost)).empty()) {
-    alternative = "fft";
+  } else if (resolvedKind == Area && fftUnsuitable(job.geometry, job.material, lambdas, sigma, chosen.has(Component::Lost)).empty()) {
+    alternative = Fft;
   }
-  if (alternative.empty()) {
+  if (!alternative) {
     auto d = decision("estimator", true, resolved + ": the job's own estimator" +
-                                             (resolved == "exact" || resolved == "fft"
+                                             (resolvedKind == Exact || resolvedKind == Fft
                                                   ? std::string(" is deterministic")
                                                   : std::string(" has no deterministic alternative here")) +
                                              skipped + "; no estimator pilot");
@@ -363,6 +367,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
   if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
   const double tol = job.scene.tolerance;
   struct Measured {
+    WaveEstimatorKind kind;
     std::string name;
     bool deterministic;
     double seconds, setup, error;
@@ -370,7 +375,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
   std::vector<Measured> measured;
   std::vector<double> proxy(size_t(nB), 0.0);  // the first table's max over λ of f_ws Ω⊥ per bin
   // One pilot tile of estimator c as the job would run it.
-  auto measure = [&](const std::string& c) -> Measured {
+  auto measure = [&](WaveEstimatorKind c) -> Measured {
     Job cj = job;
     cj.waveEstimator = c;
     cj.components = chosen;
@@ -387,7 +392,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
     std::vector<uint8_t> mask;
     std::vector<double> weight(size_t(nB), 1.0);
     double binFraction = 1;
-    if (c == "area" && nB >= 4 * kAreaPilotStride) {
+    if (c == Area && nB >= 4 * kAreaPilotStride) {
       std::vector<int> byPower(static_cast<size_t>(nB));
       for (int i = 0; i < nB; ++i) byPower[size_t(i)] = i;
       std::stable_sort(byPower.begin(), byPower.end(), [&](int x, int y) { return proxy[size_t(x)] > proxy[size_t(y)]; });
@@ -405,7 +410,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
       }
       binFraction = double(picked) / nB;
     }
-    const WaveTileResult w = est->run(pilot, inc.bin, exact, pilotProgress("estimator pilot (" + c + ")", inc), mask);
+    const WaveTileResult w = est->run(pilot, inc.bin, exact, pilotProgress("estimator pilot (" + waveEstimatorName(c) + ")", inc), mask);
     double error = 0;
     for (int l = 0; l < nL; ++l) {
       double e = 0;
@@ -418,7 +423,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
       error = std::max(error, deterministic ? e : std::sqrt(2 / kPi) * e);
     }
     const double seconds = std::max(0.0, w.seconds - est->setupSeconds()) / binFraction;
-    return Measured{c, deterministic, seconds, est->setupSeconds(), error};
+    return Measured{c, waveEstimatorName(c), deterministic, seconds, est->setupSeconds(), error};
   };
   // The deterministic estimators' error over an incidence bin is their interpolation's and binning's
   // (orders_estimator.cpp, binOverIncidenceBin; estimates for the coarser, on the safe side). Raising
@@ -427,12 +432,12 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
   // sub-direction binning the node count is no longer what limits them.
   // `orders`: its pilot, then exact's if it misses. `area`: fft's first (its table tells the area
   // pilot where the lobes are), then area's.
-  if (resolved == "orders") {
-    measured.push_back(measure("orders"));
-    if (measured.back().error > tol) measured.push_back(measure("exact"));
+  if (resolvedKind == Orders) {
+    measured.push_back(measure(Orders));
+    if (measured.back().error > tol) measured.push_back(measure(Exact));
   } else {
-    measured.push_back(measure("fft"));
-    measured.push_back(measure("area"));
+    measured.push_back(measure(Fft));
+    measured.push_back(measure(Area));
   }
   // The choice depends on the pilots' errors (seeded or deterministic), never on their times, so
   // every run of the job — and a resumed one, on any number of ranks and threads — makes the same:
@@ -441,7 +446,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
   // lobe, or `orders`' four incidence draws — on the Al grating of the effects test 0.17–0.30
   // reported against 0.24–0.39 from 4096 draws); else the job's own.
   std::string choice = resolved, how;
-  const Measured& own = resolved == "orders" ? measured.front() : measured.back();
+  const Measured& own = resolvedKind == Orders ? measured.front() : measured.back();
   if (own.error <= tol) {
     how = "the job's own estimator meets the tolerance";
   } else {
@@ -464,7 +469,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
            ", error " + fmt3(m.error);
     nlohmann::json f = {{"estimator", m.name}, {"deterministic", m.deterministic}, {"seconds_per_tile", m.seconds},
                         {"setup_seconds", m.setup}, {"predicted_error", m.error}};
-    if (m.name == "area" && m.error > tol) {
+    if (m.kind == Area && m.error > tol) {
       // Monte Carlo over exit directions: the error falls as 1/√N in samples per bin.
       const double factor = (m.error / tol) * (m.error / tol);
       f["samples_per_bin_for_tolerance"] = double(job.waveSamplesPerBin) * factor;
@@ -522,7 +527,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     const double lambdaMin = *std::min_element(lambdas.begin(), lambdas.end());
     // One cell's facets over the cell's orders (lattice_cell.h).
     const double work = job.facetsPerCell() * kPi * job.cellSizeX() * job.cellSizeY() / (lambdaMin * lambdaMin);
-    if (ws.estimator == "orders" && work <= kExactPilotMaxWork) ws.estimator = "exact";
+    if (ws.estimator == WaveEstimatorKind::Orders && work <= kExactPilotMaxWork) ws.estimator = WaveEstimatorKind::Exact;
   }
   ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));
 
@@ -771,7 +776,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       // λ/(2√2 π σ_w) with σ_w = δc/6, which changes a Gaussian lobe by about (blur/width)² in L1.
       // Valid only for features much larger than λ: correlation length √2 σ_h / slope >= 5 λ.
       const double corr = slope > 0 ? std::sqrt(2.0) * sigmaH / slope : 0.0;
-      const double sigmaW = job.scene.coherenceLength_um / 6.0;
+      const double sigmaW = windowSigma(job.scene.coherenceLength_um);
       const double blurRad = sigmaW > 0 ? meanLambda / (2 * std::sqrt(2.0) * kPi * sigmaW) : kPi;
       const double lobeRad = 2 * slope;
       const double physical = 2 * std::exp(-std::min(g, 700.0)) + (lobeRad > 0 ? std::pow(blurRad / lobeRad, 2) : 1e300);
@@ -849,7 +854,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   }
   // The wave estimator, from the tolerance and the measured cost (on the middle pilot incidence).
   // Its pilots cost one or two of the job's wave terms (and `area` on an eighth of the bins).
-  if (chosen.has(Component::Incoherent) && job.waveEstimator == "auto" && !job.statistical) {
+  if (chosen.has(Component::Incoherent) && !job.waveEstimator && !job.statistical) {
     const std::string budgetNote = !pilots.empty() && budgetTiles - waveSpent >= 2
                                        ? ""
                                        : "the pilot budget (" + fmt3(job.pilotBudget) + " of the job's " +
@@ -935,7 +940,7 @@ void applyEffectsPlan(Job& job, const nlohmann::json& plan) {
     }
   job.waveTransmission = plan.value("wave_transmission", true);
   if (plan.contains("lambda_nm")) job.lambda_nm = plan["lambda_nm"].get<std::vector<double>>();
-  if (plan.contains("wave_estimator")) job.waveEstimator = plan["wave_estimator"].get<std::string>();
+  if (plan.contains("wave_estimator")) job.waveEstimator = waveEstimatorKind(plan["wave_estimator"].get<std::string>());
   job.effectsPlan = plan.dump();
 }
 

@@ -259,8 +259,9 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     if (n != "brdf" && n != "btdf") scene.fail("needs", "entries must be \"brdf\" or \"btdf\"");
   job.scene.tolerance = scene.positive("tolerance", 0.01);
   job.scene.angularResolution_deg = scene.nonNegative("angular_resolution_deg", 0.0);
-  job.scene.colour = scene.getString("colour", "spectral");
-  if (job.scene.colour != "spectral" && job.scene.colour != "rgb") scene.fail("colour", "must be \"spectral\" or \"rgb\"");
+  const std::string colour = scene.getString("colour", "spectral");
+  if (colour != "spectral" && colour != "rgb") scene.fail("colour", "must be \"spectral\" or \"rgb\"");
+  job.scene.colour = colour == "rgb" ? SceneNeeds::Colour::Rgb : SceneNeeds::Colour::Spectral;
   if (!(job.scene.angularResolution_deg <= 90)) scene.fail("angular_resolution_deg", "must be in [0, 90]");
   // The incidences the renderer will look up: with incidence = "all", bins farther than this from
   // the normal on their side (light from above: θ; from inside a dielectric: 180° − θ) are not
@@ -321,20 +322,25 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   };
   job.maxDepth = int(bounded("max_depth", 100, 1000000));
   job.seed = uint64_t(samp.getInt("seed", 1));
-  job.waveEstimator = samp.getString("wave_estimator", "auto");
-  if (job.waveEstimator != "paper" && job.waveEstimator != "area" && job.waveEstimator != "orders" && job.waveEstimator != "exact" &&
-      job.waveEstimator != "fft" && job.waveEstimator != "auto")
-    samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\", \"exact\", \"fft\" or \"paper\"");
+  if (const std::string e = samp.getString("wave_estimator", "auto"); e != "auto") {
+    job.waveEstimator = parseWaveEstimator(e);
+    if (!job.waveEstimator) samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\", \"exact\", \"fft\" or \"paper\"");
+  }
   job.waveSamplesPerBin = bounded("wave_samples_per_bin", 256, 1000000000);
   job.wavePointsPerDirection = bounded("wave_points_per_direction", 64, 1000000000);
   if (job.wavePointsPerDirection < 2) samp.fail("wave_points_per_direction", "must be >= 2 (pairwise estimator)");
   job.waveIncidenceDirections = bounded("wave_incidence_directions", 4, 1000000);
-  job.singleScattering = samp.getString("single_scattering", "auto");
-  if (job.singleScattering != "auto" && job.singleScattering != "paths" && job.singleScattering != "facets")
+  const std::string single = samp.getString("single_scattering", "auto");
+  if (single != "auto" && single != "paths" && single != "facets")
     samp.fail("single_scattering", "must be \"auto\", \"paths\" or \"facets\"");
-  job.visibilityTable = samp.getString("visibility_table", "auto");
-  if (job.visibilityTable != "auto" && job.visibilityTable != "on" && job.visibilityTable != "off")
-    samp.fail("visibility_table", "must be \"auto\", \"on\" or \"off\"");
+  job.singleScattering = single == "paths"    ? Job::SingleScatteringMode::Paths
+                         : single == "facets" ? Job::SingleScatteringMode::Facets
+                                              : Job::SingleScatteringMode::Auto;
+  const std::string table = samp.getString("visibility_table", "auto");
+  if (table != "auto" && table != "on" && table != "off") samp.fail("visibility_table", "must be \"auto\", \"on\" or \"off\"");
+  job.visibilityTable = table == "on"    ? Job::VisibilityTableMode::On
+                        : table == "off" ? Job::VisibilityTableMode::Off
+                                         : Job::VisibilityTableMode::Auto;
 
   ParamDict out = root.table("output");
   job.outputPath = out.getString("path", "out.h5");
@@ -374,7 +380,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       job.inputFiles.push_back({"geometry.file", path, sha256OfFile(path)});
     }
   }
-  if (job.singleScattering == "facets") {
+  if (job.singleScattering == Job::SingleScatteringMode::Facets) {
     const bool autoComponents =
         std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") != job.requestedComponents.end();
     if (job.statistical || !job.geometry.periodic)
@@ -439,11 +445,14 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     job.cellNx = cell.nx;
     job.cellNy = cell.ny;
   }
-  if ((job.waveEstimator == "orders" || job.waveEstimator == "exact" || job.waveEstimator == "fft") && !job.statistical &&
+  using enum WaveEstimatorKind;
+  const std::optional<WaveEstimatorKind> named = job.waveEstimator;
+  if ((named == Orders || named == Exact || named == Fft) && !job.statistical &&
       !(job.geometry.periodic && job.scene.coherenceLength_um > 0))
-    samp.fail("wave_estimator", "\"" + job.waveEstimator + "\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
-  if (job.waveEstimator == "fft" && !job.statistical) {
-    const std::string why = fftUnsuitable(job.geometry, job.material, job.lambda_um(), job.scene.coherenceLength_um / 6.0,
+    samp.fail("wave_estimator", "\"" + waveEstimatorName(*named) +
+                                    "\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
+  if (named == Fft && !job.statistical) {
+    const std::string why = fftUnsuitable(job.geometry, job.material, job.lambda_um(), windowSigma(job.scene.coherenceLength_um),
                                           job.components.has(Component::Lost));
     if (!why.empty()) samp.fail("wave_estimator", "\"fft\" " + why);
   }
@@ -452,16 +461,16 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   return job;
 }
 
-std::string Job::resolvedWaveEstimator() const {
-  if (waveEstimator != "auto") return waveEstimator;
-  const double sigma = scene.coherenceLength_um / 6.0;
+WaveEstimatorKind Job::resolvedWaveEstimator() const {
+  if (waveEstimator) return *waveEstimator;
+  const double sigma = windowSigma(scene.coherenceLength_um);
   if (geometry.periodic && orderLobesSeparate(sigma, cellSizeX(), cellSizeY())) {
     // The deterministic `exact` has no sampling error, and costs about as much as 8–12 points of
     // `orders` per facet of the cell (its first-level visibility points, the split pieces and the
     // facet integral; measured in the accuracy study: the 5 µm sine grating's 128 facets as about
     // 2^9.5 points, the hemisphere cell's 1 624 as about 2^14): chosen where it costs no more than
     // `orders` at the job's own budget (wave_samples_per_bin points).
-    return 8 * facetsPerCell() <= double(waveSamplesPerBin) ? "exact" : "orders";
+    return 8 * facetsPerCell() <= double(waveSamplesPerBin) ? WaveEstimatorKind::Exact : WaveEstimatorKind::Orders;
   }
   // Overlapping lobes (speckle) on a heightfield with a disk grid: the deterministic Fourier-domain
   // evaluator (no masked field, size within its limit), whose separable evaluation there is fast;
@@ -470,14 +479,14 @@ std::string Job::resolvedWaveEstimator() const {
   // Carlo budget (large bins against a small speckle), so it is chosen explicitly there.
   if (std::holds_alternative<DiskGrid>(gridLayout) &&
       fftUnsuitable(geometry, material, lambda_um(), sigma, components.has(Component::Lost)).empty())
-    return "fft";
-  return "area";
+    return WaveEstimatorKind::Fft;
+  return WaveEstimatorKind::Area;
 }
 
 int Job::visibilityTableResolution() const {
   constexpr int M = 128;
-  if (visibilityTable == "off" || statistical || resolvedWaveEstimator() != "exact") return 0;
-  if (visibilityTable == "on") return M;
+  if (visibilityTable == VisibilityTableMode::Off || statistical || resolvedWaveEstimator() != WaveEstimatorKind::Exact) return 0;
+  if (visibilityTable == VisibilityTableMode::On) return M;
   const double hemispheres = material.isConductor() ? 1 : 2;
   if (VisibilityTable::bytesFor(size_t(facetsPerCell()), M, !material.isConductor()) > 1e9) return 0;
   const int n = incidenceRuleOrder(int(waveIncidenceDirections));
@@ -498,8 +507,8 @@ std::string Job::reciprocityOffReason() const {
   if (!incidenceAll) return "incidence is a list of directions, not \"all\"";
   if (exactIncidence) return "incidence_sampling = \"exact\" (bin-centre beams are not reciprocal bin to bin)";
   if (components.has(Component::Lost)) return "the lost component needs the masked power of every exit bin";
-  if (std::string e = resolvedWaveEstimator(); e != "area" && e != "paper")
-    return "the " + e + " estimator's cost is per incidence sample, not per exit bin";
+  if (const WaveEstimatorKind e = resolvedWaveEstimator(); e != WaveEstimatorKind::Area && e != WaveEstimatorKind::Paper)
+    return "the " + waveEstimatorName(e) + " estimator's cost is per incidence sample, not per exit bin";
   return "";
 }
 

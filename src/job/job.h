@@ -12,6 +12,7 @@
 #include "microflake/microflake_walk.h"
 #include "optics/material.h"
 #include "scattering/components.h"
+#include "scattering/wave_estimator_kind.h"
 
 namespace mbsdf {
 
@@ -34,9 +35,10 @@ struct SceneNeeds {
   // The angular detail the renderer resolves; the diffraction decision compares WS and GS pooled
   // into cells of this size (0: the job's bins).
   double angularResolution_deg = 0.0;
-  // "spectral" (the renderer integrates the spectrum) or "rgb" (it is fed colour: with
-  // components = "auto" the planner may compute fewer wavelengths, effects_planner.h).
-  std::string colour = "spectral";
+  // Spectral: the renderer integrates the spectrum; Rgb: it is fed colour (with components =
+  // "auto" the planner may compute fewer wavelengths, effects_planner.h).
+  enum class Colour { Spectral, Rgb };
+  Colour colour = Colour::Spectral;
 };
 
 // [geometry] kind = "statistical": a surface known only by its NDF, simulated by the microflake
@@ -106,17 +108,18 @@ struct Job {
   uint64_t maxPathsPerSlice = 0;
   int maxDepth = 100;
   uint64_t seed = 1;
-  std::string waveEstimator = "auto";  // resolved by resolvedWaveEstimator()
+  std::optional<WaveEstimatorKind> waveEstimator;  // none: "auto", resolved by resolvedWaveEstimator()
   int64_t waveSamplesPerBin = 256;
   int64_t wavePointsPerDirection = 64;
   int64_t waveIncidenceDirections = 4;
-  // [sampling] visibility_table: "auto", "on" or "off" — the `exact` estimator's shared visibility
-  // table (scattering/visibility_table.h); see visibilityTableResolution().
-  std::string visibilityTable = "auto";
-  // [sampling] single_scattering: "auto", "paths" or "facets" — how the `coherent` component is
-  // computed where no path of depth >= 2 is wanted (scattering/single_scattering.h); see
-  // GeometricTransport.
-  std::string singleScattering = "auto";
+  // [sampling] visibility_table: the `exact` estimator's shared visibility table
+  // (scattering/visibility_table.h); see visibilityTableResolution().
+  enum class VisibilityTableMode { Auto, On, Off };
+  VisibilityTableMode visibilityTable = VisibilityTableMode::Auto;
+  // [sampling] single_scattering: how the `coherent` component is computed where no path of depth
+  // >= 2 is wanted (scattering/single_scattering.h); see GeometricTransport.
+  enum class SingleScatteringMode { Auto, Paths, Facets };
+  SingleScatteringMode singleScattering = SingleScatteringMode::Auto;
   std::string outputPath = "out.h5";
   bool previews = false;
 
@@ -132,7 +135,7 @@ struct Job {
   // its cell (2πσ/L_cell >= 4: neighbouring order lobes are >= 5.7 standard deviations apart), or
   // `exact` there when it costs no more (8 x the cell's facets <= wave_samples_per_bin); `fft` for a periodic
   // heightfield under a narrower window on a disk grid without the lost component; otherwise `area`.
-  std::string resolvedWaveEstimator() const;
+  WaveEstimatorKind resolvedWaveEstimator() const;
   // Why the wave term of this job is not halved by reciprocity (docs/physics.md §8), or "" when it is:
   // it needs incidence = "all" with bin-averaged incidence (the bin-to-bin table is then exactly
   // reciprocal), the incoherent component without `lost` (the masked power is not reciprocal) and

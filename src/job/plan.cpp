@@ -121,7 +121,7 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
   double waveErr = 0;
   if (wave) {
     const nlohmann::json waveList = scaled(waveErrAtJob, 1.0, &waveErr);
-    a["wave"] = {{"rel_error", waveErr}, {"per_pilot", waveList}, {"estimator", job.resolvedWaveEstimator()},
+    a["wave"] = {{"rel_error", waveErr}, {"per_pilot", waveList}, {"estimator", waveEstimatorName(job.resolvedWaveEstimator())},
                  {"samples_per_bin", job.waveSamplesPerBin}, {"monte_carlo", !waveDeterministic}};
     if (!waveDeterministic) a["wave"]["rate"] = waveRate;
   }
@@ -195,7 +195,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   std::vector<std::string> comps;
   for (Component c : job.components.list()) comps.push_back(componentName(c));
   p["components"] = comps;
-  if (job.needsWave()) p["wave_estimator"] = job.resolvedWaveEstimator();
+  if (job.needsWave()) p["wave_estimator"] = waveEstimatorName(job.resolvedWaveEstimator());
 
   // Pilots at a reduced budget, spread as the effects planner spreads them (the most grazing, the
   // closest to normal, the median, then the farthest in angle: the cost depends on θi differently for explicit geometry, which bounces more at grazing
@@ -248,7 +248,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   if (job.needsWave()) {
     WaveSettings ws = waveSettingsOf(job);
     ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
-                                     ws.estimator == "area" ? 2 * int(job.wavePointsPerDirection) : 16);
+                                     ws.estimator == WaveEstimatorKind::Area ? 2 * int(job.wavePointsPerDirection) : 16);
     auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
     waveDeterministic = est->deterministic();
     // A Monte Carlo wave term's error falls as 1/√N only once its samples resolve the lobes (with a

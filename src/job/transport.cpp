@@ -24,7 +24,7 @@ GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid
     tracer_ = std::make_unique<PathTracer>(*scene_, job.material, job.lambda_um(), grid, s);
     // The facet sum assumes every ray meets the surface; a patch with holes takes paths, which
     // count the light through them as missed.
-    if (job.geometry.periodic && job.closure.closed() && job.singleScattering != "paths" &&
+    if (job.geometry.periodic && job.closure.closed() && job.singleScattering != Job::SingleScatteringMode::Paths &&
         !job.components.has(Component::Multiple) && !job.components.has(Component::Lost)) {
       facets_ = std::make_unique<FacetSingleScattering>(job.geometry, *scene_, job.material, job.lambda_um(), grid);
       singleScattering_ = job.singleScattering;
@@ -36,7 +36,7 @@ GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid
 
 bool GeometricTransport::facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection) const {
   if (!facets_) return false;
-  if (singleScattering_ == "facets") return true;
+  if (singleScattering_ == Job::SingleScatteringMode::Facets) return true;
   return facets_->cheaperThan(incidenceBin, exactDirection, pathRays_);
 }
 
@@ -56,7 +56,7 @@ std::string GeometricTransport::describe() const {
   if (flakes_) return "microflake random walk, " + flakes_->describe();
   if (facets_)
     return std::string("path tracer through the explicit microgeometry; single scattering by the facet sum ") +
-           (singleScattering_ == "facets" ? "on every tile" : "on the tiles where it is cheaper") +
+           (singleScattering_ == Job::SingleScatteringMode::Facets ? "on every tile" : "on the tiles where it is cheaper") +
            (facets_->maxSlope() ? fmt::format(" (heightfield, steepest slope {:.3g}: no ray above {:.3g} deg elevation)",
                                               *facets_->maxSlope(), degrees(std::atan(*facets_->maxSlope())))
                                 : " (visibility by rays from each facet's first-level points, split where they disagree)");

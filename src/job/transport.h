@@ -42,7 +42,7 @@ class GeometricTransport {
   std::unique_ptr<PeriodicScene> scene_;
   std::unique_ptr<PathTracer> tracer_;
   std::unique_ptr<FacetSingleScattering> facets_;
-  std::string singleScattering_;
+  Job::SingleScatteringMode singleScattering_ = Job::SingleScatteringMode::Auto;
   double pathRays_ = 0;  // rays of the path tracer per tile at the job's paths_per_slice
   std::unique_ptr<MicroflakeDistribution> flakes_;
   std::unique_ptr<MicroflakeWalk> walk_;

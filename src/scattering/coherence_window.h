@@ -25,9 +25,15 @@ namespace mbsdf {
 // literature coherence width used directly as δc (a 3x narrower window): give
 // coherence_length_um = 50 to reproduce it.
 inline constexpr double kSunAngularDiameter_deg = 0.533;
+// The coherence length δc is 6σ of the window (docs/physics.md §5), in one place.
+inline constexpr double kCoherenceLengthPerSigma = 6.0;
+// The window's σ for a coherence length δc (0: no window).
+inline double windowSigma(double coherenceLength_um) {
+  return coherenceLength_um > 0 ? coherenceLength_um / kCoherenceLengthPerSigma : 0.0;
+}
 inline double coherenceLengthOfDiskSource(double angularDiameter_rad, double meanLambda_um) {
   const double sigma = std::sqrt(2.0) * meanLambda_um / (kPi * angularDiameter_rad);
-  return 6.0 * sigma;
+  return kCoherenceLengthPerSigma * sigma;
 }
 
 // Whether the grating orders' lobes (standard deviation 1/(√2 σ n k0) in the xy plane of ωo) stay
@@ -41,7 +47,7 @@ class CoherenceWindow {
  public:
   CoherenceWindow(double sigma_um, double sizeX, double sizeY, bool periodic);
   static CoherenceWindow fromCoherenceLength(double coherenceLength_um, double sizeX, double sizeY, bool periodic) {
-    return CoherenceWindow(coherenceLength_um > 0 ? coherenceLength_um / 6.0 : 0.0, sizeX, sizeY, periodic);
+    return CoherenceWindow(windowSigma(coherenceLength_um), sizeX, sizeY, periodic);
   }
   bool active() const { return sigma_ > 0; }
   double sigma() const { return sigma_; }

@@ -13,13 +13,37 @@
 
 namespace mbsdf {
 
+std::string waveEstimatorName(WaveEstimatorKind k) {
+  switch (k) {
+    case WaveEstimatorKind::Area: return "area";
+    case WaveEstimatorKind::Paper: return "paper";
+    case WaveEstimatorKind::Orders: return "orders";
+    case WaveEstimatorKind::Exact: return "exact";
+    case WaveEstimatorKind::Fft: return "fft";
+  }
+  return "?";
+}
+
+std::optional<WaveEstimatorKind> parseWaveEstimator(std::string_view name) {
+  for (WaveEstimatorKind k : kWaveEstimatorKinds)
+    if (waveEstimatorName(k) == name) return k;
+  return std::nullopt;
+}
+
+WaveEstimatorKind waveEstimatorKind(std::string_view name) {
+  if (const auto k = parseWaveEstimator(name)) return *k;
+  throw std::invalid_argument("unknown wave estimator '" + std::string(name) + "'");
+}
+
 std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx) {
-  if (ctx.settings.estimator == "area") return std::make_unique<AreaWaveEstimator>(ctx);
-  if (ctx.settings.estimator == "paper") return std::make_unique<PaperWaveEstimator>(ctx);
-  if (ctx.settings.estimator == "orders") return std::make_unique<OrdersWaveEstimator>(ctx);
-  if (ctx.settings.estimator == "exact") return std::make_unique<OrdersWaveEstimator>(ctx, OrderAmplitudes::Exact);
-  if (ctx.settings.estimator == "fft") return makeFftWaveEstimator(ctx);
-  throw std::invalid_argument("unknown wave estimator '" + ctx.settings.estimator + "'");
+  switch (ctx.settings.estimator) {
+    case WaveEstimatorKind::Area: return std::make_unique<AreaWaveEstimator>(ctx);
+    case WaveEstimatorKind::Paper: return std::make_unique<PaperWaveEstimator>(ctx);
+    case WaveEstimatorKind::Orders: return std::make_unique<OrdersWaveEstimator>(ctx);
+    case WaveEstimatorKind::Exact: return std::make_unique<OrdersWaveEstimator>(ctx, OrderAmplitudes::Exact);
+    case WaveEstimatorKind::Fft: return makeFftWaveEstimator(ctx);
+  }
+  throw std::logic_error("makeWaveEstimator: no such estimator");
 }
 
 void addWaveComponents(TileResult& tile, const WaveTileResult& wave, bool incoherent, bool lost) {

@@ -11,6 +11,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/direction_grid.h"
@@ -18,11 +19,12 @@
 #include "geometry/microgeometry.h"
 #include "optics/material.h"
 #include "scattering/coherence_window.h"
+#include "scattering/wave_estimator_kind.h"
 
 namespace mbsdf {
 
 struct WaveSettings {
-  std::string estimator = "area";  // "area" | "paper" | "orders" | "exact" | "fft"
+  WaveEstimatorKind estimator = WaveEstimatorKind::Area;
   int samplesPerBin = 256;         // area: points x directions per exit bin; paper: passes
   int pointsPerDirection = 64;     // area: points per exit direction; directions = samples / points (>= 2)
   int incidenceDirections = 4;     // orders: incidence directions per slice (bin-averaged incidence)

@@ -75,7 +75,7 @@ TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
       "[scene]\ncoherence_length_um = 20.0\ntolerance = 0.02\n[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n"
       "wave_samples_per_bin = 1024\nseed = 5\n";
   const Job job = loadJobFromString(text, "t.toml", "");
-  ASSERT_EQ(job.resolvedWaveEstimator(), "area");
+  ASSERT_EQ(job.resolvedWaveEstimator(), WaveEstimatorKind::Area);
   const nlohmann::json p = planEffects(job);
   nlohmann::json d;
   for (const auto& x : p["decisions"])
@@ -94,7 +94,7 @@ TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
   GeometricTransport transport(job, grid, 1000);
   auto table = [&](const std::string& name) {
     Job j = job;
-    j.waveEstimator = name;
+    j.waveEstimator = waveEstimatorKind(name);
     return makeJobWaveEstimator(j, grid, *transport.scene(), waveSettingsOf(j))->run(0, job.incidence[0].bin, std::nullopt);
   };
   const WaveTileResult fft = table("fft"), area = table("area");

@@ -146,7 +146,7 @@ TEST(EstimatorProperties, WaveEstimators) {
   for (const char* est : {"area", "paper", "orders", "exact", "fft"}) {
     for (const bool conductor : {true, false}) {
       WaveSettings ws;
-      ws.estimator = est;
+      ws.estimator = waveEstimatorKind(est);
       ws.samplesPerBin = std::string(est) == "paper" ? 16 : 256;
       ws.pointsPerDirection = 16;
       const Material mat = conductor ? material("Al") : glassOf(1.5);

@@ -38,7 +38,7 @@ Material conductor(double eta, double k) {
 }
 WaveSettings waveSettings(const char* estimator, int samples = 256) {
   WaveSettings ws;
-  ws.estimator = estimator;
+  ws.estimator = waveEstimatorKind(estimator);
   ws.samplesPerBin = samples;
   ws.pointsPerDirection = 16;
   return ws;

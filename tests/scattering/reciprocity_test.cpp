@@ -62,7 +62,7 @@ TEST(ReciprocalPairs, EachPairOnceAndBalanced) {
 TEST(ReciprocalPairs, MaskedEstimatorsComputeTheSameBins) {
   for (const char* estimator : {"area", "paper"}) {
     WaveSettings ws;
-    ws.estimator = estimator;
+    ws.estimator = waveEstimatorKind(estimator);
     ws.samplesPerBin = 256;
     WaveScenario sc(makeGaussian(10, 10, 0.3, 1.0, 64, 64, 3), material("Al"), ThetaPhiGrid{4, 8}, {0.55}, 0.0, ws);
     const int inc = sc.grid.binOf(sphericalDirection(radians(40), radians(30)));

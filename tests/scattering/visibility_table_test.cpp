@@ -51,7 +51,7 @@ namespace {
 // Relative L1 distance of `exact`'s WS tables with and without the table, and their ray counts.
 void expectTableKeepsExact(const Microgeometry& g, const Material& m, double theta, double phi) {
   WaveSettings rays, table;
-  rays.estimator = table.estimator = "exact";
+  rays.estimator = table.estimator = WaveEstimatorKind::Exact;
   table.visibilityTable = 128;  // the production value (at 64 one of these cases differed by 1.1e-3)
   const WaveScenario a(g, m, ThetaPhiGrid{15, 30}, {0.6}, 60.0, rays), b(g, m, ThetaPhiGrid{15, 30}, {0.6}, 60.0, table);
   const WaveTileResult ra = a.run(theta, phi, true), rb = b.run(theta, phi, true);

@@ -18,7 +18,7 @@ using namespace mbsdf::test;
 TEST(WaveGrating, SineGratingOrdersMatchBessel) {
   const double period = 5.0, h = 0.05, lambda = 0.5;
   WaveSettings ws;
-  ws.estimator = "orders";
+  ws.estimator = WaveEstimatorKind::Orders;
   ws.samplesPerBin = 4096;
   WaveScenario sc(makeSineGrating(period, 1.0, period, h, 64, 0), material("mirror"), ThetaPhiGrid{90, 72},
                   {lambda}, 50.0, ws);
@@ -50,7 +50,7 @@ TEST(WaveGeometricLimit, SmoothSurfaceMatchesGeometricOptics) {
   const double lambda = 0.4;
   Microgeometry g = makeSineGrating(40.0, 0.3, 40.0, 2.0, 512, 0);
   WaveSettings ws;
-  ws.estimator = "orders";
+  ws.estimator = WaveEstimatorKind::Orders;
   ws.samplesPerBin = 4096;
   DirectionGrid::Layout layout = DiskGrid{11, 11};
   WaveScenario wave(g, material("mirror"), layout, {lambda}, 600.0, ws);
@@ -78,7 +78,7 @@ TEST(WaveUnbiased, AreaEstimatorMeanMatchesReference) {
   DirectionGrid::Layout layout = ThetaPhiGrid{5, 10};
   auto make = [&](const std::string& est, int samples, int points) {
     WaveSettings ws;
-    ws.estimator = est;
+    ws.estimator = waveEstimatorKind(est);
     ws.samplesPerBin = samples;
     ws.pointsPerDirection = points;
     return std::make_unique<WaveScenario>(g, material("Al"), layout, std::vector<double>{0.5}, 0.0, ws);
@@ -135,7 +135,7 @@ TEST(WaveConvergence, AreaVarianceFallsAsOneOverBudget) {
   DirectionGrid::Layout layout = ThetaPhiGrid{4, 8};
   auto variance = [&](const std::string& est, int samples) {
     WaveSettings ws;
-    ws.estimator = est;
+    ws.estimator = waveEstimatorKind(est);
     ws.samplesPerBin = samples;
     ws.pointsPerDirection = 16;
     WaveScenario sc(g, material("Al"), layout, {0.5}, 0.0, ws);
@@ -181,7 +181,7 @@ TEST(WaveClosure, GmMatchesWmPlusLost) {
   Microgeometry g = makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 2.0 / 16);
   DirectionGrid::Layout layout = ThetaPhiGrid{9, 18};
   WaveSettings ws;
-  ws.estimator = "exact";
+  ws.estimator = WaveEstimatorKind::Exact;
   ws.computeMasked = true;
   WaveScenario wave(g, material("mirror"), layout, {0.25}, 50.0, ws);
   PathTracerSettings ps;
@@ -215,7 +215,7 @@ TEST(WaveHardCases, FiniteEverywhere) {
   };
   for (const char* est : {"area", "paper"}) {
     WaveSettings ws;
-    ws.estimator = est;
+    ws.estimator = waveEstimatorKind(est);
     ws.samplesPerBin = 64;
     ws.pointsPerDirection = 16;
     ws.computeMasked = true;
@@ -231,7 +231,7 @@ TEST(WaveHardCases, FiniteEverywhere) {
     for (double theta : {89.5, 180 - 41.8, 180 - 60.0, 180 - 89.5}) check(ridged.run(theta, 30.0, true));
   }
   WaveSettings ws;
-  ws.estimator = "orders";
+  ws.estimator = WaveEstimatorKind::Orders;
   ws.samplesPerBin = 64;
   ws.computeMasked = true;
   for (DirectionGrid::Layout layout : {DirectionGrid::Layout(ThetaPhiGrid{6, 12}), DirectionGrid::Layout(DiskGrid{9, 9})}) {

@@ -26,7 +26,7 @@ TEST(WaveExact, FlatInterfacesGiveFresnel) { expectFlatInterfacesGiveFresnel("ex
 TEST(WaveExact, SineGratingOrdersMatchBessel) {
   const double period = 5.0, h = 0.05, lambda = 0.5;
   WaveSettings ws;
-  ws.estimator = "exact";
+  ws.estimator = WaveEstimatorKind::Exact;
   WaveScenario sc(makeSineGrating(period, 1.0, period, h, 64, 0), material("mirror"), ThetaPhiGrid{90, 72}, {lambda},
                   50.0, ws);
   WaveTileResult r = sc.run(0.0, 0.0, true);
@@ -51,8 +51,8 @@ namespace {
 void expectExactMatchesMonteCarlo(const Microgeometry& g, const std::string& reference, int samples, double theta_deg,
                                   double phi_deg, double coherenceLength_um = 60.0) {
   WaveSettings ex, mc;
-  ex.estimator = "exact";
-  mc.estimator = reference;
+  ex.estimator = WaveEstimatorKind::Exact;
+  mc.estimator = waveEstimatorKind(reference);
   mc.samplesPerBin = samples;
   WaveScenario a(g, material("mirror"), ThetaPhiGrid{12, 24}, {0.6}, coherenceLength_um, ex);
   WaveScenario b(g, material("mirror"), ThetaPhiGrid{12, 24}, {0.6}, coherenceLength_um, mc);
@@ -114,7 +114,7 @@ TEST(WaveExact, NoiseHeightfieldMatchesMonteCarlo) {
 // sums the copies within ±4σ, which fall slightly differently for a 5 and a 10 µm patch).
 TEST(WaveExact, LatticeOfCellsGivesTheCellsTable) {
   WaveSettings ws;
-  ws.estimator = "exact";
+  ws.estimator = WaveEstimatorKind::Exact;
   const WaveScenario one(makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, ws);
   const WaveScenario four(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, ws);
   const WaveTileResult a = one.run(50.0, 20.0, true), b = four.run(50.0, 20.0, true);
@@ -145,7 +145,7 @@ TEST(WaveExact, CellLobesUnderAWindowNarrowerThanThePatchMatchArea) {
 TEST(WaveExact, IncidenceBinAverageMatchesDenseCollimatedMean) {
   const double lambda = 0.5;
   WaveSettings ws;
-  ws.estimator = "exact";
+  ws.estimator = WaveEstimatorKind::Exact;
   WaveScenario sc(makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0), material("mirror"), ThetaPhiGrid{8, 16}, {lambda}, 50.0, ws);
   const int nB = sc.grid.binCount();
   for (auto [theta, phi] : {std::pair{5.0, 10.0}, std::pair{39.4, 10.0}, std::pair{65.0, 100.0}}) {

@@ -68,8 +68,8 @@ TEST(WaveFft, MatchesExactOnHeightfields) {
   for (const auto& [g, mat, theta] : {Case{gauss, "Au", 0.0}, Case{gauss, "Au", 60.0}, Case{noise, "Au", 30.0},
                                       Case{gauss, "glass", 35.0}}) {
     WaveSettings fs, es;
-    fs.estimator = "fft";
-    es.estimator = "exact";
+    fs.estimator = WaveEstimatorKind::Fft;
+    es.estimator = WaveEstimatorKind::Exact;
     const Material m = mat == "glass" ? glass : material(mat);
     WaveScenario f(g, m, ThetaPhiGrid{12, 24}, {0.6}, 60.0, fs), e(g, m, ThetaPhiGrid{12, 24}, {0.6}, 60.0, es);
     const WaveTileResult rf = f.run(theta, 20.0, true), re = e.run(theta, 20.0, true);
@@ -87,7 +87,7 @@ TEST(WaveFft, MatchesExactOnHeightfields) {
 // nodes per pixel) and on a theta-phi grid (nodes per bin in its own parametrisation).
 TEST(WaveFft, SpeckleRegimeFlatMirrorGivesFresnel) {
   WaveSettings ws;
-  ws.estimator = "fft";
+  ws.estimator = WaveEstimatorKind::Fft;
   for (const DirectionGrid::Layout& layout : {DirectionGrid::Layout{DiskGrid{64, 64}}, DirectionGrid::Layout{ThetaPhiGrid{30, 60}}})
     for (double theta : {0.0, 40.0}) {
       WaveScenario sc(makeFlat(8, 8, 1.0), material("Au"), layout, {0.55}, 12.0, ws);
@@ -105,8 +105,8 @@ TEST(WaveFft, SpeckleRegimeFlatMirrorGivesFresnel) {
 TEST(WaveFft, SpeckleRegimeMatchesAreaMonteCarlo) {
   const Microgeometry g = makeGaussian(6, 6, 0.1, 1.0, 48, 48, 5);
   WaveSettings fs, as;
-  fs.estimator = "fft";
-  as.estimator = "area";
+  fs.estimator = WaveEstimatorKind::Fft;
+  as.estimator = WaveEstimatorKind::Area;
   as.samplesPerBin = 1 << 14;
   for (const DirectionGrid::Layout& layout : {DirectionGrid::Layout{DiskGrid{20, 20}}, DirectionGrid::Layout{ThetaPhiGrid{10, 20}}}) {
     WaveScenario f(g, material("Au"), layout, {0.6}, 9.0, fs), a(g, material("Au"), layout, {0.6}, 9.0, as);
@@ -143,8 +143,8 @@ TEST(WaveFft, SpeckleRegimeFromInsideGlassTransmitsByArea) {
   Material glass;
   glass.model = Dielectric{ConstantIndex{1.5, 0}};
   WaveSettings fs, as;
-  fs.estimator = "fft";
-  as.estimator = "area";
+  fs.estimator = WaveEstimatorKind::Fft;
+  as.estimator = WaveEstimatorKind::Area;
   fs.samplesPerBin = as.samplesPerBin = 1 << 15;
   WaveScenario f(g, glass, ThetaPhiGrid{10, 20}, {0.6}, 9.0, fs), a(g, glass, ThetaPhiGrid{10, 20}, {0.6}, 9.0, as);
   const WaveTileResult rf = f.run(160.0, 0.0, true, 3), ra = a.run(160.0, 0.0, true, 3);

@@ -73,13 +73,13 @@ TEST_P(WaveFlat, HemisphericalIntegralMatchesFresnel) {
   double L, coherence;
   DirectionGrid::Layout layout;
   if (c.window) {
-    ws.estimator = "orders";
+    ws.estimator = WaveEstimatorKind::Orders;
     ws.samplesPerBin = 8192;  // points per order
     L = 2.0;
     coherence = 50.0;
     layout = ThetaPhiGrid{30, 60};
   } else {
-    ws.estimator = "area";
+    ws.estimator = WaveEstimatorKind::Area;
     ws.samplesPerBin = 4096;
     ws.pointsPerDirection = 64;
     L = 1.0;

@@ -74,7 +74,7 @@ TEST(WaveHorizon, OrdersThroughTheHorizonStayFiniteAndBounded) {
     for (const char* est : c.estimators)
       for (bool conductor : {true, false}) {
         WaveSettings ws;
-        ws.estimator = est;
+        ws.estimator = waveEstimatorKind(est);
         const std::string name = est;
         ws.samplesPerBin = name == "paper" ? 16 : name == "orders" ? 512 : 128;
         ws.pointsPerDirection = 16;
@@ -100,7 +100,7 @@ TEST(WaveHorizon, BinaryGratingFromInsideGlassAtAWholeNumber) {
   glass.model = Dielectric{ConstantIndex{1.5, 0}};
   for (const char* est : {"exact", "orders"}) {
     WaveSettings ws;
-    ws.estimator = est;
+    ws.estimator = waveEstimatorKind(est);
     ws.samplesPerBin = 1024;
     WaveScenario sc(makeBinaryGrating(5, 1, 5, 0.25, 0.5, 0.05), glass, ThetaPhiGrid{72, 4}, {0.499, 0.5, 0.501}, 50.0, ws);
     WaveTileResult r = sc.run(180.0, 0.0, /*exact=*/true);

@@ -61,7 +61,7 @@ inline double energyAround(const DirectionGrid& g, const std::vector<double>& f,
 // (reflection and transmission) at 40°.
 inline void expectFlatInterfacesGiveFresnel(const std::string& estimator) {
   WaveSettings ws;
-  ws.estimator = estimator;
+  ws.estimator = waveEstimatorKind(estimator);
   for (double theta : {0.0, 30.0, 60.0, 70.0}) {
     WaveScenario sc(makeFlat(4, 4, 1.0), material("Au"), ThetaPhiGrid{30, 60}, {0.55}, 50.0, ws);
     WaveTileResult r = sc.run(theta, 10.0, true);

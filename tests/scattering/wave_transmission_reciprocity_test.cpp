@@ -49,7 +49,7 @@ void expectReciprocalOrders(const Case& c, const char* estimator, double theta_d
   Material glass;
   glass.model = Dielectric{ConstantIndex{n, 0}};
   WaveSettings ws;
-  ws.estimator = estimator;
+  ws.estimator = waveEstimatorKind(estimator);
   ws.samplesPerBin = 4096;
   WaveScenario sc(c.geometry, glass, ThetaPhiGrid{45, 90}, {lambda}, 60.0, ws);
   const Vec3 wi = sphericalDirection(radians(theta_deg), radians(phi_deg));
