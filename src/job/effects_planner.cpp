@@ -488,12 +488,387 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
   return d;
 }
 
+
+// What the decisions share: the job and its grid, the pilot incidences (planned, and those the
+// budget affords) with their geometric pilot tiles, the wave settings of the pilots, and the pilot
+// budget in tiles' work.
+struct PilotContext {
+  const Job& job;
+  const DirectionGrid& grid;
+  const GeometricTransport& transport;
+  WaveSettings ws;
+  std::vector<int> planned, pilots;
+  std::vector<TileResult> geo;
+  uint64_t paths = 0;
+  int computed = 0;
+  double budgetTiles = 0;
+  double tol = 0;
+  // The pilot beam of incidence p: its exact direction for a job of collimated beams, else its
+  // bin's centre.
+  Vec3 beam(int p) const {
+    const IncidenceDirection& inc = job.incidence[size_t(p)];
+    return job.exactIncidence ? sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg)) : grid.centre(inc.bin);
+  }
+};
+
+// Σ f Ω⊥ of a component at wavelength l and its standard error (root-sum-square over bins).
+double componentEnergy(const TileResult& r, const DirectionGrid& grid, Component c, int l, double* se) {
+  double e = 0, v = 0;
+  for (int b = 0; b < r.nBins; ++b) {
+    const double op = grid.projectedSolidAngle(b);
+    e += r.at(c, l, b) * op;
+    v += std::pow(r.stdError[int(c)][size_t(l) * r.nBins + b] * op, 2);
+  }
+  *se = std::sqrt(v);
+  return e;
+}
+
+// Multiple scattering: the geometry's bound first (singleBounceLimit_deg), then the pilots at the
+// incidences it leaves open. Returns the decision with "on" set.
+nlohmann::json multipleDecision(const PilotContext& ctx) {
+  const Job& job = ctx.job;
+  const DirectionGrid& grid = ctx.grid;
+  const std::vector<int>& pilots = ctx.pilots;
+  const std::vector<TileResult>& geo = ctx.geo;
+  const int nL = int(job.lambda_nm.size());
+  const double tol = ctx.tol;
+  const std::optional<double> limit = singleBounceLimit_deg(job);
+  int open = 0;
+  for (int t = 0; t < int(job.incidence.size()); ++t) open += !scattersOnce(job, grid, t, limit);
+  const std::string bound = limit ? "the geometry (steepest facet " + fmt3(*steepestFacet_deg(job)) +
+                                        " deg) lets no path meet the surface twice below theta " + fmt3(*limit) + " deg"
+                                  : "";
+  nlohmann::json d;
+  bool on = false;
+  if (open == 0) {
+    d = decision("multiple", false, bound + ", which holds every incidence of the job");
+  } else {
+    double worst = -1, worstValue = 0, worstTheta = 0;
+    int judged = 0;
+    for (size_t k = 0; k < geo.size(); ++k) {
+      if (scattersOnce(job, grid, pilots[k], limit)) continue;
+      ++judged;
+      if (worst < 0) worst = 0, worstTheta = job.incidence[size_t(pilots[k])].theta_deg;
+      for (int l = 0; l < nL; ++l) {
+        double se;
+        const double e = componentEnergy(geo[k], grid, Component::Multiple, l, &se);
+        if (e + 3 * se > worst) {
+          worst = e + 3 * se;
+          worstValue = e;
+          worstTheta = job.incidence[size_t(pilots[k])].theta_deg;
+        }
+      }
+    }
+    on = worst > tol || judged == 0;
+    const std::string where = (bound.empty() ? "" : bound + " (" + std::to_string(open) + " of " +
+                                                        std::to_string(job.incidence.size()) + " incidences are above it); ");
+    d = decision("multiple", on,
+                 judged == 0 ? where + (pilots.empty() ? "the pilot budget (" + fmt3(job.pilotBudget) +
+                                                            " of the job's tiles) allows no pilot: kept"
+                                                      : "no pilot incidence above it: kept")
+                             : where + "pilot multiply scattered energy " + fmt3(worstValue) + " (+3 SE: " + fmt3(worst) +
+                                   ") at theta " + fmt3(worstTheta) + " deg (" + std::to_string(judged) + " pilot incidences) " +
+                                   (on ? "exceeds" : "is below") + " the tolerance " + fmt3(tol) +
+                                   (on ? "" : "; verified on every tile, computed there after all past the tolerance"));
+    d["pilot_energy"] = worstValue;
+    d["pilot_energy_upper"] = worst;
+  }
+  if (limit) d["single_bounce_below_deg"] = *limit;
+  d["on"] = on;
+  return d;
+}
+
+// What the diffraction pilots measured: the largest upper and lower estimates beyond noise of the
+// WS − GS difference over the pilots and wavelengths, and what they rest on.
+struct DiffractionPilots {
+  double upper = -1e300, lower = -1e300, worstL1 = 0, worstFloor = 0, worstTheta = 0;
+  int wavePilotsRun = 0, replicas = 0, nCells = 0;
+  bool binAveraged = false;
+  std::string estimatorName;
+  double wavePilotCost = 1;
+  size_t waveAffordable = 0;
+};
+
+// Runs the diffraction pilots the budget affords (adding their work to *waveSpent) and measures the
+// WS − GS difference at the renderer's resolution.
+DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpentOut) {
+  const Job& job = ctx.job;
+  const DirectionGrid& grid = ctx.grid;
+  const GeometricTransport& transport = ctx.transport;
+  const WaveSettings& ws = ctx.ws;
+  const std::vector<int>& pilots = ctx.pilots;
+  const std::vector<TileResult>& geo = ctx.geo;
+  const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  const double tol = ctx.tol, budgetTiles = ctx.budgetTiles;
+  const uint64_t paths = ctx.paths;
+  auto beam = [&](int p) { return ctx.beam(p); };
+  double& waveSpent = *waveSpentOut;
+  DiffractionPilots out;
+  auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
+  // Bin-averaged, noise-free pilots where the job averages over incidence bins, the wave pilot is
+  // deterministic, the facet sum costs at most the geometric pilot's rays at every pilot bin, and
+  // the renderer resolves the job's bins (a lobe's spill across bin edges is a difference there).
+  // Pooled into coarser cells their per-bin error bounds, which carry no sign, would add up where
+  // the binning errors of neighbouring bins cancel (a flat mirror pooled to 30°: difference
+  // 3e-10, bounds 0.045); the beams' pilots judge those cells, whose edges a lobe rarely meets.
+  std::optional<FacetSingleScattering> facetGs;
+  bool& binAveraged = out.binAveraged;
+  if (est->deterministic() && !job.exactIncidence && job.geometry.periodic && job.scene.angularResolution_deg <= 0) {
+    facetGs.emplace(job.geometry, *transport.scene(), job.material, job.lambda_um(), grid);
+    const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
+    binAveraged = true;
+    for (int p : pilots)
+      binAveraged = binAveraged && facetGs->cheaperThan(job.incidence[size_t(p)].bin, std::nullopt, 2.0 * double(paths) * groups);
+    if (binAveraged) {
+      // One node order more than the job's incidence rule: the wave pilot's error estimate is
+      // then the distance to the job's own rule (at the default 2 x 2 nodes the job's estimate,
+      // against 1 x 1, is several times its error: a flat Al mirror's 67-79 deg bin reports
+      // 0.045 for a table within 0.002 of the facet sum).
+      WaveSettings finer = ws;
+      const int n = incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1;
+      finer.incidenceDirections = std::max(finer.incidenceDirections, n * n);
+      est = makeJobWaveEstimator(job, grid, *transport.scene(), finer);
+    }
+  }
+  // Per pilot and wavelength: the L1 difference and its noise at the renderer's angular
+  // resolution (bins pooled into cells of that size, resolutionCells()); the decision uses the
+  // largest upper estimate (L1 − floor + 2 sd) and the largest lower estimate (L1 − floor − 2 sd).
+  const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
+  const int nCells = out.nCells = cellOf.empty() ? 0 : *std::max_element(cellOf.begin(), cellOf.end()) + 1;
+  double& upper = out.upper;
+  double& lower = out.lower;
+  double& worstL1 = out.worstL1;
+  double& worstFloor = out.worstFloor;
+  double& worstTheta = out.worstTheta;
+  int& wavePilotsRun = out.wavePilotsRun;
+  int& replicas = out.replicas;
+  // A wave pilot's work against one of the job's wave terms: its samples per bin against the job's
+  // for Monte Carlo, its incidence nodes against the job's for the deterministic ones.
+  const double ruleRatio = binAveraged ? std::pow((incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1.0) /
+                                                      incidenceRuleOrder(int(job.waveIncidenceDirections)),
+                                                  2)
+                                       : 1.0;
+  const double wavePilotCost = out.wavePilotCost =
+      est->deterministic() ? ruleRatio : double(ws.samplesPerBin) / double(std::max<int64_t>(1, job.waveSamplesPerBin));
+  const size_t waveAffordable = out.waveAffordable = std::min(pilots.size(), size_t(std::floor(budgetTiles / wavePilotCost + 1e-9)));
+  for (size_t k = 0; k < waveAffordable && waveSpent + wavePilotCost <= budgetTiles + 1e-9; ++k) {
+    const auto& inc = job.incidence[size_t(pilots[k])];
+    const std::optional<Vec3> dir = binAveraged ? std::nullopt : std::optional<Vec3>(beam(pilots[k]));
+    const WaveTileResult w = est->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot", inc));
+    const TileResult r = binAveraged ? facetGs->run(pilots[k], pilots[k], inc.bin, std::nullopt) : geo[k];
+    // Per wavelength: L1 of the cells' Σ (f_ws − f_coh) Ω⊥, its expected noise (floor) and the
+    // variance Σ (s Ω⊥)². With a replica (a second Monte Carlo pilot of another seed) f_ws is the
+    // two's mean, and each cell's floor is at least the noise the two show, |Σ (w1 − w2) Ω⊥| / 2
+    // (the mean's noise has the distribution of the half-difference's): the standard errors
+    // of a heavy-tailed Kirchhoff estimate can be far too small.
+    struct Figures {
+      double l1, floor, var;
+    };
+    auto figures = [&](int l, const WaveTileResult* w2) {
+      std::vector<double> diff(size_t(nCells), 0.0), cellVar(size_t(nCells), 0.0), spread(size_t(nCells), 0.0);
+      for (int b = 0; b < nB; ++b) {
+        if (cellOf[size_t(b)] < 0) continue;
+        const size_t x = size_t(l) * nB + b, c = size_t(cellOf[size_t(b)]);
+        const double op = grid.projectedSolidAngle(b);
+        const double ws = w2 ? 0.5 * (w.fws[x] + w2->fws[x]) : w.fws[x];
+        const double wsErr = w2 ? 0.5 * std::hypot(w.fwsErr[x], w2->fwsErr[x]) : w.fwsErr[x];
+        const double sd = std::hypot(wsErr, r.stdError[int(Component::Coherent)][x]);
+        diff[c] += (ws - r.at(Component::Coherent, l, b)) * op;
+        cellVar[c] += sd * op * sd * op;
+        if (w2) spread[c] += 0.5 * (w.fws[x] - w2->fws[x]) * op;
+      }
+      Figures f{0, 0, 0};
+      for (size_t c = 0; c < size_t(nCells); ++c) {
+        f.l1 += std::abs(diff[c]);
+        f.floor += std::max(std::sqrt(2 / kPi) * std::sqrt(cellVar[c]), std::abs(spread[c]));
+        f.var += cellVar[c];
+      }
+      return f;
+    };
+    std::vector<Figures> fig;
+    bool marginal = false;
+    for (int l = 0; l < nL; ++l) {
+      fig.push_back(figures(l, nullptr));
+      const Figures& f = fig.back();
+      // "On" from a Monte Carlo pilot whose noise floor is most of its difference rests on that
+      // floor being right: confirmed by a replica (the gentle noise's area pilot: L1 38.6 against
+      // a floor of 34.2 claimed 1.99 beyond it at one incidence).
+      marginal = marginal || (!est->deterministic() && f.l1 - f.floor - 2 * std::sqrt(f.var) > tol && f.floor > 0.5 * f.l1);
+    }
+    waveSpent += wavePilotCost;
+    // A marginal pilot the budget cannot confirm decides nothing (its lower estimate is dropped).
+    const bool unconfirmed = marginal && waveSpent + wavePilotCost > budgetTiles + 1e-9;
+    if (marginal && !unconfirmed) {
+      waveSpent += wavePilotCost;
+      WaveSettings other = ws;
+      other.seed = ws.seed ^ 0x5851F42D4C957F2Dull;
+      const WaveTileResult w2 = makeJobWaveEstimator(job, grid, *transport.scene(), other)
+                                    ->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot replica", inc));
+      ++replicas;
+      for (int l = 0; l < nL; ++l) fig[size_t(l)] = figures(l, &w2);
+    }
+    for (const Figures& f : fig) {
+      if (!unconfirmed) lower = std::max(lower, f.l1 - f.floor - 2 * std::sqrt(f.var));
+      if (f.l1 - f.floor + 2 * std::sqrt(f.var) > upper) {
+        upper = f.l1 - f.floor + 2 * std::sqrt(f.var);
+        worstL1 = f.l1;
+        worstFloor = f.floor;
+        worstTheta = inc.theta_deg;
+      }
+    }
+    // One pilot whose difference exceeds the tolerance beyond noise decides: the others would
+    // only confirm it (they cost as much as a tile's wave term each).
+    wavePilotsRun = int(k) + 1;
+    if (lower > tol) break;
+  }
+  out.estimatorName = est->name();
+  return out;
+}
+
+// The diffraction decision from the pilots' figures, the budget and, where the pilots cannot decide
+// and the features are much larger than λ, a Kirchhoff-theory estimate. Returns it with "on" set.
+nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilots& m) {
+  const Job& job = ctx.job;
+  const DirectionGrid& grid = ctx.grid;
+  const double tol = ctx.tol;
+  const std::vector<int>& planned = ctx.planned;
+  const int computed = ctx.computed;
+  const double meanLambda = job.meanLambda_um();
+  const double binDeg = degrees(std::sqrt(2 * kPi / grid.binsPerHemisphere()));
+  const double upper = m.upper, lower = m.lower, worstL1 = m.worstL1, worstFloor = m.worstFloor, worstTheta = m.worstTheta;
+  const int wavePilotsRun = m.wavePilotsRun, replicas = m.replicas, nCells = m.nCells;
+  const bool binAveraged = m.binAveraged;
+  const double wavePilotCost = m.wavePilotCost;
+  const size_t waveAffordable = m.waveAffordable;
+  nlohmann::json d;
+  bool on = false;
+  const double sigmaH = rmsHeight(job.geometry), slope = rmsSlope(job.geometry);
+  // Rayleigh roughness at the job's most grazing incidence (the smallest g, the strongest
+  // specular spike).
+  double cosMin = 1;
+  for (const IncidenceDirection& inc : job.incidence) cosMin = std::min(cosMin, std::abs(std::cos(radians(inc.theta_deg))));
+  // "On" needs one pilot incidence; "off" the first three of the planned ones (the most grazing,
+  // the closest to normal and the median), the spread after them as far as the budget goes.
+  const bool complete = wavePilotsRun >= std::min<int>(3, int(planned.size()));
+  const double g = std::pow(4 * kPi * sigmaH * cosMin / meanLambda, 2);
+  const double blurDeg = job.scene.coherenceLength_um > 0 ? degrees(meanLambda / job.scene.coherenceLength_um) : 0;
+  std::string why = std::string(binAveraged ? "pilot (averaged over the incidence bins without noise: " + m.estimatorName +
+                                                  " and the facet sum of single scattering) "
+                                            : "pilot (beams at the bins' centres) ") +
+                    "WS - GS difference sum|f_ws - f_coh| * proj. solid angle = " + fmt3(worstL1) +
+                    " (noise floor " + fmt3(worstFloor) + "; beyond noise: lower estimate " + fmt3(lower) +
+                    ", upper " + fmt3(upper) + ") at theta " + fmt3(worstTheta) + " deg" +
+                    (wavePilotsRun < int(planned.size()) ? " (" + std::to_string(wavePilotsRun) + " of " +
+                                                               std::to_string(planned.size()) + " wave pilots run)"
+                                                        : "") +
+                    (replicas > 0 ? " (" + std::to_string(replicas) + " marginal wave pilot(s) re-run with another seed: the floor is at "
+                                                      "least the noise the two show)"
+                                : "");
+  // Kirchhoff-theory estimate, used when the pilot cannot decide (its noise straddles the
+  // tolerance): the diffraction-limited specular spike 2 R e^{-g} (geometric optics has none;
+  // R <= 1) plus the blur of a lobe of width 2·slope by the window's diffraction, angular sd
+  // λ/(2√2 π σ_w) with σ_w = δc/6, which changes a Gaussian lobe by about (blur/width)² in L1.
+  // Valid only for features much larger than λ: correlation length √2 σ_h / slope >= 5 λ.
+  const double corr = slope > 0 ? std::sqrt(2.0) * sigmaH / slope : 0.0;
+  const double sigmaW = windowSigma(job.scene.coherenceLength_um);
+  const double blurRad = sigmaW > 0 ? meanLambda / (2 * std::sqrt(2.0) * kPi * sigmaW) : kPi;
+  const double lobeRad = 2 * slope;
+  const double physical = 2 * std::exp(-std::min(g, 700.0)) + (lobeRad > 0 ? std::pow(blurRad / lobeRad, 2) : 1e300);
+  const bool geometricRegime = corr >= 5 * meanLambda && slope > 0;
+  const std::string budgetNote = "the pilot budget (" + fmt3(job.pilotBudget) + " of the job's " +
+                                 std::to_string(computed) + " computed tiles, a wave pilot costing " +
+                                 fmt3(wavePilotCost) + " of a tile's wave term) allows " + std::to_string(waveAffordable) +
+                                 " of " + std::to_string(planned.size()) + " wave pilots";
+  if (wavePilotsRun == 0) {
+    why = budgetNote;
+    if (geometricRegime) {
+      on = physical > tol;
+      why += "; Kirchhoff estimate 2 exp(-g) + (blur/lobe)^2 = " + fmt3(physical) + " (correlation length " +
+             fmt3(corr) + " um >= 5 lambda) " + (on ? "exceeds" : "is below") + " the tolerance " + fmt3(tol);
+    } else {
+      on = true;
+      why += ": kept on";
+    }
+  } else if (upper <= tol && !complete && !geometricRegime) {
+    on = true;
+    why += " is below the tolerance " + fmt3(tol) + ", but " + budgetNote + ": kept on";
+  } else if (upper <= tol && !complete) {
+    on = physical > tol;
+    why += " is below the tolerance " + fmt3(tol) + ", but " + budgetNote + "; Kirchhoff estimate " + fmt3(physical) +
+           (on ? " exceeds it: kept on" : " is below it too");
+  } else if (upper <= tol) {
+    on = false;
+    why += " is below the tolerance " + fmt3(tol) + (wavePilotsRun < int(planned.size()) ? " (" + budgetNote + ")" : "");
+  } else if (lower > tol) {
+    on = true;
+    why += " exceeds the tolerance " + fmt3(tol);
+  } else if (geometricRegime) {
+    on = physical > tol;
+    why += " cannot decide at the tolerance " + fmt3(tol) + "; Kirchhoff estimate 2 exp(-g) + (blur/lobe)^2 = " +
+           fmt3(physical) + " (correlation length " + fmt3(corr) + " um >= 5 lambda, blur " + fmt3(degrees(blurRad)) +
+           " deg, lobe " + fmt3(degrees(lobeRad)) + " deg) " + (on ? "exceeds it" : "is below it");
+  } else {
+    on = true;
+    why += " cannot decide at the tolerance " + fmt3(tol) + " and the features (correlation length " + fmt3(corr) +
+           " um) are not >> lambda: kept on";
+  }
+  d = decision("incoherent", on,
+               why + "; Rayleigh roughness g = " + fmt3(g) +
+                   (g < 0.1 ? " (smooth: specular with a diffuse halo)" : g > 10 ? " (rough)" : " (intermediate)") +
+                   "; coherence blur lambda/delta_c = " + fmt3(blurDeg) + " deg vs bins of " + fmt3(binDeg) + " deg" +
+                   (job.scene.angularResolution_deg > 0
+                        ? " pooled to the renderer's " + fmt3(job.scene.angularResolution_deg) + " deg (" +
+                              std::to_string(nCells) + " cells)"
+                        : ""));
+  d["pilot_incidence"] = binAveraged ? "bin-averaged" : "bin centre";
+  d["pilot_lower"] = lower;
+  d["kirchhoff_estimate"] = physical;
+  d["rms_slope"] = slope;
+  d["correlation_length_um"] = corr;
+  d["pilot_l1"] = worstL1;
+  d["pilot_noise_floor"] = worstFloor;
+  d["pilot_upper"] = upper;
+  d["rayleigh_g"] = g;
+  d["rms_height_um"] = sigmaH;
+  d["coherence_blur_deg"] = blurDeg;
+  d["bin_deg"] = binDeg;
+  d["angular_resolution_deg"] = job.scene.angularResolution_deg;
+  d["resolution_cells"] = nCells;
+  d["wave_samples_per_bin"] = ctx.ws.samplesPerBin;
+  d["wave_pilots_run"] = wavePilotsRun;
+  d["wave_pilot_replicas"] = replicas;
+  d["on"] = on;
+  return d;
+}
+
+// Transmission: a conductor has none; a dielectric's wave term skips the transmitted bins where the
+// renderer needs only the BRDF (plan["wave_transmission"]).
+nlohmann::json btdfDecision(const Job& job, const ComponentSet& chosen, nlohmann::json* plan) {
+  if (job.material.isConductor())
+    return decision("btdf", false, "a conductor transmits nothing: no BTDF (transmitted bins are zero)");
+  {
+    const bool needs = std::find(job.scene.needs.begin(), job.scene.needs.end(), "btdf") != job.scene.needs.end();
+    // Without a BTDF to render, the wave term's transmitted bins are not worth their cost; the
+    // paths still cross the surface (a dielectric's reflection depends on what comes back through
+    // it), so the transmitted table keeps geometric optics. Kept when `lost` is requested (its
+    // masked power needs every exit bin).
+    const bool skip = !needs && chosen.has(Component::Incoherent) && !chosen.has(Component::Lost);
+    auto d = decision("btdf", needs, needs ? "a dielectric transmits and the renderer needs the BTDF"
+                                           : skip ? "the renderer needs only the BRDF: the wave term skips the transmitted "
+                                                    "bins, which keep geometric optics (incoherent = 0 there)"
+                                                  : "the renderer needs only the BRDF; transmission is traced with the "
+                                                    "reflection (the paths cross the surface) and costs no wave term here");
+    (*plan)["wave_transmission"] = !skip;
+    return d;
+  }
+}
+
 }  // namespace
 
 nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   const auto t0 = Clock::now();
   const DirectionGrid grid(job.gridLayout);
-  const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  const int nB = grid.binCount();
   const double tol = job.scene.tolerance;
   // Components named beside "auto" are kept whatever the pilots say.
   ComponentSet forced;
@@ -531,7 +906,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   }
   ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));
 
-  std::vector<TileResult> geo;
+  PilotContext ctx{job, grid, transport, ws, planned, pilots, {}, paths, computed, budgetTiles, tol};
   // Collimated pilot beams through the centres of the incidence bins: the geometric and the wave
   // pilot see the same incidence, a narrow lobe is not smeared over an incidence bin by a handful of
   // wave incidence samples, and a specular reflection lands inside a bin (a beam along a bin edge or
@@ -546,24 +921,11 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   // diffraction decision averages both over the incidence bins as the job does (below).
   // A job of collimated beams (`incidence_sampling = "exact"`) is piloted along its own directions:
   // a grating lit exactly along its grooves scatters nothing twice, where the bin's centre may.
-  auto beam = [&](int p) {
-    const IncidenceDirection& inc = job.incidence[size_t(p)];
-    return job.exactIncidence ? sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg)) : grid.centre(inc.bin);
-  };
+  // (PilotContext::beam.)
   for (int p : pilots)
-    geo.push_back(transport.run(p, p, job.incidence[size_t(p)].bin, beam(p),
-                                pilotProgress("geometric pilot", job.incidence[size_t(p)])));
-  // Σ f Ω⊥ of a component and its standard error (root-sum-square over bins).
-  auto energy = [&](const TileResult& r, Component c, int l, double* se) {
-    double e = 0, v = 0;
-    for (int b = 0; b < nB; ++b) {
-      const double op = grid.projectedSolidAngle(b);
-      e += r.at(c, l, b) * op;
-      v += std::pow(r.stdError[int(c)][size_t(l) * nB + b] * op, 2);
-    }
-    *se = std::sqrt(v);
-    return e;
-  };
+    ctx.geo.push_back(transport.run(p, p, job.incidence[size_t(p)].bin, ctx.beam(p),
+                                    pilotProgress("geometric pilot", job.incidence[size_t(p)])));
+  const std::vector<TileResult>& geo = ctx.geo;
 
   nlohmann::json plan;
   nlohmann::json decisions = nlohmann::json::array();
@@ -574,48 +936,8 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   // Multiple scattering: the geometry's bound first (singleBounceLimit_deg), then the pilots at the
   // incidences it leaves open.
   {
-    const std::optional<double> limit = singleBounceLimit_deg(job);
-    int open = 0;
-    for (int t = 0; t < int(job.incidence.size()); ++t) open += !scattersOnce(job, grid, t, limit);
-    const std::string bound = limit ? "the geometry (steepest facet " + fmt3(*steepestFacet_deg(job)) +
-                                          " deg) lets no path meet the surface twice below theta " + fmt3(*limit) + " deg"
-                                    : "";
-    nlohmann::json d;
-    bool on = false;
-    if (open == 0) {
-      d = decision("multiple", false, bound + ", which holds every incidence of the job");
-    } else {
-      double worst = -1, worstValue = 0, worstTheta = 0;
-      int judged = 0;
-      for (size_t k = 0; k < geo.size(); ++k) {
-        if (scattersOnce(job, grid, pilots[k], limit)) continue;
-        ++judged;
-        if (worst < 0) worst = 0, worstTheta = job.incidence[size_t(pilots[k])].theta_deg;
-        for (int l = 0; l < nL; ++l) {
-          double se;
-          const double e = energy(geo[k], Component::Multiple, l, &se);
-          if (e + 3 * se > worst) {
-            worst = e + 3 * se;
-            worstValue = e;
-            worstTheta = job.incidence[size_t(pilots[k])].theta_deg;
-          }
-        }
-      }
-      on = worst > tol || judged == 0;
-      const std::string where = (bound.empty() ? "" : bound + " (" + std::to_string(open) + " of " +
-                                                          std::to_string(job.incidence.size()) + " incidences are above it); ");
-      d = decision("multiple", on,
-                   judged == 0 ? where + (pilots.empty() ? "the pilot budget (" + fmt3(job.pilotBudget) +
-                                                              " of the job's tiles) allows no pilot: kept"
-                                                        : "no pilot incidence above it: kept")
-                               : where + "pilot multiply scattered energy " + fmt3(worstValue) + " (+3 SE: " + fmt3(worst) +
-                                     ") at theta " + fmt3(worstTheta) + " deg (" + std::to_string(judged) + " pilot incidences) " +
-                                     (on ? "exceeds" : "is below") + " the tolerance " + fmt3(tol) +
-                                     (on ? "" : "; verified on every tile, computed there after all past the tolerance"));
-      d["pilot_energy"] = worstValue;
-      d["pilot_energy_upper"] = worst;
-    }
-    if (limit) d["single_bounce_below_deg"] = *limit;
+    nlohmann::json d = multipleDecision(ctx);
+    bool on = d["on"].get<bool>();
     if (forced.has(Component::Multiple) && !on) {
       d["reason"] = d["reason"].get<std::string>() + "; kept: requested";
       on = true;
@@ -630,219 +952,12 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   {
     nlohmann::json d;
     bool on = false;
-    const double meanLambda = job.meanLambda_um();
-    const double binDeg = degrees(std::sqrt(2 * kPi / grid.binsPerHemisphere()));
     if (job.statistical) {
       d = decision("incoherent", false, "a statistical surface has no explicit geometry to diffract (microflake model)");
     } else {
-      auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
-      // Bin-averaged, noise-free pilots where the job averages over incidence bins, the wave pilot is
-      // deterministic, the facet sum costs at most the geometric pilot's rays at every pilot bin, and
-      // the renderer resolves the job's bins (a lobe's spill across bin edges is a difference there).
-      // Pooled into coarser cells their per-bin error bounds, which carry no sign, would add up where
-      // the binning errors of neighbouring bins cancel (a flat mirror pooled to 30°: difference
-      // 3e-10, bounds 0.045); the beams' pilots judge those cells, whose edges a lobe rarely meets.
-      std::optional<FacetSingleScattering> facetGs;
-      bool binAveraged = false;
-      if (est->deterministic() && !job.exactIncidence && job.geometry.periodic && job.scene.angularResolution_deg <= 0) {
-        facetGs.emplace(job.geometry, *transport.scene(), job.material, job.lambda_um(), grid);
-        const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
-        binAveraged = true;
-        for (int p : pilots)
-          binAveraged = binAveraged && facetGs->cheaperThan(job.incidence[size_t(p)].bin, std::nullopt, 2.0 * double(paths) * groups);
-        if (binAveraged) {
-          // One node order more than the job's incidence rule: the wave pilot's error estimate is
-          // then the distance to the job's own rule (at the default 2 x 2 nodes the job's estimate,
-          // against 1 x 1, is several times its error: a flat Al mirror's 67-79 deg bin reports
-          // 0.045 for a table within 0.002 of the facet sum).
-          WaveSettings finer = ws;
-          const int n = incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1;
-          finer.incidenceDirections = std::max(finer.incidenceDirections, n * n);
-          est = makeJobWaveEstimator(job, grid, *transport.scene(), finer);
-        }
-      }
-      // Per pilot and wavelength: the L1 difference and its noise at the renderer's angular
-      // resolution (bins pooled into cells of that size, resolutionCells()); the decision uses the
-      // largest upper estimate (L1 − floor + 2 sd) and the largest lower estimate (L1 − floor − 2 sd).
-      const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
-      const int nCells = cellOf.empty() ? 0 : *std::max_element(cellOf.begin(), cellOf.end()) + 1;
-      double upper = -1e300, lower = -1e300, worstL1 = 0, worstFloor = 0, worstTheta = 0;
-      int wavePilotsRun = 0;
-      int replicas = 0;
-      // A wave pilot's work against one of the job's wave terms: its samples per bin against the job's
-      // for Monte Carlo, its incidence nodes against the job's for the deterministic ones.
-      const double ruleRatio = binAveraged ? std::pow((incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1.0) /
-                                                          incidenceRuleOrder(int(job.waveIncidenceDirections)),
-                                                      2)
-                                           : 1.0;
-      const double wavePilotCost =
-          est->deterministic() ? ruleRatio : double(ws.samplesPerBin) / double(std::max<int64_t>(1, job.waveSamplesPerBin));
-      const size_t waveAffordable = std::min(pilots.size(), size_t(std::floor(budgetTiles / wavePilotCost + 1e-9)));
-      for (size_t k = 0; k < waveAffordable && waveSpent + wavePilotCost <= budgetTiles + 1e-9; ++k) {
-        const auto& inc = job.incidence[size_t(pilots[k])];
-        const std::optional<Vec3> dir = binAveraged ? std::nullopt : std::optional<Vec3>(beam(pilots[k]));
-        const WaveTileResult w = est->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot", inc));
-        const TileResult r = binAveraged ? facetGs->run(pilots[k], pilots[k], inc.bin, std::nullopt) : geo[k];
-        // Per wavelength: L1 of the cells' Σ (f_ws − f_coh) Ω⊥, its expected noise (floor) and the
-        // variance Σ (s Ω⊥)². With a replica (a second Monte Carlo pilot of another seed) f_ws is the
-        // two's mean, and each cell's floor is at least the noise the two show, |Σ (w1 − w2) Ω⊥| / 2
-        // (the mean's noise has the distribution of the half-difference's): the standard errors
-        // of a heavy-tailed Kirchhoff estimate can be far too small.
-        struct Figures {
-          double l1, floor, var;
-        };
-        auto figures = [&](int l, const WaveTileResult* w2) {
-          std::vector<double> diff(size_t(nCells), 0.0), cellVar(size_t(nCells), 0.0), spread(size_t(nCells), 0.0);
-          for (int b = 0; b < nB; ++b) {
-            if (cellOf[size_t(b)] < 0) continue;
-            const size_t x = size_t(l) * nB + b, c = size_t(cellOf[size_t(b)]);
-            const double op = grid.projectedSolidAngle(b);
-            const double ws = w2 ? 0.5 * (w.fws[x] + w2->fws[x]) : w.fws[x];
-            const double wsErr = w2 ? 0.5 * std::hypot(w.fwsErr[x], w2->fwsErr[x]) : w.fwsErr[x];
-            const double sd = std::hypot(wsErr, r.stdError[int(Component::Coherent)][x]);
-            diff[c] += (ws - r.at(Component::Coherent, l, b)) * op;
-            cellVar[c] += sd * op * sd * op;
-            if (w2) spread[c] += 0.5 * (w.fws[x] - w2->fws[x]) * op;
-          }
-          Figures f{0, 0, 0};
-          for (size_t c = 0; c < size_t(nCells); ++c) {
-            f.l1 += std::abs(diff[c]);
-            f.floor += std::max(std::sqrt(2 / kPi) * std::sqrt(cellVar[c]), std::abs(spread[c]));
-            f.var += cellVar[c];
-          }
-          return f;
-        };
-        std::vector<Figures> fig;
-        bool marginal = false;
-        for (int l = 0; l < nL; ++l) {
-          fig.push_back(figures(l, nullptr));
-          const Figures& f = fig.back();
-          // "On" from a Monte Carlo pilot whose noise floor is most of its difference rests on that
-          // floor being right: confirmed by a replica (the gentle noise's area pilot: L1 38.6 against
-          // a floor of 34.2 claimed 1.99 beyond it at one incidence).
-          marginal = marginal || (!est->deterministic() && f.l1 - f.floor - 2 * std::sqrt(f.var) > tol && f.floor > 0.5 * f.l1);
-        }
-        waveSpent += wavePilotCost;
-        // A marginal pilot the budget cannot confirm decides nothing (its lower estimate is dropped).
-        const bool unconfirmed = marginal && waveSpent + wavePilotCost > budgetTiles + 1e-9;
-        if (marginal && !unconfirmed) {
-          waveSpent += wavePilotCost;
-          WaveSettings other = ws;
-          other.seed = ws.seed ^ 0x5851F42D4C957F2Dull;
-          const WaveTileResult w2 = makeJobWaveEstimator(job, grid, *transport.scene(), other)
-                                        ->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot replica", inc));
-          ++replicas;
-          for (int l = 0; l < nL; ++l) fig[size_t(l)] = figures(l, &w2);
-        }
-        for (const Figures& f : fig) {
-          if (!unconfirmed) lower = std::max(lower, f.l1 - f.floor - 2 * std::sqrt(f.var));
-          if (f.l1 - f.floor + 2 * std::sqrt(f.var) > upper) {
-            upper = f.l1 - f.floor + 2 * std::sqrt(f.var);
-            worstL1 = f.l1;
-            worstFloor = f.floor;
-            worstTheta = inc.theta_deg;
-          }
-        }
-        // One pilot whose difference exceeds the tolerance beyond noise decides: the others would
-        // only confirm it (they cost as much as a tile's wave term each).
-        wavePilotsRun = int(k) + 1;
-        if (lower > tol) break;
-      }
-      const double sigmaH = rmsHeight(job.geometry), slope = rmsSlope(job.geometry);
-      // Rayleigh roughness at the job's most grazing incidence (the smallest g, the strongest
-      // specular spike).
-      double cosMin = 1;
-      for (const IncidenceDirection& inc : job.incidence) cosMin = std::min(cosMin, std::abs(std::cos(radians(inc.theta_deg))));
-      // "On" needs one pilot incidence; "off" the first three of the planned ones (the most grazing,
-      // the closest to normal and the median), the spread after them as far as the budget goes.
-      const bool complete = wavePilotsRun >= std::min<int>(3, int(planned.size()));
-      const double g = std::pow(4 * kPi * sigmaH * cosMin / meanLambda, 2);
-      const double blurDeg = job.scene.coherenceLength_um > 0 ? degrees(meanLambda / job.scene.coherenceLength_um) : 0;
-      std::string why = std::string(binAveraged ? "pilot (averaged over the incidence bins without noise: " + est->name() +
-                                                      " and the facet sum of single scattering) "
-                                                : "pilot (beams at the bins' centres) ") +
-                        "WS - GS difference sum|f_ws - f_coh| * proj. solid angle = " + fmt3(worstL1) +
-                        " (noise floor " + fmt3(worstFloor) + "; beyond noise: lower estimate " + fmt3(lower) +
-                        ", upper " + fmt3(upper) + ") at theta " + fmt3(worstTheta) + " deg" +
-                        (wavePilotsRun < int(planned.size()) ? " (" + std::to_string(wavePilotsRun) + " of " +
-                                                                   std::to_string(planned.size()) + " wave pilots run)"
-                                                            : "") +
-                        (replicas > 0 ? " (" + std::to_string(replicas) + " marginal wave pilot(s) re-run with another seed: the floor is at "
-                                                          "least the noise the two show)"
-                                    : "");
-      // Kirchhoff-theory estimate, used when the pilot cannot decide (its noise straddles the
-      // tolerance): the diffraction-limited specular spike 2 R e^{-g} (geometric optics has none;
-      // R <= 1) plus the blur of a lobe of width 2·slope by the window's diffraction, angular sd
-      // λ/(2√2 π σ_w) with σ_w = δc/6, which changes a Gaussian lobe by about (blur/width)² in L1.
-      // Valid only for features much larger than λ: correlation length √2 σ_h / slope >= 5 λ.
-      const double corr = slope > 0 ? std::sqrt(2.0) * sigmaH / slope : 0.0;
-      const double sigmaW = windowSigma(job.scene.coherenceLength_um);
-      const double blurRad = sigmaW > 0 ? meanLambda / (2 * std::sqrt(2.0) * kPi * sigmaW) : kPi;
-      const double lobeRad = 2 * slope;
-      const double physical = 2 * std::exp(-std::min(g, 700.0)) + (lobeRad > 0 ? std::pow(blurRad / lobeRad, 2) : 1e300);
-      const bool geometricRegime = corr >= 5 * meanLambda && slope > 0;
-      const std::string budgetNote = "the pilot budget (" + fmt3(job.pilotBudget) + " of the job's " +
-                                     std::to_string(computed) + " computed tiles, a wave pilot costing " +
-                                     fmt3(wavePilotCost) + " of a tile's wave term) allows " + std::to_string(waveAffordable) +
-                                     " of " + std::to_string(planned.size()) + " wave pilots";
-      if (wavePilotsRun == 0) {
-        why = budgetNote;
-        if (geometricRegime) {
-          on = physical > tol;
-          why += "; Kirchhoff estimate 2 exp(-g) + (blur/lobe)^2 = " + fmt3(physical) + " (correlation length " +
-                 fmt3(corr) + " um >= 5 lambda) " + (on ? "exceeds" : "is below") + " the tolerance " + fmt3(tol);
-        } else {
-          on = true;
-          why += ": kept on";
-        }
-      } else if (upper <= tol && !complete && !geometricRegime) {
-        on = true;
-        why += " is below the tolerance " + fmt3(tol) + ", but " + budgetNote + ": kept on";
-      } else if (upper <= tol && !complete) {
-        on = physical > tol;
-        why += " is below the tolerance " + fmt3(tol) + ", but " + budgetNote + "; Kirchhoff estimate " + fmt3(physical) +
-               (on ? " exceeds it: kept on" : " is below it too");
-      } else if (upper <= tol) {
-        on = false;
-        why += " is below the tolerance " + fmt3(tol) + (wavePilotsRun < int(planned.size()) ? " (" + budgetNote + ")" : "");
-      } else if (lower > tol) {
-        on = true;
-        why += " exceeds the tolerance " + fmt3(tol);
-      } else if (geometricRegime) {
-        on = physical > tol;
-        why += " cannot decide at the tolerance " + fmt3(tol) + "; Kirchhoff estimate 2 exp(-g) + (blur/lobe)^2 = " +
-               fmt3(physical) + " (correlation length " + fmt3(corr) + " um >= 5 lambda, blur " + fmt3(degrees(blurRad)) +
-               " deg, lobe " + fmt3(degrees(lobeRad)) + " deg) " + (on ? "exceeds it" : "is below it");
-      } else {
-        on = true;
-        why += " cannot decide at the tolerance " + fmt3(tol) + " and the features (correlation length " + fmt3(corr) +
-               " um) are not >> lambda: kept on";
-      }
-      d = decision("incoherent", on,
-                   why + "; Rayleigh roughness g = " + fmt3(g) +
-                       (g < 0.1 ? " (smooth: specular with a diffuse halo)" : g > 10 ? " (rough)" : " (intermediate)") +
-                       "; coherence blur lambda/delta_c = " + fmt3(blurDeg) + " deg vs bins of " + fmt3(binDeg) + " deg" +
-                       (job.scene.angularResolution_deg > 0
-                            ? " pooled to the renderer's " + fmt3(job.scene.angularResolution_deg) + " deg (" +
-                                  std::to_string(nCells) + " cells)"
-                            : ""));
-      d["pilot_incidence"] = binAveraged ? "bin-averaged" : "bin centre";
-      d["pilot_lower"] = lower;
-      d["kirchhoff_estimate"] = physical;
-      d["rms_slope"] = slope;
-      d["correlation_length_um"] = corr;
-      d["pilot_l1"] = worstL1;
-      d["pilot_noise_floor"] = worstFloor;
-      d["pilot_upper"] = upper;
-      d["rayleigh_g"] = g;
-      d["rms_height_um"] = sigmaH;
-      d["coherence_blur_deg"] = blurDeg;
-      d["bin_deg"] = binDeg;
-      d["angular_resolution_deg"] = job.scene.angularResolution_deg;
-      d["resolution_cells"] = nCells;
-      d["wave_samples_per_bin"] = ws.samplesPerBin;
-      d["wave_pilots_run"] = wavePilotsRun;
-      d["wave_pilot_replicas"] = replicas;
+      const DiffractionPilots measured = runDiffractionPilots(ctx, &waveSpent);
+      d = diffractionVerdict(ctx, measured);
+      on = d["on"].get<bool>();
     }
     if (forced.has(Component::Incoherent) && !on) {
       d["reason"] = d["reason"].get<std::string>() + "; kept: requested";
@@ -872,29 +987,13 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     decisions.push_back(decision("lost", lost, lost ? "requested" : "a diagnostic, not part of any model: only on request"));
     if (lost) chosen.add(Component::Lost);
   }
-  if (job.material.isConductor()) {
-    decisions.push_back(decision("btdf", false, "a conductor transmits nothing: no BTDF (transmitted bins are zero)"));
-  } else {
-    const bool needs = std::find(job.scene.needs.begin(), job.scene.needs.end(), "btdf") != job.scene.needs.end();
-    // Without a BTDF to render, the wave term's transmitted bins are not worth their cost; the
-    // paths still cross the surface (a dielectric's reflection depends on what comes back through
-    // it), so the transmitted table keeps geometric optics. Kept when `lost` is requested (its
-    // masked power needs every exit bin).
-    const bool skip = !needs && chosen.has(Component::Incoherent) && !chosen.has(Component::Lost);
-    auto d = decision("btdf", needs, needs ? "a dielectric transmits and the renderer needs the BTDF"
-                                           : skip ? "the renderer needs only the BRDF: the wave term skips the transmitted "
-                                                    "bins, which keep geometric optics (incoherent = 0 there)"
-                                                  : "the renderer needs only the BRDF; transmission is traced with the "
-                                                    "reflection (the paths cross the surface) and costs no wave term here");
-    decisions.push_back(d);
-    plan["wave_transmission"] = !skip;
-  }
+  decisions.push_back(btdfDecision(job, chosen, &plan));
   const PilotReplica replicate = [&](std::vector<TileResult>* geo2) {
     Job other = pilotJob;
     other.seed = job.seed ^ 0x9E3779B97F4A7C15ull;
     GeometricTransport t2(other, grid, paths);
     for (int p : pilots)
-      geo2->push_back(t2.run(p, p, job.incidence[size_t(p)].bin, beam(p),
+      geo2->push_back(t2.run(p, p, job.incidence[size_t(p)].bin, ctx.beam(p),
                              pilotProgress("geometric pilot replica", job.incidence[size_t(p)])));
   };
   decisions.push_back(wavelengthDecision(job, grid, geo, chosen, replicate, &plan));
