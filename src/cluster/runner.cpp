@@ -19,6 +19,7 @@
 #include "job/effects_planner.h"
 #include "job/plan.h"
 #include "job/symmetry.h"
+#include "job/tile_computer.h"
 #include "job/transport.h"
 #include "scattering/reciprocity.h"
 #include "scattering/wave_estimator.h"
@@ -66,57 +67,37 @@ void checkDiskSpace(const std::string& outPath, const Job& job, const DirectionG
                  outPath, free / 1e6, upper / 1e6);
 }
 
-// Full-depth paths that bound a skipped `multiple` on a tile whose single scattering came from the
-// facet sum: its energy (+ 3 standard errors) is resolved to about 0.01 at this many.
-constexpr uint64_t kMultipleCheckPaths = 4096;
-
-// The largest over λ of the `multiple` energy (both hemispheres) + 3 standard errors of a path tile.
-double multipleBound(const TileResult& r, const DirectionGrid& grid) {
-  const std::vector<double> se = r.pathEnergyStdError({Component::Multiple}, -1);
-  double bound = 0;
-  for (int l = 0; l < r.nLambda; ++l) {
-    double e = 0;
-    for (int b = 0; b < r.nBins; ++b) e += r.at(Component::Multiple, l, b) * grid.projectedSolidAngle(b);
-    bound = std::max(bound, e + 3 * (se.empty() ? 0.0 : se[size_t(l)]));
-  }
-  return bound;
-}
-
-// A `multiple` the effects planner skipped (Job::guarded), verified on tile t. A path tile traced
-// it anyway: it is kept, and the bound says whether the skip would have held. A facet-sum tile
-// (single scattering without paths) runs a few thousand full-depth paths; past the tolerance the
-// tile is traced in full after all, otherwise its `multiple` is stored as zero (within the
-// tolerance by the bound). Either way the slice records the bound and whether it was re-enabled.
-// An incidence below the geometry's single-bounce limit (effects_planner.h) has none: its check is 0.
-void verifySkippedMultiple(const Job& job, const DirectionGrid& grid, int t, const std::optional<Vec3>& exact,
-                           const std::optional<double>& singleBounceLimit, const GeometricTransport* check,
-                           const GeometricTransport* full, const std::function<void(uint64_t)>& cb, TileResult& r) {
-  const auto& inc = job.incidence[size_t(t)];
-  if (r.has(Component::Multiple)) {
-    r.multipleCheck = multipleBound(r, grid);
-  } else if (scattersOnce(job, grid, t, singleBounceLimit)) {
-    r.multipleCheck = 0;
-    r.value[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
-    r.stdError[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
-  } else {
-    const TileResult checked = check->run(t, t, inc.bin, exact, cb);
-    r.multipleCheck = multipleBound(checked, grid);
-    r.rays += checked.rays;  // the check is the tile's work too
-    if (r.multipleCheck > job.scene.tolerance) {
-      const uint64_t spent = r.rays;
-      r = full->run(t, t, inc.bin, exact, cb);
-      r.rays += spent;
-      r.multipleCheck = multipleBound(r, grid);
-    } else {
-      r.value[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
-      r.stdError[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+// A worker rank: asks rank 0 for tiles until told there are none (or a stop abandons one), sends
+// each result back, then joins the ranks' agreement on how the run ended (RankStatus).
+void serveAsWorker(const std::function<TileResult(int)>& computeTile, RunSummary& summary) {
+  int request = -1;
+  MPI_Send(&request, 1, MPI_INT, 0, kTagRequest, MPI_COMM_WORLD);
+  while (true) {
+    int t = -1;
+    MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    if (t < 0) break;
+    if (!logWriteFailure().empty()) {  // no log, no run: give the tile back and stop
+      MPI_Send(&t, 1, MPI_INT, 0, kTagStopped, MPI_COMM_WORLD);
+      MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+      break;
+    }
+    try {
+      TileResult r = computeTile(t);
+      std::vector<double> buf = r.serialize();
+      MPI_Send(buf.data(), int(buf.size()), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD);
+      summary.paths += r.samples;
+      ++summary.computed;
+    } catch (const StopRequested&) {
+      spdlog::info("stop requested: tile {} abandoned ({})", t, stopAnswerNote());
+      MPI_Send(&t, 1, MPI_INT, 0, kTagStopped, MPI_COMM_WORLD);
+      // Rank 0 answers every message with an assignment; it will be -1 now.
+      MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+      break;
     }
   }
-  r.multipleReenabled = r.multipleCheck > job.scene.tolerance;
-  if (r.multipleReenabled)
-    spdlog::warn("tile {} (theta_i {:.3g} deg, phi_i {:.3g} deg): multiple scattering up to {:.4f} (+3 standard errors), "
-                 "beyond the tolerance {}: the effects planner's pilots did not see it, this slice has it",
-                 t, inc.theta_deg, inc.phi_deg, r.multipleCheck, job.scene.tolerance);
+  if (!logWriteFailure().empty()) spdlog::error("log write failed: {}", logWriteFailure());
+  int status = logWriteFailure().empty() ? kRankOk : kRankWriteFailed, worst = 0;
+  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
 }
 
 }  // namespace
@@ -128,29 +109,18 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
 
   const std::string outPath = options.outputPath.empty() ? job.outputPath : options.outputPath;
   DirectionGrid grid(job.gridLayout);
-  // The tile computes the planner's components first (a skipped `multiple` lets single scattering
-  // come from the facet sum); a guarded skip is then verified on the tile (Job::guarded).
-  Job planned = job;
-  for (Component c : job.guarded.list()) planned.components.remove(c);
-  GeometricTransport transport(planned, grid, job.pathsPerSlice);
-  std::unique_ptr<GeometricTransport> checkTransport, fullTransport;
-  const std::optional<double> singleBounceLimit = job.guarded.has(Component::Multiple) ? singleBounceLimit_deg(job) : std::nullopt;
-  if (job.guarded.has(Component::Multiple) && transport.mayUseFacetSum()) {
-    checkTransport = std::make_unique<GeometricTransport>(job, grid, std::min<uint64_t>(job.pathsPerSlice, kMultipleCheckPaths));
-    fullTransport = std::make_unique<GeometricTransport>(job, grid, job.pathsPerSlice);
-  }
-  std::unique_ptr<WaveEstimator> wave;
-  if (job.needsWave()) {
-    wave = makeJobWaveEstimator(job, grid, *transport.scene(), waveSettingsOf(job));
-    if (mpi.rank() == 0) {
-      const std::string notes = wave->notes();
-      spdlog::info("scalar diffraction: {} estimator, {}, coherence length {} µm{}", wave->name(),
-                   notes.empty() ? std::to_string(job.waveSamplesPerBin) + " samples per bin" : notes,
-                   job.scene.coherenceLength_um, job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
-    }
+  // What a tile is (job/tile_computer.h); this file only hands tiles out and writes them.
+  const TileComputer tiles(job, grid);
+  const GeometricTransport& transport = tiles.transport();
+  const WaveEstimator* wave = tiles.wave();
+  if (wave && mpi.rank() == 0) {
+    const std::string notes = wave->notes();
+    spdlog::info("scalar diffraction: {} estimator, {}, coherence length {} µm{}", wave->name(),
+                 notes.empty() ? std::to_string(job.waveSamplesPerBin) + " samples per bin" : notes,
+                 job.scene.coherenceLength_um, job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
   }
 
-  if (std::string shortfall = memoryShortfall(job, wave.get()); mpi.anyRank(!shortfall.empty())) {
+  if (std::string shortfall = memoryShortfall(job, wave); mpi.anyRank(!shortfall.empty())) {
     RunSummary refused;
     refused.exit = ExitCode::BadInput;
     refused.error = shortfall.empty() ? "another rank's node has too little memory for the job" : shortfall;
@@ -159,8 +129,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
 
   const int nTiles = int(job.incidence.size());
   // Reciprocity (docs/physics.md §8): each pair of incidence bins gets the wave term once.
-  std::optional<ReciprocalPairs> pairs;
-  if (wave && job.halvesWaveByReciprocity()) pairs.emplace(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere());
+  const std::optional<ReciprocalPairs>& pairs = tiles.pairs();
   if (wave && mpi.rank() == 0)
     spdlog::info("reciprocity: {}", pairs ? fmt::format("the wave term is computed for {:.1f}% of the same-side bin "
                                                         "pairs, the rest mirrored when every slice is done",
@@ -183,69 +152,16 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   double tileSecondsSum = 0, pathSecondsSum = 0, waveSecondsSum = 0;
   int tilesDone = 0;
   auto computeTile = [&](int t, const std::function<void()>& between) {
-    const auto& inc = job.incidence[size_t(t)];
-    std::optional<Vec3> exact;
-    if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
     ProgressReporter pathProgress("tile " + std::to_string(t), job.pathsPerSlice, 30.0, false);
     auto cb = [&](uint64_t done) {
       pathProgress.update(done);
       throwIfStopped();
       if (between) between();
     };
-    auto ts = Clock::now();
-    TileResult r = transport.run(t, t, inc.bin, exact, cb);
-    if (job.targetRelError > 0 && r.samples > 0) {  // a facet-sum tile is deterministic
-      // Progressive sampling: more rounds of fresh paths (the next path indices, so the result is
-      // the same estimator as one run of all of them) until the path-traced table (coherent +
-      // multiple: a rare component adds little to its error) reaches the target relative error
-      // or the budget is spent.
-      std::vector<Component> traced;
-      for (Component c : {Component::Coherent, Component::Multiple})
-        if (job.components.has(c)) traced.push_back(c);
-      auto relError = [&](const TileResult& x) {
-        const std::vector<double> e = relativeError(x, traced, grid);
-        return e.empty() ? 0.0 : *std::max_element(e.begin(), e.end());
-      };
-      while (true) {
-        if (relError(r) <= job.targetRelError) {
-          r.samplingStop = TileResult::SamplingStop::TargetReached;
-          break;
-        }
-        if (r.samples + job.pathsPerSlice > job.maxPathsPerSlice) {
-          r.samplingStop = TileResult::SamplingStop::BudgetExhausted;
-          break;
-        }
-        r.poolPaths(transport.run(t, t, inc.bin, exact, cb, r.samples));
-      }
-    }
-    if (job.guarded.has(Component::Multiple))
-      verifySkippedMultiple(job, grid, t, exact, singleBounceLimit, checkTransport.get(), fullTransport.get(), cb, r);
-    pathSecondsSum += since(ts);
-    if (wave) {
-      auto tw = Clock::now();
-      std::vector<uint8_t> mask = pairs ? pairs->exitMask(t) : std::vector<uint8_t>{};
-      // No BTDF needed (effects planner): the transmitted bins keep geometric optics.
-      const bool incidentAbove = exact ? exact->z >= 0 : grid.isUpper(inc.bin);
-      auto transmitted = [&](int b) { return grid.isUpper(b) != incidentAbove; };
-      if (!job.waveTransmission) {
-        mask.resize(size_t(grid.binCount()), 1);
-        for (int b = 0; b < grid.binCount(); ++b)
-          if (transmitted(b)) mask[size_t(b)] = 0;
-      }
-      WaveTileResult w = wave->run(t, inc.bin, exact, cb, mask);
-      waveSecondsSum += since(tw);
-      addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
-      if (!job.waveTransmission && r.has(Component::Incoherent))
-        for (int l = 0; l < r.nLambda; ++l)
-          for (int b = 0; b < r.nBins; ++b)
-            if (transmitted(b)) {
-              r.at(Component::Incoherent, l, b) = 0;
-              r.stdError[int(Component::Incoherent)][size_t(l) * r.nBins + b] = 0;
-            }
-      r.rays += w.rays;
-      r.waveSamples = w.samples;
-    }
-    r.seconds = since(ts);
+    double pathSeconds = 0, waveSeconds = 0;
+    TileResult r = tiles.compute(t, cb, &pathSeconds, &waveSeconds);
+    pathSecondsSum += pathSeconds;
+    waveSecondsSum += waveSeconds;
     tileSecondsSum += r.seconds;
     ++tilesDone;
     return r;
@@ -255,35 +171,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   summary.tiles = nTiles;
 
   if (mpi.rank() != 0) {
-    // Worker: ask for tiles until told there are none (or a stop abandons one).
-    int request = -1;
-    MPI_Send(&request, 1, MPI_INT, 0, kTagRequest, MPI_COMM_WORLD);
-    while (true) {
-      int t = -1;
-      MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-      if (t < 0) break;
-      if (!logWriteFailure().empty()) {  // no log, no run: give the tile back and stop
-        MPI_Send(&t, 1, MPI_INT, 0, kTagStopped, MPI_COMM_WORLD);
-        MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-        break;
-      }
-      try {
-        TileResult r = computeTile(t, {});
-        std::vector<double> buf = r.serialize();
-        MPI_Send(buf.data(), int(buf.size()), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD);
-        summary.paths += r.samples;
-        ++summary.computed;
-      } catch (const StopRequested&) {
-        spdlog::info("stop requested: tile {} abandoned ({})", t, stopAnswerNote());
-        MPI_Send(&t, 1, MPI_INT, 0, kTagStopped, MPI_COMM_WORLD);
-        // Rank 0 answers every message with an assignment; it will be -1 now.
-        MPI_Recv(&t, 1, MPI_INT, 0, kTagAssign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-        break;
-      }
-    }
-    if (!logWriteFailure().empty()) spdlog::error("log write failed: {}", logWriteFailure());
-    int status = logWriteFailure().empty() ? kRankOk : kRankWriteFailed, worst = 0;
-    MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    serveAsWorker([&](int t) { return computeTile(t, {}); }, summary);
     double times[2] = {pathSecondsSum, waveSecondsSum};
     MPI_Reduce(times, nullptr, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     int outcome = 0;  // rank 0's ExitCode, once it has finished or closed the file

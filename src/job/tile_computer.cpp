@@ -1,0 +1,165 @@
+#include "job/tile_computer.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "job/effects_planner.h"
+
+namespace mbsdf {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Full-depth paths that bound a skipped `multiple` on a tile whose single scattering came from the
+// facet sum: its energy (+ 3 standard errors) is resolved to about 0.01 at this many.
+constexpr uint64_t kMultipleCheckPaths = 4096;
+
+// The largest over λ of the `multiple` energy (both hemispheres) + 3 standard errors of a path tile.
+double multipleBound(const TileResult& r, const DirectionGrid& grid) {
+  const std::vector<double> se = r.pathEnergyStdError({Component::Multiple}, -1);
+  double bound = 0;
+  for (int l = 0; l < r.nLambda; ++l) {
+    double e = 0;
+    for (int b = 0; b < r.nBins; ++b) e += r.at(Component::Multiple, l, b) * grid.projectedSolidAngle(b);
+    bound = std::max(bound, e + 3 * (se.empty() ? 0.0 : se[size_t(l)]));
+  }
+  return bound;
+}
+
+// The tile computes the planner's components first (a skipped `multiple` lets single scattering come
+// from the facet sum); a guarded skip is then verified on the tile.
+Job withoutGuarded(const Job& job) {
+  Job planned = job;
+  for (Component c : job.guarded.list()) planned.components.remove(c);
+  return planned;
+}
+
+}  // namespace
+
+TileComputer::TileComputer(const Job& job, const DirectionGrid& grid)
+    : job_(job), grid_(grid), planned_(withoutGuarded(job)), transport_(planned_, grid, job.pathsPerSlice) {
+  if (job.guarded.has(Component::Multiple)) singleBounceLimit_ = singleBounceLimit_deg(job);
+  if (job.guarded.has(Component::Multiple) && transport_.mayUseFacetSum()) {
+    checkTransport_ = std::make_unique<GeometricTransport>(job, grid, std::min<uint64_t>(job.pathsPerSlice, kMultipleCheckPaths));
+    fullTransport_ = std::make_unique<GeometricTransport>(job, grid, job.pathsPerSlice);
+  }
+  if (job.needsWave()) wave_ = makeJobWaveEstimator(job, grid, *transport_.scene(), waveSettingsOf(job));
+  if (wave_ && job.halvesWaveByReciprocity()) pairs_.emplace(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere());
+}
+
+TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb, double* pathSeconds,
+                                 double* waveSeconds) const {
+  const Job& job = job_;
+  const DirectionGrid& grid = grid_;
+  const auto& inc = job.incidence[size_t(t)];
+  std::optional<Vec3> exact;
+  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  auto ts = Clock::now();
+  TileResult r = transport_.run(t, t, inc.bin, exact, cb);
+  if (job.targetRelError > 0 && r.samples > 0) {  // a facet-sum tile is deterministic
+    // Progressive sampling: more rounds of fresh paths (the next path indices, so the result is
+    // the same estimator as one run of all of them) until the path-traced table (coherent +
+    // multiple: a rare component adds little to its error) reaches the target relative error
+    // or the budget is spent.
+    std::vector<Component> traced;
+    for (Component c : {Component::Coherent, Component::Multiple})
+      if (job.components.has(c)) traced.push_back(c);
+    auto relError = [&](const TileResult& x) {
+      const std::vector<double> e = relativeError(x, traced, grid);
+      return e.empty() ? 0.0 : *std::max_element(e.begin(), e.end());
+    };
+    while (true) {
+      if (relError(r) <= job.targetRelError) {
+        r.samplingStop = TileResult::SamplingStop::TargetReached;
+        break;
+      }
+      if (r.samples + job.pathsPerSlice > job.maxPathsPerSlice) {
+        r.samplingStop = TileResult::SamplingStop::BudgetExhausted;
+        break;
+      }
+      r.poolPaths(transport_.run(t, t, inc.bin, exact, cb, r.samples));
+    }
+  }
+  if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(t, exact, cb, r);
+  *pathSeconds += since(ts);
+  if (wave_) {
+    auto tw = Clock::now();
+    addWaveTerm(t, exact, cb, r);
+    *waveSeconds += since(tw);
+  }
+  r.seconds = since(ts);
+  return r;
+}
+
+void TileComputer::addWaveTerm(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& cb,
+                               TileResult& r) const {
+  const Job& job = job_;
+  const DirectionGrid& grid = grid_;
+  const auto& inc = job.incidence[size_t(t)];
+  std::vector<uint8_t> mask = pairs_ ? pairs_->exitMask(t) : std::vector<uint8_t>{};
+  // No BTDF needed (effects planner): the transmitted bins keep geometric optics.
+  const bool incidentAbove = exact ? exact->z >= 0 : grid.isUpper(inc.bin);
+  auto transmitted = [&](int b) { return grid.isUpper(b) != incidentAbove; };
+  if (!job.waveTransmission) {
+    mask.resize(size_t(grid.binCount()), 1);
+    for (int b = 0; b < grid.binCount(); ++b)
+      if (transmitted(b)) mask[size_t(b)] = 0;
+  }
+  WaveTileResult w = wave_->run(t, inc.bin, exact, cb, mask);
+  addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
+  if (!job.waveTransmission && r.has(Component::Incoherent))
+    for (int l = 0; l < r.nLambda; ++l)
+      for (int b = 0; b < r.nBins; ++b)
+        if (transmitted(b)) {
+          r.at(Component::Incoherent, l, b) = 0;
+          r.stdError[int(Component::Incoherent)][size_t(l) * r.nBins + b] = 0;
+        }
+  r.rays += w.rays;
+  r.waveSamples = w.samples;
+}
+
+// A `multiple` the effects planner skipped (Job::guarded), verified on tile t. A path tile traced
+// it anyway: it is kept, and the bound says whether the skip would have held. A facet-sum tile
+// (single scattering without paths) runs a few thousand full-depth paths; past the tolerance the
+// tile is traced in full after all, otherwise its `multiple` is stored as zero (within the
+// tolerance by the bound). Either way the slice records the bound and whether it was re-enabled.
+// An incidence below the geometry's single-bounce limit (effects_planner.h) has none: its check is 0.
+void TileComputer::verifySkippedMultiple(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& cb,
+                                         TileResult& r) const {
+  const Job& job = job_;
+  const DirectionGrid& grid = grid_;
+  const GeometricTransport* check = checkTransport_.get();
+  const GeometricTransport* full = fullTransport_.get();
+  const std::optional<double>& singleBounceLimit = singleBounceLimit_;
+  const auto& inc = job.incidence[size_t(t)];
+  if (r.has(Component::Multiple)) {
+    r.multipleCheck = multipleBound(r, grid);
+  } else if (scattersOnce(job, grid, t, singleBounceLimit)) {
+    r.multipleCheck = 0;
+    r.value[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+    r.stdError[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+  } else {
+    const TileResult checked = check->run(t, t, inc.bin, exact, cb);
+    r.multipleCheck = multipleBound(checked, grid);
+    r.rays += checked.rays;  // the check is the tile's work too
+    if (r.multipleCheck > job.scene.tolerance) {
+      const uint64_t spent = r.rays;
+      r = full->run(t, t, inc.bin, exact, cb);
+      r.rays += spent;
+      r.multipleCheck = multipleBound(r, grid);
+    } else {
+      r.value[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+      r.stdError[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+    }
+  }
+  r.multipleReenabled = r.multipleCheck > job.scene.tolerance;
+  if (r.multipleReenabled)
+    spdlog::warn("tile {} (theta_i {:.3g} deg, phi_i {:.3g} deg): multiple scattering up to {:.4f} (+3 standard errors), "
+                 "beyond the tolerance {}: the effects planner's pilots did not see it, this slice has it",
+                 t, inc.theta_deg, inc.phi_deg, r.multipleCheck, job.scene.tolerance);
+}
+
+}  // namespace mbsdf

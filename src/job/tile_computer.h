@@ -1,0 +1,50 @@
+// One tile of a job (an incidence direction × every wavelength) as the run computes it, apart from
+// where it runs: the geometric transport (paths or the facet sum of single scattering), progressive
+// sampling to [sampling] target_rel_error, the check of a `multiple` the effects planner skipped
+// (Job::guarded), and the wave term — with reciprocity's exit mask (docs/physics.md §8) and the
+// transmitted bins left to geometric optics where the renderer needs no BTDF. The scheduler
+// (cluster/runner.h) hands tiles out and writes them; this is what a tile is.
+#pragma once
+#include <functional>
+#include <memory>
+#include <optional>
+
+#include "core/direction_grid.h"
+#include "job/job.h"
+#include "job/transport.h"
+#include "scattering/reciprocity.h"
+#include "scattering/tile_result.h"
+#include "scattering/wave_estimator.h"
+
+namespace mbsdf {
+
+class TileComputer {
+ public:
+  TileComputer(const Job& job, const DirectionGrid& grid);
+  // Tile t (an index into job.incidence). progress(done) is called from the inner loops and may
+  // throw to abandon the tile; the seconds spent on paths and on the wave term are added to the
+  // counters given.
+  TileResult compute(int t, const std::function<void(uint64_t)>& progress, double* pathSeconds, double* waveSeconds) const;
+
+  const GeometricTransport& transport() const { return transport_; }
+  const WaveEstimator* wave() const { return wave_.get(); }
+  // The reciprocal bin pairs when the job halves its wave term by reciprocity, else none.
+  const std::optional<ReciprocalPairs>& pairs() const { return pairs_; }
+
+ private:
+  void verifySkippedMultiple(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& progress,
+                             TileResult& r) const;
+  void addWaveTerm(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& progress,
+                   TileResult& r) const;
+
+  const Job& job_;
+  const DirectionGrid& grid_;
+  Job planned_;  // the job without its guarded (skipped, verified) components
+  GeometricTransport transport_;
+  std::unique_ptr<GeometricTransport> checkTransport_, fullTransport_;
+  std::optional<double> singleBounceLimit_;
+  std::unique_ptr<WaveEstimator> wave_;
+  std::optional<ReciprocalPairs> pairs_;
+};
+
+}  // namespace mbsdf
