@@ -1048,6 +1048,12 @@ std::string formatEffects(const nlohmann::json& plan) {
   o << "effects (auto, tolerance " << fmt3(plan["tolerance"].get<double>()) << ", coherence length "
     << fmt3(plan["coherence_length_um"].get<double>()) << " um from " << plan["coherence_source"].get<std::string>()
     << "; pilots " << plan["pilots"].dump() << " in " << fmt3(plan["pilot_seconds"].get<double>()) << " s):\n";
+  if (plan.contains("pilot_budget")) {
+    const auto& b = plan["pilot_budget"];
+    o << "  pilot budget " << fmt3(b["fraction"].get<double>()) << " of " << b["computed_tiles"].dump()
+      << " computed tiles: spent " << fmt3(b["path_tiles_spent"].get<double>()) << " (paths) and "
+      << fmt3(b["wave_tiles_spent"].get<double>()) << " (wave terms) of " << fmt3(b["tiles"].get<double>()) << " tiles' work\n";
+  }
   for (const auto& d : plan["decisions"]) {
     std::string e = d["effect"].get<std::string>();
     e.resize(12, ' ');
