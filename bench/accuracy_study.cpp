@@ -19,7 +19,8 @@
 //  - hemispheres_paper_ws: the paper's HEMISPHERES at the paper's resolution (75 x 300 bins, δc =
 //    50 µm): the WS table of `area` against `exact`'s (the patch repeats a 5 µm cell whose order
 //    lobes stay apart under this window);
-//  - hemispheres_gm (and its coherent / multiple components) / hemispheres_ws: the paper's HEMISPHERES (Al, 550 nm, θi = 30°, 30 x 60 bins):
+//  - hemispheres_gm (and its coherent / multiple components) / hemispheres_ws: the paper's HEMISPHERES (Al, 550 nm, θi
+//  = 30°, 30 x 60 bins):
 //    relative L1 distance of the GM table (path tracer) to a reference at 16x the largest budget
 //    (so the curves flatten at the reference's own noise), and of the WS table (area estimator,
 //    δc = 50 µm) to `exact`'s.
@@ -95,9 +96,14 @@ struct WaveCase {
   double coherenceLength_um;
   Vec3 wi;
   std::pair<std::vector<double>, double> table(const std::string& est, long samples, int seed) const {
-    auto e = makeWaveEstimator(WaveContext{g, scene, material, {0.55}, grid,
-                                           CoherenceWindow::fromCoherenceLength(coherenceLength_um, g.sizeX, g.sizeY, true),
-                                           waveSettings(est, samples, seed)});
+    auto e =
+        makeWaveEstimator(WaveContext{g,
+                                      scene,
+                                      material,
+                                      {0.55},
+                                      grid,
+                                      CoherenceWindow::fromCoherenceLength(coherenceLength_um, g.sizeX, g.sizeY, true),
+                                      waveSettings(est, samples, seed)});
     Timer t;
     WaveTileResult r = e->run(seed, grid.binOf(wi), wi);
     return std::pair{r.fws, t.seconds()};
@@ -140,8 +146,8 @@ int main(int argc, char** argv) {
         if (est == "exact" && budget != 64) continue;  // deterministic: no budget
         for (int s = 0; s < (est == "exact" ? 1 : seeds); ++s) {
           const WaveSettings ws = waveSettings(est, budget, s);
-          auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, grid,
-                                                 CoherenceWindow::fromCoherenceLength(50, 2, 2, true), ws});
+          auto e = makeWaveEstimator(
+              WaveContext{g, scene, al, {0.55}, grid, CoherenceWindow::fromCoherenceLength(50, 2, 2, true), ws});
           Timer t;
           WaveTileResult r = e->run(s, grid.binOf(wi), wi);
           row("flat_al_40", est, budget, s, t.seconds(), std::abs(hemisphere(grid, r.fws, true) - F) / F);
@@ -161,8 +167,8 @@ int main(int argc, char** argv) {
         if (est == "exact" && budget != 64) continue;  // deterministic: no budget
         for (int s = 0; s < (est == "exact" ? 1 : seeds); ++s) {
           const WaveSettings ws = waveSettings(est, budget, s);
-          auto e = makeWaveEstimator(WaveContext{g, scene, mirror, {0.5}, grid,
-                                                 CoherenceWindow::fromCoherenceLength(50, 5, 1, true), ws});
+          auto e = makeWaveEstimator(
+              WaveContext{g, scene, mirror, {0.5}, grid, CoherenceWindow::fromCoherenceLength(50, 5, 1, true), ws});
           Timer t;
           Vec3 wi{0, 0, 1};
           WaveTileResult r = e->run(s, grid.binOf(wi), wi);
@@ -245,7 +251,8 @@ int main(int argc, char** argv) {
         TileResult r = walk.run(s, 0, grid.binOf(wi), wi);
         const double sec = t.seconds();
         std::vector<double> f = sum(r.value[int(Component::Coherent)], r.value[int(Component::Multiple)]);
-        row("chandrasekhar_albedo", "walk", budget, s, sec, std::abs(hemisphere(grid, f, true) - albedoRef) / albedoRef);
+        row("chandrasekhar_albedo", "walk", budget, s, sec,
+            std::abs(hemisphere(grid, f, true) - albedoRef) / albedoRef);
         row("chandrasekhar_lobe", "walk", budget, s, sec, relativeL1(grid, f, ref));
       }
   }
@@ -270,7 +277,8 @@ int main(int argc, char** argv) {
           row("hemisphere_cell_ws", est, budget, s, sec, relativeL1(grid, f, ref));
         }
       }
-    row("hemisphere_cell_ws", "exact", 64, 0, refSec, relativeL1(grid, c.table("orders", 1 << 18, 1000).first, ref), true);
+    row("hemisphere_cell_ws", "exact", 64, 0, refSec, relativeL1(grid, c.table("orders", 1 << 18, 1000).first, ref),
+        true);
   }
   // A rough Gaussian heightfield (10 µm, rms 0.1 µm, correlation 1 µm, Al, 550 nm, θi = 30°) under
   // a window narrower than the patch (δc = 15 µm: overlapping order lobes, speckle) on a 32 x 32
@@ -316,7 +324,8 @@ int main(int argc, char** argv) {
         auto [f, sec] = c.table("orders", budget, s);
         row("hemispheres_paper_ws", "orders", budget, s, sec, relativeL1(grid, f, ref));
       }
-    row("hemispheres_paper_ws", "exact", 64, 0, refSec, relativeL1(grid, c.table("orders", 1 << 20, 1000).first, ref), true);
+    row("hemispheres_paper_ws", "exact", 64, 0, refSec, relativeL1(grid, c.table("orders", 1 << 20, 1000).first, ref),
+        true);
   }
   // HEMISPHERES (the paper's surface) against high-budget references.
   if (want("hemispheres_gm") || want("hemispheres_ws")) {
@@ -338,7 +347,8 @@ int main(int argc, char** argv) {
     };
     auto ws = [&](long samples, int seed, bool masked = false) {
       const WaveSettings w = waveSettings("area", samples, seed, masked);
-      auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, grid, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
+      auto e = makeWaveEstimator(
+          WaveContext{g, scene, al, {0.55}, grid, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
       Timer t;
       WaveTileResult r = e->run(seed, bin, wi);
       return std::pair{r.fws, t.seconds()};
@@ -346,8 +356,7 @@ int main(int argc, char** argv) {
     const auto [refGm, refSec, refCoh, refMul] = gm(16000000, 1000);
     // The WS reference: `exact` (the patch repeats a 5 µm cell whose order lobes stay apart under
     // this window; see hemispheres_paper_ws), deterministic, instead of `area` at 16x the budget.
-    const std::vector<double> refWs =
-        WaveCase{g, scene, al, grid, 50.0, wi}.table("exact", 64, 0).first;
+    const std::vector<double> refWs = WaveCase{g, scene, al, grid, 50.0, wi}.table("exact", 64, 0).first;
     for (long budget : {1000L, 10000L, 100000L, 1000000L})
       for (int s = 0; s < seeds; ++s) {
         auto [f, sec, coh, mul] = gm(budget, s);
@@ -377,7 +386,8 @@ int main(int argc, char** argv) {
       tr.run(0, 0, gr.binOf(wi), wi);
       const double tp = t.seconds();
       const WaveSettings w = waveSettings("area", 256, 0);
-      auto e = makeWaveEstimator(WaveContext{g, scene, al, {0.55}, gr, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
+      auto e = makeWaveEstimator(
+          WaveContext{g, scene, al, {0.55}, gr, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
       Timer t2;
       e->run(0, gr.binOf(wi), wi);
       cost("resolution", std::to_string(nt) + " x " + std::to_string(np) + " GM", tp);
@@ -402,7 +412,8 @@ int main(int argc, char** argv) {
         cost("wavelengths", std::to_string(nl) + " λ, BK7 GM (dispersion: paths per λ)", t.seconds());
       }
       const WaveSettings w = waveSettings("area", 256, 0);
-      auto e = makeWaveEstimator(WaveContext{g, scene, al, lambdas, grid, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
+      auto e = makeWaveEstimator(
+          WaveContext{g, scene, al, lambdas, grid, CoherenceWindow::fromCoherenceLength(50, 20, 20, true), w});
       Timer t;
       e->run(0, bin, wi);
       cost("wavelengths", std::to_string(nl) + " λ, Al WS (shared rays, per-λ phases)", t.seconds());

@@ -1,6 +1,6 @@
 // Path-tracer speed against raw Embree on the same scene, measured in the same run
-// (speed is a ratio against a baseline of the same run). Scene: the `hemispheres` patch (20 x 20 µm, radius 2 µm, spacing 5 µm,
-// perfect-mirror facets), incidence 30°, all cores.
+// (speed is a ratio against a baseline of the same run). Scene: the `hemispheres` patch (20 x 20 µm, radius 2 µm,
+// spacing 5 µm, perfect-mirror facets), incidence 30°, all cores.
 //   ours: rays/s of PathTracer::run (periodic wrapping, Fresnel, tallies, deterministic merging)
 //   raw:  rays/s of bare rtcIntersect1 calls on the same Embree scene, with rays drawn like our
 //         primary rays (uniform footprint, cosine directions), parallelised the same way (TBB)
@@ -135,8 +135,14 @@ void BM_PaperResolutionSlice(benchmark::State& state, std::string estimator) {
   WaveSettings ws;
   ws.estimator = waveEstimatorKind(estimator);
   ws.samplesPerBin = 5000000 / f.grid.binsPerHemisphere();
-  WaveContext ctx{f.geometry, f.scene, al, kEightLambdas, f.grid,
-                  CoherenceWindow::fromCoherenceLength(estimator == "orders" || estimator == "exact" ? 50.0 : 0.0, 20, 20, true), ws};
+  WaveContext ctx{
+      f.geometry,
+      f.scene,
+      al,
+      kEightLambdas,
+      f.grid,
+      CoherenceWindow::fromCoherenceLength(estimator == "orders" || estimator == "exact" ? 50.0 : 0.0, 20, 20, true),
+      ws};
   auto est = makeWaveEstimator(ctx);
   Vec3 wi = sphericalDirection(radians(55), 0);
   for (auto _ : state) {
@@ -148,11 +154,23 @@ void BM_PaperResolutionSlice(benchmark::State& state, std::string estimator) {
 }
 
 BENCHMARK(BM_KirchhoffSamples)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
-BENCHMARK_CAPTURE(BM_PaperResolutionSlice, paper, std::string("paper"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
-BENCHMARK_CAPTURE(BM_PaperResolutionSlice, area, std::string("area"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
-BENCHMARK_CAPTURE(BM_PaperResolutionSlice, orders, std::string("orders"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+BENCHMARK_CAPTURE(BM_PaperResolutionSlice, paper, std::string("paper"))
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(1);
+BENCHMARK_CAPTURE(BM_PaperResolutionSlice, area, std::string("area"))
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(1);
+BENCHMARK_CAPTURE(BM_PaperResolutionSlice, orders, std::string("orders"))
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(1);
 // exact under the same window as orders: the 20 µm patch repeats a 5 µm cell (lattice_cell.h).
-BENCHMARK_CAPTURE(BM_PaperResolutionSlice, exact, std::string("exact"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+BENCHMARK_CAPTURE(BM_PaperResolutionSlice, exact, std::string("exact"))
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(1);
 BENCHMARK(BM_PathTracerRays)->Arg(1 << 20)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_RawEmbreeRays)->Arg(1 << 21)->Unit(benchmark::kMillisecond)->UseRealTime();
 
@@ -235,8 +253,14 @@ void BM_FftHeightfieldSlice(benchmark::State& state, std::string estimator) {
   // exact's cost is facets x propagating orders: (512/128)² facets and (512/128)² orders.
   if (estimator == "exact") gExactScale = std::pow(512.0 / 128.0, 4);
 }
-BENCHMARK_CAPTURE(BM_FftHeightfieldSlice, fft, std::string("fft"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
-BENCHMARK_CAPTURE(BM_FftHeightfieldSlice, exact_crop, std::string("exact"))->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+BENCHMARK_CAPTURE(BM_FftHeightfieldSlice, fft, std::string("fft"))
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(1);
+BENCHMARK_CAPTURE(BM_FftHeightfieldSlice, exact_crop, std::string("exact"))
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(1);
 
 // The facet sum of single scattering (scattering/single_scattering.h) against the path tracer on the
 // same tile: the Al sine grating of integration.effects_auto (2 x 0.3 µm, 128 facets in 64
@@ -300,26 +324,32 @@ int main(int argc, char** argv) {
     std::printf("\npath tracer: %.3g rays/s   raw rtcIntersect1: %.3g rays/s   ratio: %.2f (target >= 0.6)\n", gOurs,
                 gRaw, gOurs / gRaw);
   if (gKirchhoffPerCore > 0)
-    std::printf("Kirchhoff samples (shadow + masking rays, 8 wavelengths): %.3g per second per core\n", gKirchhoffPerCore);
+    std::printf("Kirchhoff samples (shadow + masking rays, 8 wavelengths): %.3g per second per core\n",
+                gKirchhoffPerCore);
   for (auto& [name, sec] : gSliceSeconds)
     std::printf("paper-resolution slice (75x300 bins, 8 wavelengths, 5M samples) on hemispheres, %s: %.2f s\n",
                 name.c_str(), sec);
   if (gWalkPaths > 0 && gExplicitPaths > 0)
-    std::printf("Beckmann 0.5, Al: microflake walk %.3g paths/s, explicit Gaussian heightfield (131k triangles) %.3g "
-                "paths/s, ratio %.2f\n",
-                gWalkPaths, gExplicitPaths, gWalkPaths / gExplicitPaths);
+    std::printf(
+        "Beckmann 0.5, Al: microflake walk %.3g paths/s, explicit Gaussian heightfield (131k triangles) %.3g "
+        "paths/s, ratio %.2f\n",
+        gWalkPaths, gExplicitPaths, gWalkPaths / gExplicitPaths);
   if (gFftSeconds > 0)
-    std::printf("512^2 Gaussian heightfield slice (128x128 disk grid, sigma 4 um, 500 nm, normal incidence): fft %.2f s "
-                "(target <= 2 s)\n", gFftSeconds);
+    std::printf(
+        "512^2 Gaussian heightfield slice (128x128 disk grid, sigma 4 um, 500 nm, normal incidence): fft %.2f s "
+        "(target <= 2 s)\n",
+        gFftSeconds);
   if (gExactCropSeconds > 0)
-    std::printf("exact on a 128^2 crop: %.2f s, scaled to 512^2 (facets x orders, x%.0f): %.0f s; fft is %.0fx faster\n",
-                gExactCropSeconds, gExactScale, gExactCropSeconds * gExactScale,
-                gFftSeconds > 0 ? gExactCropSeconds * gExactScale / gFftSeconds : 0.0);
+    std::printf(
+        "exact on a 128^2 crop: %.2f s, scaled to 512^2 (facets x orders, x%.0f): %.0f s; fft is %.0fx faster\n",
+        gExactCropSeconds, gExactScale, gExactCropSeconds * gExactScale,
+        gFftSeconds > 0 ? gExactCropSeconds * gExactScale / gFftSeconds : 0.0);
   if (gFacetPairsPerSecond > 0 && gGratingRaysPerSecond > 0)
-    std::printf("Al sine grating tile at 20 deg: facet sum %.3g pairs/s, path tracer %.3g rays/s: %.2f pairs per ray "
-                "(FacetSingleScattering::kPairsPerRay = %.0f); tile %.2f ms vs %.2f ms at 50000 paths: %.1fx\n",
-                gFacetPairsPerSecond, gGratingRaysPerSecond, gFacetPairsPerSecond / gGratingRaysPerSecond,
-                FacetSingleScattering::kPairsPerRay, 1e3 * gFacetTileSeconds, 1e3 * gGratingPathTileSeconds,
-                gGratingPathTileSeconds / gFacetTileSeconds);
+    std::printf(
+        "Al sine grating tile at 20 deg: facet sum %.3g pairs/s, path tracer %.3g rays/s: %.2f pairs per ray "
+        "(FacetSingleScattering::kPairsPerRay = %.0f); tile %.2f ms vs %.2f ms at 50000 paths: %.1fx\n",
+        gFacetPairsPerSecond, gGratingRaysPerSecond, gFacetPairsPerSecond / gGratingRaysPerSecond,
+        FacetSingleScattering::kPairsPerRay, 1e3 * gFacetTileSeconds, 1e3 * gGratingPathTileSeconds,
+        gGratingPathTileSeconds / gFacetTileSeconds);
   return 0;
 }

@@ -33,7 +33,9 @@ constexpr int kTagRequest = 11, kTagResult = 12, kTagStopped = 13, kTagAssign = 
 enum RankStatus : int { kRankOk = 0, kRankWriteFailed = 1 };
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
 
 // Memory: a footprint this node cannot hold is refused before anything is written ("" if it fits).
 // Every rank checks its own node's share: the estimate per rank times the ranks on the node.
@@ -47,9 +49,11 @@ std::string memoryShortfall(const Job& job, const WaveEstimator* wave) {
   const double need = memoryBytesPerRank(job, wave ? wave->memoryBytes() : 0.0) * local;
   const double avail = availableMemoryBytes();
   if (!(avail > 0 && need > avail)) return "";
-  return fmt::format("the job needs about {:.2f} GB of memory per node ({} rank(s) here) but {:.2f} GB are available: "
-                     "use fewer bins, wavelengths or ranks per node, or a larger node (`microbsdf plan` shows the "
-                     "estimate)", need / 1e9, local, avail / 1e9);
+  return fmt::format(
+      "the job needs about {:.2f} GB of memory per node ({} rank(s) here) but {:.2f} GB are available: "
+      "use fewer bins, wavelengths or ranks per node, or a larger node (`microbsdf plan` shows the "
+      "estimate)",
+      need / 1e9, local, avail / 1e9);
 }
 
 // Room on the output's file system. The uncompressed size is an upper bound (deflate shrinks it), so
@@ -59,12 +63,15 @@ void checkDiskSpace(const std::string& outPath, const Job& job, const DirectionG
   const double free = freeBytesAt(outPath), upper = outputBytesUncompressed(job);
   const double certain = std::min(upper, double(grid.binCount()) * 8.0 * 4.0 + 65536.0);
   if (free >= 0 && free < certain)
-    throw WriteError(fmt::format("output {}: {:.3g} MB free on its file system, the file needs at least {:.3g} MB "
-                                 "(and up to {:.3g} MB uncompressed)", outPath, free / 1e6, certain / 1e6, upper / 1e6));
+    throw WriteError(
+        fmt::format("output {}: {:.3g} MB free on its file system, the file needs at least {:.3g} MB "
+                    "(and up to {:.3g} MB uncompressed)",
+                    outPath, free / 1e6, certain / 1e6, upper / 1e6));
   if (free >= 0 && free < upper)
-    spdlog::warn("output {}: {:.3g} MB free on its file system; the file may need up to {:.3g} MB (uncompressed "
-                 "size; deflate usually makes it smaller). A full disk stops the run with exit code 4, resumable",
-                 outPath, free / 1e6, upper / 1e6);
+    spdlog::warn(
+        "output {}: {:.3g} MB free on its file system; the file may need up to {:.3g} MB (uncompressed "
+        "size; deflate usually makes it smaller). A full disk stops the run with exit code 4, resumable",
+        outPath, free / 1e6, upper / 1e6);
 }
 
 // A worker rank: asks rank 0 for tiles until told there are none (or a stop abandons one), sends
@@ -117,7 +124,8 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     const std::string notes = wave->notes();
     spdlog::info("scalar diffraction: {} estimator, {}, coherence length {} µm{}", wave->name(),
                  notes.empty() ? std::to_string(job.waveSamplesPerBin) + " samples per bin" : notes,
-                 job.scene.coherenceLength_um, job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
+                 job.scene.coherenceLength_um,
+                 job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
   }
 
   if (std::string shortfall = memoryShortfall(job, wave); mpi.anyRank(!shortfall.empty())) {
@@ -145,8 +153,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
                  job.material.describe(), job.lambda_nm.size(), grid.kind(), grid.binCount(), nTiles, mpi.size(),
                  job.pathsPerSlice);
 
-  if (mpi.rank() == 0 && transport.mayUseFacetSum())
-    spdlog::info("geometric optics: {}", transport.describe());
+  if (mpi.rank() == 0 && transport.mayUseFacetSum()) spdlog::info("geometric optics: {}", transport.describe());
 
   // One tile: path tracing, then the wave estimator; the callback may abandon it (stop).
   double tileSecondsSum = 0, pathSecondsSum = 0, waveSecondsSum = 0;
@@ -216,7 +223,8 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   BsdfFileWriter& writer = *writerPtr;
   std::set<int> finished(writer.resumedTiles().begin(), writer.resumedTiles().end());
   summary.resumed = int(finished.size());
-  if (summary.resumed) spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary.resumed, nTiles, outPath);
+  if (summary.resumed)
+    spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary.resumed, nTiles, outPath);
   // Symmetry (symmetry.h): one tile per ring (or per n-th of a ring) of a symmetric surface; queued if any slice of its
   // ring is missing (a kill may fall between a ring's slices).
   std::optional<AzimuthalSymmetry> symmetry;
@@ -247,11 +255,12 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     for (size_t l = 0; l < b.value.size(); ++l) {
       if (!(std::abs(b.value[l]) > job.scene.tolerance + 4 * b.stdError[l])) continue;
       if (unbalanced++ < 10)
-        spdlog::warn("slice {} (theta_i {:.3g} deg, {} nm): energy balance {:+.4f} ± {:.4f} (reflected + transmitted + "
-                     "lost paths − 1{}), beyond the tolerance {}: the model's own error there",
-                     r.incidenceIndex, job.incidence[size_t(r.incidenceIndex)].theta_deg, job.lambda_nm[l], b.value[l],
-                     b.stdError[l], job.material.lossless() ? "" : ", counted only above 1: the material absorbs",
-                     job.scene.tolerance);
+        spdlog::warn(
+            "slice {} (theta_i {:.3g} deg, {} nm): energy balance {:+.4f} ± {:.4f} (reflected + transmitted + "
+            "lost paths − 1{}), beyond the tolerance {}: the model's own error there",
+            r.incidenceIndex, job.incidence[size_t(r.incidenceIndex)].theta_deg, job.lambda_nm[l], b.value[l],
+            b.stdError[l], job.material.lossless() ? "" : ", counted only above 1: the material absorbs",
+            job.scene.tolerance);
       if (std::abs(b.value[l]) > std::abs(worstBalance)) worstBalance = b.value[l];
       break;
     }
@@ -366,7 +375,8 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
 
   int status = writeFailure.empty() ? kRankOk : kRankWriteFailed, worst = 0;
   MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-  if (worst == kRankWriteFailed && writeFailure.empty()) writeFailure = "another rank could not write its log file (see its stderr)";
+  if (worst == kRankWriteFailed && writeFailure.empty())
+    writeFailure = "another rank could not write its log file (see its stderr)";
   double times[2] = {pathSecondsSum, waveSecondsSum}, total[2] = {0, 0};
   MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
   const bool incomplete = written < nTiles;
@@ -384,27 +394,34 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     std::string energies;
     for (auto& [c, e] : energySum)
       energies += fmt::format("{}{} {:.4f}", energies.empty() ? "" : ", ", c, e / std::max(1, summary.computed));
-    if (filledIncoherent) energies += fmt::format(", incoherent {:.4f} (all slices, after the fill)", *filledIncoherent);
-    spdlog::info("summary: {} tiles computed now, {} slices resumed; {:.1f} s wall; tile time summed over ranks: "
-                 "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
-                 summary.computed, summary.resumed, since(t0), total[0], total[1], summary.paths, energies);
+    if (filledIncoherent)
+      energies += fmt::format(", incoherent {:.4f} (all slices, after the fill)", *filledIncoherent);
+    spdlog::info(
+        "summary: {} tiles computed now, {} slices resumed; {:.1f} s wall; tile time summed over ranks: "
+        "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
+        summary.computed, summary.resumed, since(t0), total[0], total[1], summary.paths, energies);
   }
   if (unbalanced)
-    spdlog::warn("energy balance beyond the tolerance {} in {} slice(s) computed now (the worst {:+.4f}); `microbsdf info` "
-                 "lists it per slice", job.scene.tolerance, unbalanced, worstBalance);
+    spdlog::warn(
+        "energy balance beyond the tolerance {} in {} slice(s) computed now (the worst {:+.4f}); `microbsdf info` "
+        "lists it per slice",
+        job.scene.tolerance, unbalanced, worstBalance);
   // Finish (close, fsync, rename) or close; a failure of either is a write failure, which leaves the
   // partial file and its journal (every slice in the journal is on disk) and any old output as they were.
   try {
-    if (writeFailure.empty() && !incomplete) writer.finish();
-    else writer.close();
+    if (writeFailure.empty() && !incomplete)
+      writer.finish();
+    else
+      writer.close();
   } catch (const WriteError& e) {
     if (writeFailure.empty()) writeFailure = e.what();
   }
   if (!writeFailure.empty()) {
     summary.exit = ExitCode::WriteFailed;
-    summary.error = fmt::format("{}. {}/{} slices are safe in {}.partial (listed in its journal); free space or fix the "
-                                "file system, then run the same command with --resume. {} was not changed",
-                                writeFailure, written, nTiles, outPath, outPath);
+    summary.error = fmt::format(
+        "{}. {}/{} slices are safe in {}.partial (listed in its journal); free space or fix the "
+        "file system, then run the same command with --resume. {} was not changed",
+        writeFailure, written, nTiles, outPath, outPath);
   } else if (incomplete) {
     summary.stoppedEarly = true;
     spdlog::warn("stopped early: {}/{} slices complete in {}.partial{}; run the same command with --resume to finish",

@@ -23,13 +23,13 @@ struct RunOptions {
   std::string outputPath;  // overrides the job's [output] path when not empty
   int threads = 0;         // 0: all cores
   bool resume = false;
-  double maxHours = 0;     // 0: no limit
+  double maxHours = 0;  // 0: no limit
 };
 
 struct RunSummary {
-  int tiles = 0;         // tiles of the job
-  int computed = 0;      // tiles computed in this run (all ranks)
-  int resumed = 0;       // tiles kept from an earlier run
+  int tiles = 0;     // tiles of the job
+  int computed = 0;  // tiles computed in this run (all ranks)
+  int resumed = 0;   // tiles kept from an earlier run
   bool stoppedEarly = false;
   // Not Ok when the run could not start or finish: BadInput (a resume that does not match, too
   // little memory), WriteFailed (the output or a log could not be written). Same on every rank;

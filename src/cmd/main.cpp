@@ -73,7 +73,8 @@ std::vector<double> parseAngles(const std::string& s, const std::string& option,
     } catch (const std::exception&) {
     }
     if (used != item.size() || !(v >= 0 && (hiInclusive ? v <= hi : v < hi)))
-      throw InputError(option + ": '" + item + "' is not an angle in [0, " + fmt::format("{}", hi) + (hiInclusive ? "]" : ")"));
+      throw InputError(option + ": '" + item + "' is not an angle in [0, " + fmt::format("{}", hi) +
+                       (hiInclusive ? "]" : ")"));
     angles.push_back(v);
   }
   return angles;
@@ -171,25 +172,29 @@ void warnIfIncomplete(const BsdfFileReader& f, const std::string& how) {
 
 void printInfo(const nlohmann::json& j) {
   std::cout << "file:        " << j["file"].get<std::string>() << "\n"
-            << "geometry:    " << j["geometry_kind"].get<std::string>() << " (hash " << j["geometry_hash"].get<std::string>()
-            << ")\n"
+            << "geometry:    " << j["geometry_kind"].get<std::string>() << " (hash "
+            << j["geometry_hash"].get<std::string>() << ")\n"
             << "material:    " << j["material"].get<std::string>() << "\n"
             << "grid:        " << j["grid"].get<std::string>() << ", " << j["bins"] << " bins over the sphere\n"
             << "wavelengths: " << j["wavelengths_nm"].dump() << " nm\n"
             << "components:  " << j["components"].dump() << "\n"
             << (j.contains("reciprocity") ? "reciprocity: " + j["reciprocity"].get<std::string>() + "\n" : "")
             << (j.contains("effects_plan") ? formatEffects(j["effects_plan"]) : "")
-            << (j["wave_samples"].get<uint64_t>() ? "wave term:   " + j["wave_samples"].dump() + " Kirchhoff samples per wavelength\n" : "")
+            << (j["wave_samples"].get<uint64_t>()
+                    ? "wave term:   " + j["wave_samples"].dump() + " Kirchhoff samples per wavelength\n"
+                    : "")
             << (j["complete"].get<bool>()
                     ? "complete:    " + j["done_count"].dump() + "/" + j["incidence_count"].dump() + " slices\n"
                     : "incomplete:  " + j["done_count"].dump() + " of " + j["incidence_count"].dump() +
                           " slices (a run that has not finished; the missing slices are not listed below)\n");
-  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  ± s.e.     reflected  transmitted  truncated  rel.error  balance     lost\n"
+  std::cout << "slice  theta   phi     samples     seconds  albedo(mean over λ)  ± s.e.     reflected  transmitted  "
+               "truncated  rel.error  balance     lost\n"
             << "(albedo: the components the file holds, without the lost diagnostic, ± its standard error (the\n"
             << " mean over λ of each λ's); rel.error: the largest estimated relative per-bin error of a slice over\n"
             << " its components but lost, and wavelengths; balance: reflected + transmitted + lost paths − 1, the\n"
             << " largest over λ, for a material that absorbs only an excess over 1 — the model's energy error;\n"
-            << " lost: the energy of the lost component (Falster et al. 2020, Eq. 20, mean over λ), which WM + lost should bring\n"
+            << " lost: the energy of the lost component (Falster et al. 2020, Eq. 20, mean over λ), which WM + lost "
+               "should bring\n"
             << " to GM's energy; — when the file has no lost component)\n";
   int reached = 0, budget = 0, verified = 0;
   std::vector<int> reenabled;
@@ -219,8 +224,8 @@ void printInfo(const nlohmann::json& j) {
     if (s.contains("energy_balance"))
       for (auto& x : s["energy_balance"])
         if (!(std::abs(x.get<double>()) <= std::abs(balance))) balance = x.get<double>();
-    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.2e %12.6f %12.6f %10.2e %10.2e %+8.4f %s\n", s["index"].get<int>(),
-                s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
+    std::printf("%5d %6.2f %6.2f %11llu %11.3f %12.6f %16.2e %12.6f %12.6f %10.2e %10.2e %+8.4f %s\n",
+                s["index"].get<int>(), s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
                 (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(), refl + trans, se, refl,
                 trans, mean(s["truncated"]), rel, balance,
                 std::isnan(lost) ? "       —" : fmt::format("{:+8.4f}", lost).c_str());
@@ -238,11 +243,12 @@ void printInfo(const nlohmann::json& j) {
   if (verified > 0) {
     std::string which;
     for (int i : reenabled) which += (which.empty() ? "" : " ") + std::to_string(i);
-    std::printf("multiple scattering: skipped by the effects planner, verified on %d slice(s) (largest energy + 3 s.e. "
-                "%.4f): %s\n",
-                verified, worstCheck,
-                reenabled.empty() ? "the skip held on every one"
-                                  : ("beyond the tolerance, computed after all, on slice(s) " + which).c_str());
+    std::printf(
+        "multiple scattering: skipped by the effects planner, verified on %d slice(s) (largest energy + 3 s.e. "
+        "%.4f): %s\n",
+        verified, worstCheck,
+        reenabled.empty() ? "the skip held on every one"
+                          : ("beyond the tolerance, computed after all, on slice(s) " + which).c_str());
   }
 }
 
@@ -328,8 +334,9 @@ int runCommand(int argc, char** argv, const std::string& jobPath, std::string ou
           for (std::istringstream lines(formatEffects(p)); std::getline(lines, planText);) spdlog::info("{}", planText);
           planText = p.dump();
         } catch (const StopRequested&) {
-          stopped = failure(ExitCode::Stopped, "stop requested during the effects planner's pilots (" + stopAnswerNote() +
-                                                   "); nothing was written (run the same command again to start over)");
+          stopped =
+              failure(ExitCode::Stopped, "stop requested during the effects planner's pilots (" + stopAnswerNote() +
+                                             "); nothing was written (run the same command again to start over)");
         }
       }
       if (auto code = agree(stopped)) return *code;
@@ -347,8 +354,8 @@ int runCommand(int argc, char** argv, const std::string& jobPath, std::string ou
     }
     if (s.stoppedEarly) return exitCode(ExitCode::Stopped);
     if (mpi.rank() == 0)
-      spdlog::info("done: {} slices ({} tiles computed now, {} slices resumed), {} paths in total, {:.2f} s, wrote {}", s.tiles,
-                   s.computed, s.resumed, s.paths, s.seconds, out);
+      spdlog::info("done: {} slices ({} tiles computed now, {} slices resumed), {} paths in total, {:.2f} s, wrote {}",
+                   s.tiles, s.computed, s.resumed, s.paths, s.seconds, out);
   } catch (const std::bad_alloc&) {
     spdlog::error("run failed: out of memory (see `microbsdf plan` for the job's estimate per rank)");
     MPI_Abort(MPI_COMM_WORLD, exitCode(ExitCode::Failure));
@@ -380,7 +387,8 @@ int main(int argc, char** argv) {
   run->add_option("--threads", threads, "threads per rank (default: all cores)")->check(CLI::NonNegativeNumber);
   run->add_option("--log-dir", logDir, "folder for the per-rank log files (default: <output>.logs)");
   run->add_flag("-v,--verbose", verbose, "debug-level logging");
-  run->add_flag("--resume", resume, "keep the finished slices of an interrupted run of the same job (harmless on a fresh run)");
+  run->add_flag("--resume", resume,
+                "keep the finished slices of an interrupted run of the same job (harmless on a fresh run)");
   run->add_option("--max-hours", maxHours, "stop cleanly (exit code 3) before this wall time, in hours")
       ->check(CLI::NonNegativeNumber);
 
@@ -400,7 +408,8 @@ int main(int argc, char** argv) {
   double exposure = 1.0, log2Min = -10, log2Max = 10;
   slice->add_flag("--both", both, "reflection (left) and transmission (right) side by side");
   slice->add_option("--style", style, "PNG: true (CIE 1931 -> sRGB) or false (log2 false colour)")
-      ->check(CLI::IsMember({"true", "false"}))->capture_default_str();
+      ->check(CLI::IsMember({"true", "false"}))
+      ->capture_default_str();
   slice->add_option("--exposure", exposure, "true colour: scale of the linear sRGB values")->capture_default_str();
   slice->add_option("--log2-min", log2Min, "false colour: lower end of the log2 scale")->capture_default_str();
   slice->add_option("--log2-max", log2Max, "false colour: upper end of the log2 scale")->capture_default_str();
@@ -408,7 +417,8 @@ int main(int argc, char** argv) {
 
   SheetRequest sheetReq;
   std::string sheetModels, sheetThetas;
-  auto* sheet = app.add_subcommand("sheet", "contact sheet PNG: slices over incidence angles (columns) and models (rows)");
+  auto* sheet =
+      app.add_subcommand("sheet", "contact sheet PNG: slices over incidence angles (columns) and models (rows)");
   sheet->add_option("file", h5Path, "output HDF5 file")->required();
   sheet->add_option("--models", sheetModels, "comma separated (default: the GS, GM, WS, WM the file can form)");
   sheet->add_option("--theta-i", sheetThetas, "incidence angles in degrees, comma separated (default: every slice)");
@@ -416,22 +426,30 @@ int main(int argc, char** argv) {
   sheet->add_option("--size", sheetReq.cell.size, "cell height in pixels")->capture_default_str();
   sheet->add_flag("--both", sheetReq.cell.both, "reflection and transmission side by side in each cell");
   sheet->add_option("--style", sheetReq.cell.style, "true (CIE 1931 -> sRGB) or false (log2 false colour)")
-      ->check(CLI::IsMember({"true", "false"}))->capture_default_str();
-  sheet->add_option("--exposure", sheetReq.cell.exposure, "true colour: scale of the linear sRGB values")->capture_default_str();
-  sheet->add_option("--log2-min", sheetReq.cell.log2Min, "false colour: lower end of the log2 scale")->capture_default_str();
-  sheet->add_option("--log2-max", sheetReq.cell.log2Max, "false colour: upper end of the log2 scale")->capture_default_str();
+      ->check(CLI::IsMember({"true", "false"}))
+      ->capture_default_str();
+  sheet->add_option("--exposure", sheetReq.cell.exposure, "true colour: scale of the linear sRGB values")
+      ->capture_default_str();
+  sheet->add_option("--log2-min", sheetReq.cell.log2Min, "false colour: lower end of the log2 scale")
+      ->capture_default_str();
+  sheet->add_option("--log2-max", sheetReq.cell.log2Max, "false colour: upper end of the log2 scale")
+      ->capture_default_str();
   sheet->add_option("-o,--output", outPath, "sheet.png")->required();
 
   RenderRequest renderReq;
   std::string renderModels;
-  auto* render = app.add_subcommand("render", "preview PNG: a sphere with the tabulated BSDF per model, directional light + environment");
+  auto* render = app.add_subcommand(
+      "render", "preview PNG: a sphere with the tabulated BSDF per model, directional light + environment");
   render->add_option("file", h5Path, "output HDF5 file")->required();
   render->add_option("--models", renderModels, "comma separated (default: the GS, GM, WS, WM the file can form)");
   render->add_option("--size", renderReq.size, "pixels per sphere")->capture_default_str();
-  render->add_option("--light-theta", renderReq.lightTheta_deg, "light direction, polar angle (degrees)")->capture_default_str();
-  render->add_option("--light-phi", renderReq.lightPhi_deg, "light direction, azimuth (degrees)")->capture_default_str();
+  render->add_option("--light-theta", renderReq.lightTheta_deg, "light direction, polar angle (degrees)")
+      ->capture_default_str();
+  render->add_option("--light-phi", renderReq.lightPhi_deg, "light direction, azimuth (degrees)")
+      ->capture_default_str();
   render->add_option("--irradiance", renderReq.lightIrradiance, "light irradiance E")->capture_default_str();
-  render->add_option("--environment", renderReq.environment, "uniform environment radiance (0: light only)")->capture_default_str();
+  render->add_option("--environment", renderReq.environment, "uniform environment radiance (0: light only)")
+      ->capture_default_str();
   render->add_option("--exposure", renderReq.exposure, "scale of the linear sRGB values")->capture_default_str();
   render->add_option("-o,--output", outPath, "render.png")->required();
 
@@ -446,7 +464,8 @@ int main(int argc, char** argv) {
   keys->add_flag("--markdown", keysMarkdown, "as the Markdown table of docs/job-reference.md");
 
   std::string planJson;
-  auto* plan = app.add_subcommand("plan", "what a job will compute and cost (tiles, core-hours, output size), from a short pilot");
+  auto* plan = app.add_subcommand(
+      "plan", "what a job will compute and cost (tiles, core-hours, output size), from a short pilot");
   plan->add_option("job", jobPath, "job file (TOML)")->required();
   plan->add_option("--json", planJson, "also write the plan as JSON to this file");
   plan->add_option("--threads", threads, "threads for the pilot (default: all cores)")->check(CLI::NonNegativeNumber);
@@ -462,7 +481,8 @@ int main(int argc, char** argv) {
   compare->add_option("--theta", csThetas, "incidence angles in degrees, comma separated (default 0,30,60,80)");
   compare->add_option("--paths", cs.paths, "paths per incidence angle and model")->capture_default_str();
   compare->add_option("--size-um", cs.size_um, "side of the periodic heightfield patch")->capture_default_str();
-  compare->add_option("--correlation-um", cs.correlation_um, "correlation length ℓ of exp(-r²/ℓ²)")->capture_default_str();
+  compare->add_option("--correlation-um", cs.correlation_um, "correlation length ℓ of exp(-r²/ℓ²)")
+      ->capture_default_str();
   compare->add_option("--texel-um", cs.texel_um, "heightfield spacing")->capture_default_str();
   compare->add_option("--seed", cs.seed, "random seed (surface and paths)")->capture_default_str();
   compare->add_option("--threads", threads, "threads (default: all cores)")->check(CLI::NonNegativeNumber);
@@ -486,8 +506,10 @@ int main(int argc, char** argv) {
     if (info->parsed()) {
       BsdfFileReader f(h5Path);
       nlohmann::json j = infoJson(f, h5Path);
-      if (json) std::cout << j.dump(2) << "\n";
-      else printInfo(j);
+      if (json)
+        std::cout << j.dump(2) << "\n";
+      else
+        printInfo(j);
       return 0;
     }
     if (slice->parsed()) {
@@ -511,7 +533,8 @@ int main(int argc, char** argv) {
     if (render->parsed()) {
       renderReq.models = parseModels(renderModels);
       if (!(renderReq.size >= 16 && renderReq.size <= 4096)) throw InputError("--size must be in [16, 4096]");
-      if (!(renderReq.lightTheta_deg >= 0 && renderReq.lightTheta_deg <= 180)) throw InputError("--light-theta must be in [0, 180]");
+      if (!(renderReq.lightTheta_deg >= 0 && renderReq.lightTheta_deg <= 180))
+        throw InputError("--light-theta must be in [0, 180]");
       if (!(renderReq.environment >= 0) || !(renderReq.lightIrradiance >= 0) || !(renderReq.exposure > 0))
         throw InputError("--environment and --irradiance must be >= 0, --exposure > 0");
       BsdfFileReader f(h5Path);
@@ -575,15 +598,15 @@ int main(int argc, char** argv) {
       Job job = loadJob(jobPath);
       DirectionGrid grid(job.gridLayout);
       std::cout << jobPath << ": ok\n  geometry " << job.geometryKind << ", "
-                << (job.statistical ? MicroflakeDistribution(job.statistical->ndf).describe()
-                                    : std::to_string(job.geometry.triangles.size()) + " triangles, " +
-                                          std::to_string(job.geometry.sizeX) + " x " +
-                                          std::to_string(job.geometry.sizeY) + " µm")
-                << (job.statistical ? "" : "\n  surface " + job.closure.describe())
-                << "\n  material "
+                << (job.statistical
+                        ? MicroflakeDistribution(job.statistical->ndf).describe()
+                        : std::to_string(job.geometry.triangles.size()) + " triangles, " +
+                              std::to_string(job.geometry.sizeX) + " x " + std::to_string(job.geometry.sizeY) + " µm")
+                << (job.statistical ? "" : "\n  surface " + job.closure.describe()) << "\n  material "
                 << job.material.describe() << "\n  " << job.lambda_nm.size() << " wavelengths, grid " << grid.kind()
                 << " with " << grid.binCount() << " bins, " << job.incidence.size() << " incidence directions\n"
-                << "  memory about " << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9) << " GB per rank before the "
+                << "  memory about " << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9)
+                << " GB per rank before the "
                 << "wave estimator's own (`plan` measures it), output up to "
                 << fmt::format("{:.3g}", outputBytesUncompressed(job) / 1e9) << " GB\n";
       if (const double avail = availableMemoryBytes(); avail > 0 && memoryBytesPerRank(job, 0) > avail)

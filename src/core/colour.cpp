@@ -39,13 +39,11 @@ Mat3 inverse(const Mat3& m) {
 }
 
 // IEC 61966-2-1 (sRGB): XYZ (D65) -> linear RGB.
-const Mat3 kXyzToSrgb = {{{3.2404542, -1.5371385, -0.4985314},
-                          {-0.9692660, 1.8760108, 0.0415560},
-                          {0.0556434, -0.2040259, 1.0572252}}};
+const Mat3 kXyzToSrgb = {
+    {{3.2404542, -1.5371385, -0.4985314}, {-0.9692660, 1.8760108, 0.0415560}, {0.0556434, -0.2040259, 1.0572252}}};
 // CIE 1931 RGB (primaries 700, 546.1, 435.8 nm; white E).
-const Mat3 kXyzToCieRgb = {{{2.3706743, -0.9000405, -0.4706338},
-                            {-0.5138850, 1.4253036, 0.0885814},
-                            {0.0052982, -0.0146949, 1.0093968}}};
+const Mat3 kXyzToCieRgb = {
+    {{2.3706743, -0.9000405, -0.4706338}, {-0.5138850, 1.4253036, 0.0885814}, {0.0052982, -0.0146949, 1.0093968}}};
 // Bradford cone response matrix (Lam 1985).
 const Mat3 kBradford = {{{0.8951, 0.2664, -0.1614}, {-0.7502, 1.7135, 0.0367}, {0.0389, -0.0685, 1.0296}}};
 
@@ -114,13 +112,19 @@ Colour3 SpectrumToColour::xyz(const double* v) const {
     for (int c = 0; c < 3; ++c) r[c] += w_[i][c] * v[i];
   return r;
 }
-Colour3 SpectrumToColour::linearSrgb(const double* v) const { return xyzToLinearSrgb(xyz(v)); }
-Colour3 SpectrumToColour::cieRgb(const double* v) const { return xyzToCieRgb(xyz(v)); }
+Colour3 SpectrumToColour::linearSrgb(const double* v) const {
+  return xyzToLinearSrgb(xyz(v));
+}
+Colour3 SpectrumToColour::cieRgb(const double* v) const {
+  return xyzToCieRgb(xyz(v));
+}
 
 Colour3 xyzToLinearSrgb(const Colour3& xyz) {
   static const Mat3 m = mul(kXyzToSrgb, adaptEToD65());
   return mul(m, xyz);
 }
-Colour3 xyzToCieRgb(const Colour3& xyz) { return mul(kXyzToCieRgb, xyz); }
+Colour3 xyzToCieRgb(const Colour3& xyz) {
+  return mul(kXyzToCieRgb, xyz);
+}
 
 }  // namespace mbsdf

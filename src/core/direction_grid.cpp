@@ -8,7 +8,6 @@
 namespace mbsdf {
 namespace {
 
-
 // Disk pixel (i, j) covers x in [-1 + 2i/W, -1 + 2(i+1)/W], y likewise. Its projected solid
 // angle is the area of (pixel ∩ unit disk); its solid angle is the integral of 1/cos theta over
 // that area. Both are computed by midpoint quadrature on a sub-grid; the solid-angle integrand
@@ -26,7 +25,11 @@ void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* o
   rmin2 = cx * cx + cy * cy;
   *cx_ = x0 + dx / 2;
   *cy_ = y0 + dy / 2;
-  if (rmin2 >= 1.0) { *omega = 0; *omegaProj = 0; return; }
+  if (rmin2 >= 1.0) {
+    *omega = 0;
+    *omegaProj = 0;
+    return;
+  }
   int sub = rmax2 <= 1.0 ? 16 : 256;
   double a = 0, s = 0, da = dx * dy / (double(sub) * sub), mx = 0, my = 0;
   for (int u = 0; u < sub; ++u)
@@ -40,7 +43,10 @@ void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* o
       my += y * da;
     }
   // Representative point: centroid of (pixel ∩ disk), which lies inside the disk.
-  if (a > 0) { *cx_ = mx / a; *cy_ = my / a; }
+  if (a > 0) {
+    *cx_ = mx / a;
+    *cy_ = my / a;
+  }
   *omega = s;
   *omegaProj = a;
 }
@@ -48,38 +54,38 @@ void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* o
 }  // namespace
 
 DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
-  std::visit(Overloaded{
-                 [&](const ThetaPhiGrid& g) {
-                   if (g.nTheta < 1 || g.nPhi < 1 || int64_t(g.nTheta) * g.nPhi > (int64_t(1) << 30))
-                     throw std::invalid_argument("grid size must be between 1 and 2^30 bins per hemisphere");
-                   perHemisphere_ = g.nTheta * g.nPhi;
-                   omega_.resize(perHemisphere_);
-                   omegaProj_.resize(perHemisphere_);
-                   double dPhi = 2 * kPi / g.nPhi, dTheta = 0.5 * kPi / g.nTheta;
-                   for (int t = 0; t < g.nTheta; ++t) {
-                     double t0 = t * dTheta, t1 = (t + 1) * dTheta;
-                     double om = dPhi * (std::cos(t0) - std::cos(t1));
-                     double s0 = std::sin(t0), s1 = std::sin(t1);
-                     double op = dPhi * (s1 * s1 - s0 * s0) / 2;  // docs/physics.md §2
-                     for (int p = 0; p < g.nPhi; ++p) {
-                       omega_[t * g.nPhi + p] = om;
-                       omegaProj_[t * g.nPhi + p] = op;
-                     }
-                   }
-                 },
-                 [&](const DiskGrid& g) {
-                   if (g.width < 1 || g.height < 1 || int64_t(g.width) * g.height > (int64_t(1) << 30))
-                     throw std::invalid_argument("grid size must be between 1 and 2^30 bins per hemisphere");
-                   perHemisphere_ = g.width * g.height;
-                   omega_.resize(perHemisphere_);
-                   omegaProj_.resize(perHemisphere_);
-                   diskCentre_.resize(2 * size_t(perHemisphere_));
-                   for (int j = 0; j < g.height; ++j)
-                     for (int i = 0; i < g.width; ++i) {
-                       int k = j * g.width + i;
-                       diskPixelMeasures(g, i, j, &omega_[k], &omegaProj_[k], &diskCentre_[2 * k], &diskCentre_[2 * k + 1]);
-                     }
-                 }},
+  std::visit(Overloaded{[&](const ThetaPhiGrid& g) {
+                          if (g.nTheta < 1 || g.nPhi < 1 || int64_t(g.nTheta) * g.nPhi > (int64_t(1) << 30))
+                            throw std::invalid_argument("grid size must be between 1 and 2^30 bins per hemisphere");
+                          perHemisphere_ = g.nTheta * g.nPhi;
+                          omega_.resize(perHemisphere_);
+                          omegaProj_.resize(perHemisphere_);
+                          double dPhi = 2 * kPi / g.nPhi, dTheta = 0.5 * kPi / g.nTheta;
+                          for (int t = 0; t < g.nTheta; ++t) {
+                            double t0 = t * dTheta, t1 = (t + 1) * dTheta;
+                            double om = dPhi * (std::cos(t0) - std::cos(t1));
+                            double s0 = std::sin(t0), s1 = std::sin(t1);
+                            double op = dPhi * (s1 * s1 - s0 * s0) / 2;  // docs/physics.md §2
+                            for (int p = 0; p < g.nPhi; ++p) {
+                              omega_[t * g.nPhi + p] = om;
+                              omegaProj_[t * g.nPhi + p] = op;
+                            }
+                          }
+                        },
+                        [&](const DiskGrid& g) {
+                          if (g.width < 1 || g.height < 1 || int64_t(g.width) * g.height > (int64_t(1) << 30))
+                            throw std::invalid_argument("grid size must be between 1 and 2^30 bins per hemisphere");
+                          perHemisphere_ = g.width * g.height;
+                          omega_.resize(perHemisphere_);
+                          omegaProj_.resize(perHemisphere_);
+                          diskCentre_.resize(2 * size_t(perHemisphere_));
+                          for (int j = 0; j < g.height; ++j)
+                            for (int i = 0; i < g.width; ++i) {
+                              int k = j * g.width + i;
+                              diskPixelMeasures(g, i, j, &omega_[k], &omegaProj_[k], &diskCentre_[2 * k],
+                                                &diskCentre_[2 * k + 1]);
+                            }
+                        }},
              layout_);
 }
 
@@ -90,34 +96,33 @@ std::string DirectionGrid::kind() const {
 int DirectionGrid::binOf(const Vec3& wIn) const {
   Vec3 w = normalize(wIn);
   int hemi = w.z >= 0 ? 0 : 1;
-  int local = std::visit(
-      Overloaded{[&](const ThetaPhiGrid& g) {
-                   double theta = std::acos(std::min(1.0, std::abs(w.z)));
-                   int t = std::min(g.nTheta - 1, int(theta / (0.5 * kPi) * g.nTheta));
-                   int p = std::min(g.nPhi - 1, int(sphericalPhi(w) / (2 * kPi) * g.nPhi));
-                   return t * g.nPhi + p;
-                 },
-                 [&](const DiskGrid& g) {
-                   int i = std::clamp(int((w.x + 1) * 0.5 * g.width), 0, g.width - 1);
-                   int j = std::clamp(int((w.y + 1) * 0.5 * g.height), 0, g.height - 1);
-                   return j * g.width + i;
-                 }},
-      layout_);
+  int local = std::visit(Overloaded{[&](const ThetaPhiGrid& g) {
+                                      double theta = std::acos(std::min(1.0, std::abs(w.z)));
+                                      int t = std::min(g.nTheta - 1, int(theta / (0.5 * kPi) * g.nTheta));
+                                      int p = std::min(g.nPhi - 1, int(sphericalPhi(w) / (2 * kPi) * g.nPhi));
+                                      return t * g.nPhi + p;
+                                    },
+                                    [&](const DiskGrid& g) {
+                                      int i = std::clamp(int((w.x + 1) * 0.5 * g.width), 0, g.width - 1);
+                                      int j = std::clamp(int((w.y + 1) * 0.5 * g.height), 0, g.height - 1);
+                                      return j * g.width + i;
+                                    }},
+                         layout_);
   return hemi * perHemisphere_ + local;
 }
 
 Vec3 DirectionGrid::centre(int bin) const {
   int hemi = bin / perHemisphere_, local = bin % perHemisphere_;
-  Vec3 w = std::visit(
-      Overloaded{[&](const ThetaPhiGrid& g) {
-                   int t = local / g.nPhi, p = local % g.nPhi;
-                   return sphericalDirection((t + 0.5) * 0.5 * kPi / g.nTheta, (p + 0.5) * 2 * kPi / g.nPhi);
-                 },
-                 [&](const DiskGrid&) {
-                   double x = diskCentre_[2 * size_t(local)], y = diskCentre_[2 * size_t(local) + 1];
-                   return Vec3{x, y, std::sqrt(std::max(0.0, 1 - x * x - y * y))};
-                 }},
-      layout_);
+  Vec3 w =
+      std::visit(Overloaded{[&](const ThetaPhiGrid& g) {
+                              int t = local / g.nPhi, p = local % g.nPhi;
+                              return sphericalDirection((t + 0.5) * 0.5 * kPi / g.nTheta, (p + 0.5) * 2 * kPi / g.nPhi);
+                            },
+                            [&](const DiskGrid&) {
+                              double x = diskCentre_[2 * size_t(local)], y = diskCentre_[2 * size_t(local) + 1];
+                              return Vec3{x, y, std::sqrt(std::max(0.0, 1 - x * x - y * y))};
+                            }},
+                 layout_);
   if (hemi == 1) w.z = -w.z;
   return w;
 }
@@ -190,8 +195,10 @@ void DirectionGrid::xyBounds(int bin, double* xmin, double* xmax, double* ymin, 
                           *xmax = *ymax = -1e300;
                           auto add = [&](double r, double phi) {
                             double x = r * std::cos(phi), y = r * std::sin(phi);
-                            *xmin = std::min(*xmin, x); *xmax = std::max(*xmax, x);
-                            *ymin = std::min(*ymin, y); *ymax = std::max(*ymax, y);
+                            *xmin = std::min(*xmin, x);
+                            *xmax = std::max(*xmax, x);
+                            *ymin = std::min(*ymin, y);
+                            *ymax = std::max(*ymax, y);
                           };
                           for (double r : {s0, s1}) {
                             add(r, p0);

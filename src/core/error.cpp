@@ -27,13 +27,26 @@ namespace mbsdf {
 std::string osErrorMessage(const std::string& what, const std::string& path, int err) {
   const char* name = "";
   switch (err) {
-    case ENOSPC: name = " (ENOSPC)"; break;
-    case EDQUOT: name = " (EDQUOT)"; break;
-    case EIO: name = " (EIO)"; break;
-    case EFBIG: name = " (EFBIG)"; break;
-    case EROFS: name = " (EROFS)"; break;
-    case EACCES: name = " (EACCES)"; break;
-    default: break;
+    case ENOSPC:
+      name = " (ENOSPC)";
+      break;
+    case EDQUOT:
+      name = " (EDQUOT)";
+      break;
+    case EIO:
+      name = " (EIO)";
+      break;
+    case EFBIG:
+      name = " (EFBIG)";
+      break;
+    case EROFS:
+      name = " (EROFS)";
+      break;
+    case EACCES:
+      name = " (EACCES)";
+      break;
+    default:
+      break;
   }
   return what + ": " + path + ": " + std::strerror(err) + name;
 }

@@ -16,7 +16,9 @@ enum class ExitCode : int {
   WriteFailed = 4,  // the output could not be written (disk full, quota, I/O error): resumable
   OutputBusy = 5,   // another run holds the output path
 };
-constexpr int exitCode(ExitCode c) { return static_cast<int>(c); }
+constexpr int exitCode(ExitCode c) {
+  return static_cast<int>(c);
+}
 
 class InputError : public std::runtime_error {
  public:

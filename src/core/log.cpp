@@ -61,8 +61,12 @@ std::function<void(uint64_t)> heartbeat(const std::string& what, double interval
 }
 
 ProgressReporter::ProgressReporter(std::string what, uint64_t total, double intervalSeconds, bool logCompletion)
-    : what_(std::move(what)), total_(total), interval_(intervalSeconds), logCompletion_(logCompletion),
-      start_(std::chrono::steady_clock::now()), last_(start_) {}
+    : what_(std::move(what)),
+      total_(total),
+      interval_(intervalSeconds),
+      logCompletion_(logCompletion),
+      start_(std::chrono::steady_clock::now()),
+      last_(start_) {}
 
 void ProgressReporter::update(uint64_t done) {
   auto now = std::chrono::steady_clock::now();

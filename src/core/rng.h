@@ -23,13 +23,19 @@ class Sampler {
     return double(bits >> 11) * 0x1.0p-53;
   }
   // Jump to a given dimension (so a sample's d-th number is the same whatever came before).
-  void setDimension(uint32_t dim) { ctr_.v[3] = dim; have_ = 0; }
+  void setDimension(uint32_t dim) {
+    ctr_.v[3] = dim;
+    have_ = 0;
+  }
   uint32_t dimension() const { return ctr_.v[3]; }
 
  private:
   void refill() {
     auto r = r123::Philox4x32()(ctr_, key_);
-    buf_[0] = r.v[0]; buf_[1] = r.v[1]; buf_[2] = r.v[2]; buf_[3] = r.v[3];
+    buf_[0] = r.v[0];
+    buf_[1] = r.v[1];
+    buf_[2] = r.v[2];
+    buf_[3] = r.v[3];
     ctr_.v[3]++;
     have_ = 2;
   }

@@ -36,7 +36,9 @@ void installStopHandlers() {
   for (int s : {SIGTERM, SIGINT, SIGUSR1}) sigaction(s, &sa, nullptr);
 }
 
-bool stopRequested() { return gStop != 0; }
+bool stopRequested() {
+  return gStop != 0;
+}
 
 void throwIfStopped() {
   if (gStop) throw StopRequested{};

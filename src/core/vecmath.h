@@ -20,22 +20,37 @@ struct Vec3 {
   constexpr Vec3 operator-() const { return {-x, -y, -z}; }
   constexpr Vec3 operator*(double s) const { return {x * s, y * s, z * s}; }
   constexpr Vec3 operator/(double s) const { return {x / s, y / s, z / s}; }
-  constexpr Vec3& operator+=(const Vec3& o) { x += o.x; y += o.y; z += o.z; return *this; }
+  constexpr Vec3& operator+=(const Vec3& o) {
+    x += o.x;
+    y += o.y;
+    z += o.z;
+    return *this;
+  }
   constexpr bool operator==(const Vec3&) const = default;
 };
-constexpr Vec3 operator*(double s, const Vec3& v) { return v * s; }
-constexpr double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+constexpr Vec3 operator*(double s, const Vec3& v) {
+  return v * s;
+}
+constexpr double dot(const Vec3& a, const Vec3& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 constexpr Vec3 cross(const Vec3& a, const Vec3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-inline double length(const Vec3& v) { return std::sqrt(dot(v, v)); }
-inline Vec3 normalize(const Vec3& v) { return v / length(v); }
+inline double length(const Vec3& v) {
+  return std::sqrt(dot(v, v));
+}
+inline Vec3 normalize(const Vec3& v) {
+  return v / length(v);
+}
 inline bool isFinite(const Vec3& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
 
 // Mirror reflection of a direction pointing away from the surface about normal n.
-inline Vec3 reflect(const Vec3& wo, const Vec3& n) { return -wo + 2.0 * dot(wo, n) * n; }
+inline Vec3 reflect(const Vec3& wo, const Vec3& n) {
+  return -wo + 2.0 * dot(wo, n) * n;
+}
 
 // Refraction of direction wi (pointing away from the surface, on the side of n) into the other
 // medium, eta = n_i / n_t. Returns false on total internal reflection. Same form as pbrt-v4's
@@ -55,12 +70,18 @@ inline Vec3 sphericalDirection(double theta, double phi) {
   double s = std::sin(theta);
   return {s * std::cos(phi), s * std::sin(phi), std::cos(theta)};
 }
-inline double sphericalTheta(const Vec3& w) { return std::acos(std::clamp(w.z, -1.0, 1.0)); }
+inline double sphericalTheta(const Vec3& w) {
+  return std::acos(std::clamp(w.z, -1.0, 1.0));
+}
 inline double sphericalPhi(const Vec3& w) {
   double p = std::atan2(w.y, w.x);
   return p < 0 ? p + 2 * kPi : p;
 }
-inline double radians(double deg) { return deg * kPi / 180.0; }
-inline double degrees(double rad) { return rad * 180.0 / kPi; }
+inline double radians(double deg) {
+  return deg * kPi / 180.0;
+}
+inline double degrees(double rad) {
+  return rad * 180.0 / kPi;
+}
 
 }  // namespace mbsdf

@@ -9,8 +9,12 @@ namespace mbsdf {
 namespace {
 RTCRayHit makeRayHit(const Vec3& o, const Vec3& d, float tnear, float tfar) {
   RTCRayHit rh;
-  rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
-  rh.ray.dir_x = float(d.x); rh.ray.dir_y = float(d.y); rh.ray.dir_z = float(d.z);
+  rh.ray.org_x = float(o.x);
+  rh.ray.org_y = float(o.y);
+  rh.ray.org_z = float(o.z);
+  rh.ray.dir_x = float(d.x);
+  rh.ray.dir_y = float(d.y);
+  rh.ray.dir_z = float(d.z);
   rh.ray.tnear = tnear;
   rh.ray.tfar = tfar;
   rh.ray.mask = 0xFFFFFFFFu;
@@ -28,7 +32,9 @@ void embreeError(void*, RTCError code, const char* str) {
 
 EmbreeDevicePtr makeEmbreeDevice(const char* config) {
   RTCDevice d = rtcNewDevice(config);
-  if (!d) throw std::runtime_error("Embree: cannot create device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+  if (!d)
+    throw std::runtime_error("Embree: cannot create device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) +
+                             ")");
   rtcSetDeviceErrorFunction(d, embreeError, nullptr);
   return EmbreeDevicePtr(d);
 }
@@ -46,15 +52,15 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
   rtcSetSceneFlags(scene_.get(), RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(scene_.get(), RTC_BUILD_QUALITY_HIGH);
   RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
-  auto* vb = static_cast<float*>(
-      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), g.vertices.size()));
+  auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                         3 * sizeof(float), g.vertices.size()));
   for (size_t i = 0; i < g.vertices.size(); ++i) {
     vb[3 * i] = float(g.vertices[i].x);
     vb[3 * i + 1] = float(g.vertices[i].y);
     vb[3 * i + 2] = float(g.vertices[i].z);
   }
-  auto* ib = static_cast<unsigned*>(
-      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), g.triangles.size()));
+  auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                            3 * sizeof(unsigned), g.triangles.size()));
   for (size_t t = 0; t < g.triangles.size(); ++t)
     for (int k = 0; k < 3; ++k) ib[3 * t + k] = g.triangles[t][k];
   rtcCommitGeometry(geom);
@@ -100,9 +106,14 @@ TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d, int ignorePrim) const {
     if (periodic_) {
       for (int a = 0; a < 3; ++a) {
         double t = inf;
-        if (d[a] > 0) t = (hi[a] - o[a]) / d[a];
-        else if (d[a] < 0) t = (lo[a] - o[a]) / d[a];
-        if (t < tExit) { tExit = t; face = a; }
+        if (d[a] > 0)
+          t = (hi[a] - o[a]) / d[a];
+        else if (d[a] < 0)
+          t = (lo[a] - o[a]) / d[a];
+        if (t < tExit) {
+          tExit = t;
+          face = a;
+        }
       }
       tExit = std::max(tExit, 0.0);
     }

@@ -35,8 +35,8 @@ EmbreeDevicePtr makeEmbreeDevice(const char* config = nullptr);
 struct TraceResult {
   enum class Kind { Hit, EscapedUp, EscapedDown, EscapedSide, TooManyWraps };
   Kind kind = Kind::EscapedUp;
-  Vec3 p;         // hit point (double)
-  Vec3 n;         // unit geometric normal of the triangle (points into the upper medium)
+  Vec3 p;  // hit point (double)
+  Vec3 n;  // unit geometric normal of the triangle (points into the upper medium)
   unsigned prim = 0;
   double t = 0;
 };
@@ -71,7 +71,7 @@ class PeriodicScene {
   double sizeX_, sizeY_, zLo_, zHi_, eps_, zMean_ = 0;
   bool periodic_;
   int maxWraps_;
-  std::vector<Vec3> normals_;  // unit normals in double, from the mesh (not Embree's float Ng)
+  std::vector<Vec3> normals_;   // unit normals in double, from the mesh (not Embree's float Ng)
   std::vector<Vec3> vertices_;  // double copies: hit points are rebuilt from barycentrics
   std::vector<std::array<uint32_t, 3>> triangles_;
 };

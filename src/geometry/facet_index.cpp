@@ -47,7 +47,8 @@ bool FacetIndex::indexable(const Vec3& c) const {
 }
 
 FacetIndex::Key FacetIndex::keyOf(const Vec3& c) const {
-  return Key{int32_t(std::floor(c.x / cell_.x)), int32_t(std::floor(c.y / cell_.y)), int32_t(std::floor(c.z / cell_.z))};
+  return Key{int32_t(std::floor(c.x / cell_.x)), int32_t(std::floor(c.y / cell_.y)),
+             int32_t(std::floor(c.z / cell_.z))};
 }
 
 size_t FacetIndex::slotOf(const Key& k) const {

@@ -41,7 +41,8 @@ std::vector<std::pair<double, double>> refineProfile(const std::vector<std::pair
     int m = std::max(1, int(std::ceil(len / maxLen - 1e-9)));
     for (int s = 1; s <= m; ++s) {
       double t = double(s) / m;
-      out.push_back({p[k].first + t * (p[k + 1].first - p[k].first), p[k].second + t * (p[k + 1].second - p[k].second)});
+      out.push_back(
+          {p[k].first + t * (p[k + 1].first - p[k].first), p[k].second + t * (p[k + 1].second - p[k].second)});
     }
   }
   return out;
@@ -82,7 +83,8 @@ std::vector<uint32_t> addCellGround(Microgeometry& g, double cx, double cy, doub
   std::vector<std::vector<uint32_t>> ring(rings + 1, std::vector<uint32_t>(na));
   for (size_t k = 0; k < na; ++k) {
     double ca = std::cos(angles[k]), sa = std::sin(angles[k]);
-    double t = std::min(std::abs(ca) > 1e-15 ? hx / std::abs(ca) : 1e300, std::abs(sa) > 1e-15 ? hy / std::abs(sa) : 1e300);
+    double t =
+        std::min(std::abs(ca) > 1e-15 ? hx / std::abs(ca) : 1e300, std::abs(sa) > 1e-15 ? hy / std::abs(sa) : 1e300);
     Vec3 e{cx + ex * ca, cy + ey * sa, 0}, s{cx + t * ca, cy + t * sa, 0};
     for (int m = 0; m <= rings; ++m) ring[m][k] = g.addVertex(e + (s - e) * (double(m) / rings));
   }
@@ -96,8 +98,8 @@ std::vector<uint32_t> addCellGround(Microgeometry& g, double cx, double cy, doub
 }
 
 // Half-ellipsoid dome on a base ring (indices `base`, at height z0, centre (cx, cy)).
-void addDome(Microgeometry& g, const std::vector<uint32_t>& base, const std::vector<double>& angles, double cx, double cy,
-             double z0, double rx, double ry, double rz, int rings) {
+void addDome(Microgeometry& g, const std::vector<uint32_t>& base, const std::vector<double>& angles, double cx,
+             double cy, double z0, double rx, double ry, double rz, int rings) {
   size_t na = angles.size();
   std::vector<uint32_t> prev = base;
   Vec3 c{cx, cy, z0};
@@ -109,8 +111,8 @@ void addDome(Microgeometry& g, const std::vector<uint32_t>& base, const std::vec
     double beta = 0.5 * kPi * j / rings;
     std::vector<uint32_t> cur(na);
     for (size_t k = 0; k < na; ++k)
-      cur[k] = g.addVertex({cx + rx * std::cos(beta) * std::cos(angles[k]), cy + ry * std::cos(beta) * std::sin(angles[k]),
-                            z0 + rz * std::sin(beta)});
+      cur[k] = g.addVertex({cx + rx * std::cos(beta) * std::cos(angles[k]),
+                            cy + ry * std::cos(beta) * std::sin(angles[k]), z0 + rz * std::sin(beta)});
     for (size_t k = 0; k < na; ++k) {
       size_t k1 = (k + 1) % na;
       g.addOriented(prev[k], prev[k1], cur[k1], outward(prev[k], prev[k1], cur[k1]));
@@ -206,8 +208,8 @@ Microgeometry makeGaussian(double sizeX, double sizeY, double rms, double corr, 
 
 Microgeometry makeNoise(double sizeX, double sizeY, double rms, double radius, double density, int nx, int ny,
                         uint64_t seed) {
-  Microgeometry g = heightfieldMesh(sparseConvolutionNoise(nx, ny, sizeX, sizeY, rms, radius, density, seed), nx, ny,
-                                    sizeX, sizeY);
+  Microgeometry g =
+      heightfieldMesh(sparseConvolutionNoise(nx, ny, sizeX, sizeY, rms, radius, density, seed), nx, ny, sizeX, sizeY);
   g.description = "noise";
   return g;
 }
@@ -255,7 +257,8 @@ Microgeometry makeOverhang(double sizeX, double sizeY, double spacing, double st
       for (int r = 1; r <= stemRings; ++r) {
         std::vector<uint32_t> cur(na);
         for (size_t k = 0; k < na; ++k)
-          cur[k] = g.addVertex({x + stemR * std::cos(angles[k]), y + stemR * std::sin(angles[k]), stemH * r / stemRings});
+          cur[k] =
+              g.addVertex({x + stemR * std::cos(angles[k]), y + stemR * std::sin(angles[k]), stemH * r / stemRings});
         for (size_t k = 0; k < na; ++k) {
           size_t k1 = (k + 1) % na;
           double am = 0.5 * (angles[k] + (k1 ? angles[k1] : angles[k1] + 2 * kPi));

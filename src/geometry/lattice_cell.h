@@ -23,8 +23,8 @@
 namespace mbsdf {
 
 struct LatticeCell {
-  int nx = 1, ny = 1;            // copies of the cell along x and y
-  double sizeX = 0, sizeY = 0;   // the cell: Lx/nx, Ly/ny
+  int nx = 1, ny = 1;           // copies of the cell along x and y
+  double sizeX = 0, sizeY = 0;  // the cell: Lx/nx, Ly/ny
   // One facet (triangle index) of each orbit of the translations, in index order: a cell's worth
   // of the surface. Every facet when nx = ny = 1.
   std::vector<uint32_t> facets;

@@ -73,7 +73,8 @@ void checkObjText(const std::string& path) {
         if (resolved < 1 || resolved > vertices)
           fail(lineNo, "face vertex " + index + " does not exist (" + std::to_string(vertices) + " vertices so far)");
       }
-      if (count < 3) fail(lineNo, "a face needs at least 3 vertices, found " + std::to_string(count) + " (truncated file?)");
+      if (count < 3)
+        fail(lineNo, "a face needs at least 3 vertices, found " + std::to_string(count) + " (truncated file?)");
     } else if (kw != "o" && kw != "g" && kw != "s" && kw != "usemtl" && kw != "mtllib") {
       fail(lineNo, "unsupported OBJ statement '" + kw + "' (a surface patch uses v, f and optionally vt, vn, o, g, s)");
     }
@@ -85,8 +86,7 @@ Microgeometry loadObj(const std::string& path, double scale) {
   tinyobj::ObjReader reader;
   tinyobj::ObjReaderConfig cfg;
   cfg.triangulate = true;
-  if (!reader.ParseFromFile(path, cfg))
-    throw InputError(path + ": cannot read OBJ: " + reader.Error());
+  if (!reader.ParseFromFile(path, cfg)) throw InputError(path + ": cannot read OBJ: " + reader.Error());
   Microgeometry g;
   const auto& v = reader.GetAttrib().vertices;
   for (size_t i = 0; i + 2 < v.size(); i += 3) g.vertices.push_back(Vec3(v[i], v[i + 1], v[i + 2]) * scale);
@@ -96,8 +96,8 @@ Microgeometry loadObj(const std::string& path, double scale) {
       for (int k = 0; k < 3; ++k)
         if (idx[i + k].vertex_index < 0 || size_t(idx[i + k].vertex_index) >= g.vertices.size())
           throw InputError(path + ": face in shape '" + shape.name + "' refers to a missing vertex");
-      g.triangles.push_back({uint32_t(idx[i].vertex_index), uint32_t(idx[i + 1].vertex_index),
-                             uint32_t(idx[i + 2].vertex_index)});
+      g.triangles.push_back(
+          {uint32_t(idx[i].vertex_index), uint32_t(idx[i + 1].vertex_index), uint32_t(idx[i + 2].vertex_index)});
     }
   }
   return g;
@@ -119,10 +119,18 @@ PlyType plyType(const std::string& s, const std::string& path) {
 
 size_t plySize(PlyType t) {
   switch (t) {
-    case PlyType::Int8: case PlyType::UInt8: return 1;
-    case PlyType::Int16: case PlyType::UInt16: return 2;
-    case PlyType::Int32: case PlyType::UInt32: case PlyType::Float32: return 4;
-    case PlyType::Float64: return 8;
+    case PlyType::Int8:
+    case PlyType::UInt8:
+      return 1;
+    case PlyType::Int16:
+    case PlyType::UInt16:
+      return 2;
+    case PlyType::Int32:
+    case PlyType::UInt32:
+    case PlyType::Float32:
+      return 4;
+    case PlyType::Float64:
+      return 8;
   }
   return 0;
 }
@@ -157,14 +165,43 @@ class PlyReader {
     if (!in_.read(reinterpret_cast<char*>(b), n)) throw InputError(path_ + ": unexpected end of PLY data");
     if (big_) std::reverse(b, b + n);
     switch (t) {
-      case PlyType::Int8: { int8_t v; std::memcpy(&v, b, 1); return v; }
-      case PlyType::UInt8: return b[0];
-      case PlyType::Int16: { int16_t v; std::memcpy(&v, b, 2); return v; }
-      case PlyType::UInt16: { uint16_t v; std::memcpy(&v, b, 2); return v; }
-      case PlyType::Int32: { int32_t v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::UInt32: { uint32_t v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::Float32: { float v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::Float64: { double v; std::memcpy(&v, b, 8); return v; }
+      case PlyType::Int8: {
+        int8_t v;
+        std::memcpy(&v, b, 1);
+        return v;
+      }
+      case PlyType::UInt8:
+        return b[0];
+      case PlyType::Int16: {
+        int16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      case PlyType::UInt16: {
+        uint16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      case PlyType::Int32: {
+        int32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case PlyType::UInt32: {
+        uint32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case PlyType::Float32: {
+        float v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case PlyType::Float64: {
+        double v;
+        std::memcpy(&v, b, 8);
+        return v;
+      }
     }
     return 0;
   }
@@ -193,9 +230,12 @@ Microgeometry loadPly(const std::string& path, double scale) {
     if (kw == "format") {
       std::string fmt;
       ss >> fmt;
-      if (fmt == "ascii") ascii = true;
-      else if (fmt == "binary_big_endian") big = true;
-      else if (fmt != "binary_little_endian") throw InputError(path + ":" + std::to_string(lineNo) + ": unknown PLY format '" + fmt + "'");
+      if (fmt == "ascii")
+        ascii = true;
+      else if (fmt == "binary_big_endian")
+        big = true;
+      else if (fmt != "binary_little_endian")
+        throw InputError(path + ":" + std::to_string(lineNo) + ": unknown PLY format '" + fmt + "'");
     } else if (kw == "element") {
       PlyElement e;
       long long count = -1;
@@ -263,15 +303,17 @@ Microgeometry loadPly(const std::string& path, double scale) {
         } else {
           double d = r.read(p.type);
           if (e.name == "vertex") {
-            if (p.name == "x") v.x = d;
-            else if (p.name == "y") v.y = d;
-            else if (p.name == "z") v.z = d;
+            if (p.name == "x")
+              v.x = d;
+            else if (p.name == "y")
+              v.y = d;
+            else if (p.name == "z")
+              v.z = d;
           }
         }
       }
       if (e.name == "vertex") {
-        if (!isFinite(v))
-          throw InputError(path + ": vertex " + std::to_string(i) + " is not finite (NaN or Inf)");
+        if (!isFinite(v)) throw InputError(path + ": vertex " + std::to_string(i) + " is not finite (NaN or Inf)");
         g.vertices.push_back(v * scale);
       }
     }
@@ -286,9 +328,12 @@ Microgeometry loadMesh(const std::string& path, double scale) {
   std::string ext = std::filesystem::path(path).extension().string();
   for (auto& c : ext) c = char(std::tolower(c));
   Microgeometry g;
-  if (ext == ".obj") g = loadObj(path, scale);
-  else if (ext == ".ply") g = loadPly(path, scale);
-  else throw InputError(path + ": unknown mesh format '" + ext + "' (use .obj or .ply)");
+  if (ext == ".obj")
+    g = loadObj(path, scale);
+  else if (ext == ".ply")
+    g = loadPly(path, scale);
+  else
+    throw InputError(path + ": unknown mesh format '" + ext + "' (use .obj or .ply)");
   // Default footprint: the bounding box in x and y of the vertices the faces use (the job may
   // override it); a vertex no face uses must not enlarge it (indices are checked by validate()).
   double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
@@ -296,8 +341,10 @@ Microgeometry loadMesh(const std::string& path, double scale) {
     for (uint32_t i : tri) {
       if (i >= g.vertices.size()) continue;
       const Vec3& v = g.vertices[i];
-      x0 = std::min(x0, v.x); x1 = std::max(x1, v.x);
-      y0 = std::min(y0, v.y); y1 = std::max(y1, v.y);
+      x0 = std::min(x0, v.x);
+      x1 = std::max(x1, v.x);
+      y0 = std::min(y0, v.y);
+      y1 = std::max(y1, v.y);
     }
   g.sizeX = x1 > x0 ? x1 - x0 : 1.0;
   g.sizeY = y1 > y0 ? y1 - y0 : 1.0;
@@ -314,7 +361,10 @@ std::vector<double> loadHeightfieldExr(const std::string& path, int* width, int*
     const Imf::ChannelList& ch = file.header().channels();
     std::string name;
     for (const char* c : {"Y", "Z", "R", "H"})
-      if (ch.findChannel(c)) { name = c; break; }
+      if (ch.findChannel(c)) {
+        name = c;
+        break;
+      }
     if (name.empty()) {
       auto it = ch.begin();
       if (it == ch.end()) throw InputError(path + ": EXR has no channels");

@@ -40,7 +40,10 @@ std::string Microgeometry::hash() const {
   uint64_t h = 1469598103934665603ull;
   auto mix = [&](const void* p, size_t n) {
     auto* b = static_cast<const unsigned char*>(p);
-    for (size_t i = 0; i < n; ++i) { h ^= b[i]; h *= 1099511628211ull; }
+    for (size_t i = 0; i < n; ++i) {
+      h ^= b[i];
+      h *= 1099511628211ull;
+    }
   };
   mix(vertices.data(), vertices.size() * sizeof(Vec3));
   mix(triangles.data(), triangles.size() * sizeof(triangles[0]));
@@ -157,17 +160,21 @@ std::optional<HeightGrid> heightGridOf(const Microgeometry& g) {
   for (int j = 0; j <= ny; ++j)
     for (int i = 0; i <= nx; ++i) {
       const Vec3& v = g.vertices[size_t(j) * (nx + 1) + i];
-      if (std::abs(v.x - (-g.sizeX / 2 + g.sizeX * i / nx)) > tol || std::abs(v.y - (-g.sizeY / 2 + g.sizeY * j / ny)) > tol)
+      if (std::abs(v.x - (-g.sizeX / 2 + g.sizeX * i / nx)) > tol ||
+          std::abs(v.y - (-g.sizeY / 2 + g.sizeY * j / ny)) > tol)
         return std::nullopt;
       const double& seam = hg.h[size_t(j % ny) * nx + (i % nx)];
-      if (i < nx && j < ny) hg.h[size_t(j) * nx + i] = v.z;
-      else if (v.z != seam) return std::nullopt;  // the seam must repeat the first row/column
+      if (i < nx && j < ny)
+        hg.h[size_t(j) * nx + i] = v.z;
+      else if (v.z != seam)
+        return std::nullopt;  // the seam must repeat the first row/column
     }
   auto id = [&](int i, int j) { return uint32_t(j * (nx + 1) + i); };
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i) {
       const size_t t = 2 * (size_t(j) * nx + i);
-      const std::array<uint32_t, 3> a{id(i, j), id(i + 1, j), id(i + 1, j + 1)}, b{id(i, j), id(i + 1, j + 1), id(i, j + 1)};
+      const std::array<uint32_t, 3> a{id(i, j), id(i + 1, j), id(i + 1, j + 1)},
+          b{id(i, j), id(i + 1, j + 1), id(i, j + 1)};
       if (g.triangles[t] != a || g.triangles[t + 1] != b) return std::nullopt;
     }
   return hg;
@@ -188,8 +195,8 @@ SlopeBound SlopeBound::of(const Microgeometry& g) {
 void writePly(const Microgeometry& g, const std::string& path) {
   std::ofstream f(path, std::ios::binary);
   if (!f) throw std::runtime_error("cannot write " + path);
-  f << "ply\nformat binary_little_endian 1.0\ncomment microbsdf patch, units um, size " << g.sizeX << " x "
-    << g.sizeY << (g.periodic ? " periodic" : "") << "\nelement vertex " << g.vertices.size()
+  f << "ply\nformat binary_little_endian 1.0\ncomment microbsdf patch, units um, size " << g.sizeX << " x " << g.sizeY
+    << (g.periodic ? " periodic" : "") << "\nelement vertex " << g.vertices.size()
     << "\nproperty double x\nproperty double y\nproperty double z\nelement face " << g.triangles.size()
     << "\nproperty list uchar uint vertex_indices\nend_header\n";
   for (auto& v : g.vertices) f.write(reinterpret_cast<const char*>(&v), sizeof v);
@@ -251,14 +258,12 @@ SurfaceClosure surfaceClosureOf(const Microgeometry& g) {
 std::string SurfaceClosure::describe() const {
   if (closed() && unusedVertices == 0) return "closed surface";
   std::string s;
-  if (!closed())
-  {
+  if (!closed()) {
     char buf[160];
     std::snprintf(buf, sizeof buf, "%zu open edges (holes or cracks), %.3g %% of the footprint uncovered", openEdges,
                   100 * uncoveredFraction);
     s = buf;
-  }
-  else
+  } else
     s = "closed surface";
   if (unusedVertices) s += ", " + std::to_string(unusedVertices) + " vertices used by no triangle (ignored)";
   return s;

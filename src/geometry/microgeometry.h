@@ -83,9 +83,7 @@ struct SlopeBound {
   std::optional<double> maxSlope;
   static SlopeBound of(const Microgeometry& g);
   // tan(elevation) = |d_z| / |d_xy| > s, squared and without division (d_xy may vanish).
-  bool clear(const Vec3& d) const {
-    return maxSlope && d.z * d.z > *maxSlope * *maxSlope * (d.x * d.x + d.y * d.y);
-  }
+  bool clear(const Vec3& d) const { return maxSlope && d.z * d.z > *maxSlope * *maxSlope * (d.x * d.x + d.y * d.y); }
 };
 
 // Write the patch as binary little-endian PLY (for looking at it in MeshLab/Blender).

@@ -19,7 +19,10 @@ void normaliseRms(std::vector<double>& h, double rms) {
   for (double v : h) mean += v;
   mean /= double(h.size());
   double s2 = 0;
-  for (double& v : h) { v -= mean; s2 += v * v; }
+  for (double& v : h) {
+    v -= mean;
+    s2 += v * v;
+  }
   double cur = std::sqrt(s2 / double(h.size()));
   double scale = cur > 0 ? rms / cur : 0.0;
   for (double& v : h) v *= scale;
@@ -70,11 +73,15 @@ std::vector<double> sparseConvolutionNoise(int nx, int ny, double sizeX, double 
   long count = 0;
   if (mean < 500) {
     double l = std::exp(-mean), p = 1.0;
-    do { ++count; p *= rng.get1D(); } while (p > l);
+    do {
+      ++count;
+      p *= rng.get1D();
+    } while (p > l);
     --count;
   } else {
     double u1 = std::max(rng.get1D(), 1e-300), u2 = rng.get1D();
-    count = std::max(0L, long(std::lround(mean + std::sqrt(mean) * std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2))));
+    count =
+        std::max(0L, long(std::lround(mean + std::sqrt(mean) * std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2))));
   }
   std::vector<double> h(size_t(nx) * ny, 0.0);
   double dx = sizeX / nx, dy = sizeY / ny;

@@ -129,7 +129,6 @@ std::vector<T> read1D(hid_t file, const std::string& path, hid_t type) {
   return v;
 }
 
-
 // Every dataset that holds one row per incidence slice.
 std::vector<std::string> rowDatasets(const Job& job) {
   std::vector<std::string> v;
@@ -139,9 +138,10 @@ std::vector<std::string> rowDatasets(const Job& job) {
                           "/stats/energy_reflected_stderr/", "/stats/energy_transmitted_stderr/", "/stats/rel_error/"})
       v.push_back(g + n);
   }
-  for (const char* n : {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/wave_samples", "/stats/rays", "/stats/seconds",
-                        "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/stats/paths_rel_error", "/stats/energy_balance",
-                        "/stats/energy_balance_stderr", "/bsdf/done"})
+  for (const char* n :
+       {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/wave_samples", "/stats/rays",
+        "/stats/seconds", "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/stats/paths_rel_error",
+        "/stats/energy_balance", "/stats/energy_balance_stderr", "/bsdf/done"})
     v.push_back(n);
   if (job.guarded.has(Component::Multiple))
     for (const char* n : {"/stats/multiple_check", "/stats/multiple_reenabled"}) v.push_back(n);
@@ -245,8 +245,11 @@ std::string jobTextDifference(const std::string& stored, const std::string& now)
   const auto a = linesOf(stored), b = linesOf(now);
   size_t i = 0;
   while (i < a.size() && i < b.size() && a[i] == b[i]) ++i;
-  auto show = [](const std::vector<std::string>& v, size_t k) { return k < v.size() ? "'" + v[k] + "'" : std::string("(end of file)"); };
-  std::string what = "the job text differs from line " + std::to_string(i + 1) + ": was " + show(a, i) + ", is now " + show(b, i);
+  auto show = [](const std::vector<std::string>& v, size_t k) {
+    return k < v.size() ? "'" + v[k] + "'" : std::string("(end of file)");
+  };
+  std::string what =
+      "the job text differs from line " + std::to_string(i + 1) + ": was " + show(a, i) + ", is now " + show(b, i);
   if (tomlSkeleton(stored) == tomlSkeleton(now)) what += " (only comments or white space differ)";
   return what;
 }
@@ -261,8 +264,10 @@ std::string inputFilesDifference(const std::string& storedJson, const std::vecto
   auto add = [&](const std::string& s) { what += (what.empty() ? "" : "; ") + s; };
   for (const auto& f : now) {
     auto it = stored.find(f.key);
-    if (it == stored.end()) add(f.key + " " + f.path + " was not an input of the partial file");
-    else if (it->second.first != f.path) add(f.key + " was " + it->second.first + ", is now " + f.path);
+    if (it == stored.end())
+      add(f.key + " " + f.path + " was not an input of the partial file");
+    else if (it->second.first != f.path)
+      add(f.key + " was " + it->second.first + ", is now " + f.path);
     else if (it->second.second != f.sha256)
       add(f.path + " (" + f.key + ") changed since the partial file was written: SHA-256 was " +
           it->second.second.substr(0, 16) + "..., is now " + f.sha256.substr(0, 16) + "...");
@@ -339,8 +344,8 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
     if (differs.empty()) differs = inputFilesDifference(inputs, job.inputFiles);
     const std::string storedHash = readStringAttr(old, "geometry_hash");
     if (differs.empty() && storedHash != job.geometry.hash())
-      differs = "the microgeometry built from the job differs (geometry hash " + storedHash +
-                ", now " + job.geometry.hash() + ")";
+      differs = "the microgeometry built from the job differs (geometry hash " + storedHash + ", now " +
+                job.geometry.hash() + ")";
     if (!differs.empty())
       throw InputError("cannot resume " + partial_ + ": " + differs + ". Restore what changed, or remove " + partial_ +
                        " and " + journal_ + " (or run without --resume) to start over");
@@ -349,7 +354,8 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
     for (int t : journaled) {
       if (t < 0 || t >= int(done.size()) || !done[t]) continue;
       for (const auto& d : rowDatasets(job))  // (a partial file of an older version lacks some statistics)
-        if (H5Lexists(old, d.substr(0, d.rfind('/')).c_str(), H5P_DEFAULT) > 0 && H5Lexists(old, d.c_str(), H5P_DEFAULT) > 0)
+        if (H5Lexists(old, d.substr(0, d.rfind('/')).c_str(), H5P_DEFAULT) > 0 &&
+            H5Lexists(old, d.c_str(), H5P_DEFAULT) > 0)
           writeRow(file_, d, t, readRowImpl(old, d, t), H5T_NATIVE_DOUBLE);
       resumed_.push_back(t);
     }
@@ -396,12 +402,14 @@ void BsdfFileWriter::create(const std::string& filename) {
   if (!job.effectsPlan.empty()) setStringAttr(f, "effects_plan", job.effectsPlan);
   if (job.components.has(Component::Incoherent) && !job.statistical)
     setStringAttr(f, "wave_estimator", waveEstimatorName(job.resolvedWaveEstimator()));
-  setStringAttr(f, "symmetry",
-                job.isotropic ? "isotropic: one incidence azimuth per theta ring computed, the other slices of the ring "
-                                "rotated from it (" + job.symmetryReason + ")"
-                : job.symmetryReduced() ? "reduced: part of each theta ring computed, the other slices mapped from it (" +
-                                              job.symmetryReason + ")"
-                                        : job.symmetryReason);
+  setStringAttr(
+      f, "symmetry",
+      job.isotropic ? "isotropic: one incidence azimuth per theta ring computed, the other slices of the ring "
+                      "rotated from it (" +
+                          job.symmetryReason + ")"
+      : job.symmetryReduced()
+          ? "reduced: part of each theta ring computed, the other slices mapped from it (" + job.symmetryReason + ")"
+          : job.symmetryReason);
   const bool halved = job.halvesWaveByReciprocity();
   setStringAttr(f, "reciprocity",
                 halved ? "wave term computed once per pair of incidence bins on the same side; the other half of "
@@ -483,13 +491,17 @@ void BsdfFileWriter::create(const std::string& filename) {
       }
       for (hid_t grp : {ser.get(), set.get()}) {
         H5Dataset d = create3D(grp, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
-        describe(d, "1", "standard error of that hemispherical integral of " + name + " (path-traced: from the per-path "
-                         "energies; otherwise from the per-bin errors, see docs/output.md)");
+        describe(d, "1",
+                 "standard error of that hemispherical integral of " + name +
+                     " (path-traced: from the per-path "
+                     "energies; otherwise from the per-bin errors, see docs/output.md)");
       }
       {
         H5Dataset d = create3D(re, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
-        describe(d, "1", "estimated relative standard error of the slice: sqrt(sum (stderr * projected_solid_angle)^2) / "
-                         "sum |f| * projected_solid_angle, of " + name);
+        describe(d, "1",
+                 "estimated relative standard error of the slice: sqrt(sum (stderr * projected_solid_angle)^2) / "
+                 "sum |f| * projected_solid_angle, of " +
+                     name);
       }
     }
     {
@@ -516,22 +528,25 @@ void BsdfFileWriter::create(const std::string& filename) {
     }
     {
       H5Dataset d = create3D(s, "energy_balance", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
-      describe(d, "1", job.material.lossless()
-                           ? "reflected + transmitted + truncated + leaked + missed - 1 of the components but lost: "
-                             "the model's energy error (the material absorbs nothing)"
-                           : "the excess of reflected + transmitted + truncated + leaked + missed over 1 (the "
-                             "material absorbs: a deficit is absorption, an excess the model's error)");
+      describe(d, "1",
+               job.material.lossless()
+                   ? "reflected + transmitted + truncated + leaked + missed - 1 of the components but lost: "
+                     "the model's energy error (the material absorbs nothing)"
+                   : "the excess of reflected + transmitted + truncated + leaked + missed over 1 (the "
+                     "material absorbs: a deficit is absorption, an excess the model's error)");
       H5Dataset e = create3D(s, "energy_balance_stderr", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
       describe(e, "1", "standard error of energy_balance");
     }
     {
       H5Dataset d = create3D(s, "paths_albedo_stderr", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
-      describe(d, "1", "standard error of the summed energy (both hemispheres) of the path-traced components but "
-                       "lost, from the per-path energies (0 without path-traced components)");
+      describe(d, "1",
+               "standard error of the summed energy (both hemispheres) of the path-traced components but "
+               "lost, from the per-path energies (0 without path-traced components)");
       H5Dataset r = create3D(s, "paths_rel_error", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
-      describe(r, "1", "estimated relative error of the slice of the path-traced table (the sum of the path-traced "
-                       "components but lost): sqrt(sum_b sum_c (stderr * projected solid angle)^2) / sum_b |sum_c f| "
-                       "projected solid angle; what target_rel_error aims at (0 without paths)");
+      describe(r, "1",
+               "estimated relative error of the slice of the path-traced table (the sum of the path-traced "
+               "components but lost): sqrt(sum_b sum_c (stderr * projected solid angle)^2) / sum_b |sum_c f| "
+               "projected solid angle; what target_rel_error aims at (0 without paths)");
     }
     for (const char* n : {"truncated", "leaked", "missed"}) {
       H5Dataset d = create3D(s, n, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
@@ -554,7 +569,9 @@ void BsdfFileWriter::appendJournal(int tile) {
   if (!ok) throw WriteError(osErrorMessage("write", journal_, err));
 }
 
-void BsdfFileWriter::close() { file_.close("close " + partial_); }
+void BsdfFileWriter::close() {
+  file_.close("close " + partial_);
+}
 
 BsdfFileWriter::~BsdfFileWriter() {
   if (!finished_) {
@@ -734,7 +751,8 @@ void BsdfFileWriter::finish() {
 BsdfFileReader::BsdfFileReader(const std::string& path) {
   if (!std::filesystem::exists(path)) {
     if (std::filesystem::exists(path + ".partial"))
-      throw std::runtime_error(path + ": no such file; " + path + ".partial holds the slices of a run that has not "
+      throw std::runtime_error(path + ": no such file; " + path +
+                               ".partial holds the slices of a run that has not "
                                "finished (being written, stopped or killed): open that to look at them");
     throw std::runtime_error(path + ": no such file");
   }
@@ -758,8 +776,10 @@ BsdfFileReader::BsdfFileReader(const std::string& path) {
     h5check(H5Aread(a, H5T_NATIVE_INT64, &v), "read attribute");
     return int(v);
   };
-  if (H5Aexists(g, "n_theta") > 0) grid_ = std::make_unique<DirectionGrid>(ThetaPhiGrid{intAttr("n_theta"), intAttr("n_phi")});
-  else grid_ = std::make_unique<DirectionGrid>(DiskGrid{intAttr("width"), intAttr("height")});
+  if (H5Aexists(g, "n_theta") > 0)
+    grid_ = std::make_unique<DirectionGrid>(ThetaPhiGrid{intAttr("n_theta"), intAttr("n_phi")});
+  else
+    grid_ = std::make_unique<DirectionGrid>(DiskGrid{intAttr("width"), intAttr("height")});
 }
 
 int BsdfFileReader::doneCount() const {
@@ -803,7 +823,8 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   s.missed = readRow("/stats/missed", incidence);
   const bool energyErrors = H5Lexists(file_, "/stats/energy_reflected_stderr", H5P_DEFAULT) > 0;
   if (energyErrors) s.pathsAlbedoStdError = readRow("/stats/paths_albedo_stderr", incidence);
-  if (H5Lexists(file_, "/stats/paths_rel_error", H5P_DEFAULT) > 0) s.pathsRelError = readRow("/stats/paths_rel_error", incidence);
+  if (H5Lexists(file_, "/stats/paths_rel_error", H5P_DEFAULT) > 0)
+    s.pathsRelError = readRow("/stats/paths_rel_error", incidence);
   if (H5Lexists(file_, "/stats/energy_balance", H5P_DEFAULT) > 0) {
     s.energyBalance = readRow("/stats/energy_balance", incidence);
     s.energyBalanceStdError = readRow("/stats/energy_balance_stderr", incidence);
@@ -822,9 +843,13 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   return s;
 }
 
-std::string BsdfFileReader::attribute(const std::string& name) const { return readStringAttr(file_, name); }
+std::string BsdfFileReader::attribute(const std::string& name) const {
+  return readStringAttr(file_, name);
+}
 
-bool BsdfFileReader::hasAttribute(const std::string& name) const { return H5Aexists(file_, name.c_str()) > 0; }
+bool BsdfFileReader::hasAttribute(const std::string& name) const {
+  return H5Aexists(file_, name.c_str()) > 0;
+}
 
 int64_t BsdfFileReader::intAttribute(const std::string& name) const {
   int64_t v = 0;
@@ -839,7 +864,10 @@ int BsdfFileReader::nearestIncidence(double theta_deg, double phi_deg) const {
   double bestDot = -2;
   for (int i = 0; i < incidenceCount(); ++i) {
     double d = dot(w, sphericalDirection(radians(incTheta_[i]), radians(incPhi_[i])));
-    if (d > bestDot) { bestDot = d; best = i; }
+    if (d > bestDot) {
+      bestDot = d;
+      best = i;
+    }
   }
   return best;
 }

@@ -99,7 +99,7 @@ struct SliceStats {
   uint64_t samples = 0;
   uint64_t waveSamples = 0;  // Kirchhoff samples per wavelength (0 in files without the dataset)
   double seconds = 0;
-  int samplingStop = 0;  // TileResult::SamplingStop
+  int samplingStop = 0;                 // TileResult::SamplingStop
   double multipleCheck = std::nan("");  // TileResult::multipleCheck (NaN: not verified)
   bool multipleReenabled = false;
   std::vector<double> truncated, leaked, missed;

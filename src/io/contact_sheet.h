@@ -15,7 +15,7 @@ struct SheetRequest {
   std::vector<std::string> models;  // empty: those of GS, GM, WS, WM the file can form
   std::vector<double> theta_deg;    // empty: every computed slice (nearest slices otherwise)
   double phi_deg = 0;
-  SliceRequest cell;                // style, exposure, log2 range, size, both
+  SliceRequest cell;  // style, exposure, log2 range, size, both
 };
 
 RgbImage renderContactSheet(const BsdfFileReader& file, const SheetRequest& req);

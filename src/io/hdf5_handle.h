@@ -27,7 +27,10 @@ class H5Handle {
   H5Handle& operator=(const H5Handle&) = delete;
   H5Handle(H5Handle&& o) noexcept : id_(std::exchange(o.id_, -1)) {}
   H5Handle& operator=(H5Handle&& o) noexcept {
-    if (this != &o) { reset(); id_ = std::exchange(o.id_, -1); }
+    if (this != &o) {
+      reset();
+      id_ = std::exchange(o.id_, -1);
+    }
     return *this;
   }
   ~H5Handle() { reset(); }

@@ -101,7 +101,8 @@ OutputLock::OutputLock(const std::string& outPath) : path_(outPath + ".lock") {
                               "): wait for it to end or choose another output path");
       throw InputError(osErrorMessage("cannot lock", path_, err));
     }
-    struct stat a {}, b {};
+    struct stat a {
+    }, b{};
     if (::fstat(fd_, &a) == 0 && ::stat(path_.c_str(), &b) == 0 && a.st_ino == b.st_ino && a.st_dev == b.st_dev) break;
     ::close(fd_);
     fd_ = -1;
@@ -113,7 +114,8 @@ OutputLock::OutputLock(const std::string& outPath) : path_(outPath + ".lock") {
   const std::time_t now = std::time(nullptr);
   char when[64];
   std::strftime(when, sizeof when, "%Y-%m-%d %H:%M:%S", std::localtime(&now));
-  const std::string record = "host " + std::string(host) + ", PID " + std::to_string(::getpid()) + ", since " + when + "\n";
+  const std::string record =
+      "host " + std::string(host) + ", PID " + std::to_string(::getpid()) + ", since " + when + "\n";
   if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, record.data(), record.size(), 0) != ssize_t(record.size())) {
     const int err = errno;
     ::close(fd_);

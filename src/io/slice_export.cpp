@@ -22,8 +22,8 @@ namespace mbsdf {
 
 Colour3 falseColour(double t) {
   // Viridis (van der Walt & Smith, matplotlib), 9 control points, linear in between.
-  static const double kStops[9][3] = {{68, 1, 84},    {71, 44, 122},  {59, 81, 139},  {44, 113, 142}, {33, 144, 141},
-                                      {39, 173, 129}, {92, 200, 99},  {170, 220, 50}, {253, 231, 37}};
+  static const double kStops[9][3] = {{68, 1, 84},    {71, 44, 122}, {59, 81, 139},  {44, 113, 142}, {33, 144, 141},
+                                      {39, 173, 129}, {92, 200, 99}, {170, 220, 50}, {253, 231, 37}};
   t = std::clamp(t, 0.0, 1.0) * 8;
   int k = std::min(7, int(t));
   double u = t - k;
@@ -49,7 +49,10 @@ std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& mo
       throw std::invalid_argument("model " + model + " needs component '" + name + "', which the file does not hold");
     auto v = file.slice(name, incidence);
     auto e = file.sliceStdError(name, incidence);
-    if (sum.empty()) { sum.assign(v.size(), 0.0); var.assign(v.size(), 0.0); }
+    if (sum.empty()) {
+      sum.assign(v.size(), 0.0);
+      var.assign(v.size(), 0.0);
+    }
     for (size_t i = 0; i < v.size(); ++i) {
       sum[i] += v[i];
       var[i] += e[i] * e[i];
@@ -112,7 +115,8 @@ RgbImage sliceImage(const BsdfFileReader& file, const std::vector<double>& f, co
   img.height = S + bar;
   img.rgb.assign(size_t(img.width) * img.height * 3, 0);
   auto put = [&](int i, int j, const Colour3& c) {
-    for (int k = 0; k < 3; ++k) img.rgb[(size_t(j) * W + i) * 3 + k] = uint8_t(std::lround(std::clamp(c[k], 0.0, 1.0) * 255));
+    for (int k = 0; k < 3; ++k)
+      img.rgb[(size_t(j) * W + i) * 3 + k] = uint8_t(std::lround(std::clamp(c[k], 0.0, 1.0) * 255));
   };
   for (int j = 0; j < S; ++j)
     for (int i = 0; i < W; ++i) {
@@ -144,9 +148,10 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
   if (!file.done(inc)) {
     int done = 0;
     for (int i = 0; i < file.incidenceCount(); ++i) done += file.done(i) ? 1 : 0;
-    throw InputError(fmt::format("the slice nearest to theta_i = {:g}, phi_i = {:g} (theta {:g}, phi {:g}) is not computed "
-                                 "yet: incomplete: {} of {} slices", req.theta_deg, req.phi_deg, file.incidenceTheta(inc),
-                                 file.incidencePhi(inc), done, file.incidenceCount()));
+    throw InputError(fmt::format(
+        "the slice nearest to theta_i = {:g}, phi_i = {:g} (theta {:g}, phi {:g}) is not computed "
+        "yet: incomplete: {} of {} slices",
+        req.theta_deg, req.phi_deg, file.incidenceTheta(inc), file.incidencePhi(inc), done, file.incidenceCount()));
   }
   std::vector<double> err;
   std::vector<double> f = modelSlice(file, req.model, inc, &err);

@@ -12,12 +12,12 @@ namespace mbsdf {
 
 struct SliceRequest {
   double theta_deg = 0, phi_deg = 0;
-  std::string model = "GM";  // GS | GM | WS | WM | a component name
-  bool transmission = false; // lower hemisphere of exit directions
-  bool both = false;         // reflection (left) and transmission (right) side by side
-  int size = 256;            // image height; width = size (2 size with `both`)
-  std::string style = "true";  // PNG: "true" colour (CIE 1931 -> sRGB) or "false" colour (log2 scale)
-  double exposure = 1.0;       // true colour: multiplies the linear sRGB values
+  std::string model = "GM";            // GS | GM | WS | WM | a component name
+  bool transmission = false;           // lower hemisphere of exit directions
+  bool both = false;                   // reflection (left) and transmission (right) side by side
+  int size = 256;                      // image height; width = size (2 size with `both`)
+  std::string style = "true";          // PNG: "true" colour (CIE 1931 -> sRGB) or "false" colour (log2 scale)
+  double exposure = 1.0;               // true colour: multiplies the linear sRGB values
   double log2Min = -10, log2Max = 10;  // false colour: the range of log2(f) (paper Fig. 5: −10 … 10)
 };
 
@@ -32,7 +32,8 @@ std::vector<std::string> availableModels(const BsdfFileReader& file);
 //  .exr: float channels "<λ>nm" per wavelength, "mean" (over λ), "R", "G", "B" (linear sRGB of the
 //        spectrum through the CIE 1931 matching functions) and "Y" (these four only when a
 //        wavelength is visible);
-//  .png: true colour (sRGB, gamma-encoded, × exposure; visible wavelengths needed) or false colour: log2 of the spectral mean
+//  .png: true colour (sRGB, gamma-encoded, × exposure; visible wavelengths needed) or false colour: log2 of the
+//  spectral mean
 //        on [log2Min, log2Max] with a colour bar along the bottom (the paper's Fig. 5 scale);
 //  .csv: one row per exit bin: f and its standard error per wavelength, then (when a wavelength
 //        is visible) X, Y, Z and linear sRGB of the spectrum, and the standard errors of X, Y, Z

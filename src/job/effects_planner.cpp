@@ -80,7 +80,7 @@ std::optional<double> steepestFacet_deg(const Job& job) {
   for (size_t t = 0; t < g.triangles.size(); ++t) {
     const Vec3 n = g.triangleNormal(t);
     const double len = length(n);
-    if (len == 0) continue;  // degenerate: no area, no light
+    if (len == 0) continue;                      // degenerate: no area, no light
     if (n.z <= 1e-9 * len) return std::nullopt;  // a wall or an overhang: not a graph
     slope = std::max(slope, std::hypot(n.x, n.y) / n.z);
   }
@@ -217,19 +217,25 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
                          : "one path set per wavelength (dispersive dielectric: refraction depends on lambda)") +
       (chosen.has(Component::Incoherent) ? "; the wave term is evaluated per wavelength" : "");
   if (job.scene.colour != SceneNeeds::Colour::Rgb)
-    return decision("wavelengths", true, std::to_string(nL) + " wavelengths (the renderer needs the spectrum); " + sharing);
+    return decision("wavelengths", true,
+                    std::to_string(nL) + " wavelengths (the renderer needs the spectrum); " + sharing);
   if (nL <= 3)
-    return decision("wavelengths", true, std::to_string(nL) + " wavelengths, no fewer for colour (needs 3); " + sharing);
+    return decision("wavelengths", true,
+                    std::to_string(nL) + " wavelengths, no fewer for colour (needs 3); " + sharing);
   std::vector<int> order(static_cast<size_t>(nL));
   for (int l = 0; l < nL; ++l) order[size_t(l)] = l;
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return job.lambda_nm[size_t(a)] < job.lambda_nm[size_t(b)]; });
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return job.lambda_nm[size_t(a)] < job.lambda_nm[size_t(b)]; });
   if (chosen.has(Component::Incoherent))
     return decision("wavelengths", true,
-                    std::to_string(nL) + " wavelengths, all kept although the renderer needs colour: diffraction changes "
-                                         "with lambda (orders and speckle move), which is what the samples resolve; " + sharing);
+                    std::to_string(nL) +
+                        " wavelengths, all kept although the renderer needs colour: diffraction changes "
+                        "with lambda (orders and speckle move), which is what the samples resolve; " +
+                        sharing);
   if (geo.empty())
-    return decision("wavelengths", true,
-                    std::to_string(nL) + " wavelengths, all kept: the pilot budget allows no geometric pilot; " + sharing);
+    return decision(
+        "wavelengths", true,
+        std::to_string(nL) + " wavelengths, all kept: the pilot budget allows no geometric pilot; " + sharing);
   std::vector<TileResult> geo2;
   replicate(&geo2);
   const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
@@ -304,9 +310,9 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
   }
   auto d = decision("wavelengths", true,
                     "the renderer needs colour, but every subset of the " + std::to_string(nL) +
-                        " wavelengths changes the pilots' XYZ beyond the tolerance " + fmt3(job.scene.tolerance) + " (" +
-                        std::to_string(nL - 1) + " of them: " + fmt3(worstL1) + ", beyond noise " + fmt3(bestWorst) +
-                        "): all kept; " + sharing);
+                        " wavelengths changes the pilots' XYZ beyond the tolerance " + fmt3(job.scene.tolerance) +
+                        " (" + std::to_string(nL - 1) + " of them: " + fmt3(worstL1) + ", beyond noise " +
+                        fmt3(bestWorst) + "): all kept; " + sharing);
   d["pilot_colour_l1"] = worstL1;
   d["pilot_colour_upper"] = bestWorst;
   return d;
@@ -343,21 +349,23 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
       alternative = Exact;
     else
       skipped = " (exact not piloted: facets x orders " + fmt3(work) + " > " + fmt3(kExactPilotMaxWork) + ")";
-  } else if (resolvedKind == Area && fftUnsuitable(job.geometry, job.material, lambdas, sigma, chosen.has(Component::Lost)).empty()) {
+  } else if (resolvedKind == Area &&
+             fftUnsuitable(job.geometry, job.material, lambdas, sigma, chosen.has(Component::Lost)).empty()) {
     alternative = Fft;
   }
   if (!alternative) {
-    auto d = decision("estimator", true, resolved + ": the job's own estimator" +
-                                             (resolvedKind == Exact || resolvedKind == Fft
-                                                  ? std::string(" is deterministic")
-                                                  : std::string(" has no deterministic alternative here")) +
-                                             skipped + "; no estimator pilot");
+    auto d = decision(
+        "estimator", true,
+        resolved + ": the job's own estimator" +
+            (resolvedKind == Exact || resolvedKind == Fft ? std::string(" is deterministic")
+                                                          : std::string(" has no deterministic alternative here")) +
+            skipped + "; no estimator pilot");
     d["estimator"] = resolved;
     return d;
   }
   if (!unaffordable.empty()) {
-    auto d = decision("estimator", true, resolved + ": the static rule (Job::resolvedWaveEstimator); no estimator pilot: " +
-                                             unaffordable);
+    auto d = decision("estimator", true,
+                      resolved + ": the static rule (Job::resolvedWaveEstimator); no estimator pilot: " + unaffordable);
     d["estimator"] = resolved;
     return d;
   }
@@ -395,7 +403,8 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
     if (c == Area && nB >= 4 * kAreaPilotStride) {
       std::vector<int> byPower(static_cast<size_t>(nB));
       for (int i = 0; i < nB; ++i) byPower[size_t(i)] = i;
-      std::stable_sort(byPower.begin(), byPower.end(), [&](int x, int y) { return proxy[size_t(x)] > proxy[size_t(y)]; });
+      std::stable_sort(byPower.begin(), byPower.end(),
+                       [&](int x, int y) { return proxy[size_t(x)] > proxy[size_t(y)]; });
       mask.assign(size_t(nB), 0);
       const int top = nB / (2 * kAreaPilotStride);
       int picked = 0;
@@ -410,7 +419,8 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
       }
       binFraction = double(picked) / nB;
     }
-    const WaveTileResult w = est->run(pilot, inc.bin, exact, pilotProgress("estimator pilot (" + waveEstimatorName(c) + ")", inc), mask);
+    const WaveTileResult w =
+        est->run(pilot, inc.bin, exact, pilotProgress("estimator pilot (" + waveEstimatorName(c) + ")", inc), mask);
     double error = 0;
     for (int l = 0; l < nL; ++l) {
       double e = 0;
@@ -418,7 +428,8 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
         if (!mask.empty() && !mask[size_t(bin)]) continue;
         const size_t x = size_t(l) * nB + bin;
         e += weight[size_t(bin)] * w.fwsErr[x] * grid.projectedSolidAngle(bin);
-        if (measured.empty()) proxy[size_t(bin)] = std::max(proxy[size_t(bin)], w.fws[x] * grid.projectedSolidAngle(bin));
+        if (measured.empty())
+          proxy[size_t(bin)] = std::max(proxy[size_t(bin)], w.fws[x] * grid.projectedSolidAngle(bin));
       }
       error = std::max(error, deterministic ? e : std::sqrt(2 / kPi) * e);
     }
@@ -465,10 +476,13 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
                     "are reported, not used):";
   nlohmann::json figures = nlohmann::json::array();
   for (const Measured& m : measured) {
-    why += " " + m.name + " " + fmt3(m.seconds) + " s per tile" + (m.setup > 0 ? " + " + fmt3(m.setup) + " s once per rank" : "") +
-           ", error " + fmt3(m.error);
-    nlohmann::json f = {{"estimator", m.name}, {"deterministic", m.deterministic}, {"seconds_per_tile", m.seconds},
-                        {"setup_seconds", m.setup}, {"predicted_error", m.error}};
+    why += " " + m.name + " " + fmt3(m.seconds) + " s per tile" +
+           (m.setup > 0 ? " + " + fmt3(m.setup) + " s once per rank" : "") + ", error " + fmt3(m.error);
+    nlohmann::json f = {{"estimator", m.name},
+                        {"deterministic", m.deterministic},
+                        {"seconds_per_tile", m.seconds},
+                        {"setup_seconds", m.setup},
+                        {"predicted_error", m.error}};
     if (m.kind == Area && m.error > tol) {
       // Monte Carlo over exit directions: the error falls as 1/√N in samples per bin.
       const double factor = (m.error / tol) * (m.error / tol);
@@ -487,7 +501,6 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
   d["candidates"] = figures;
   return d;
 }
-
 
 // What the decisions share: the job and its grid, the pilot incidences (planned, and those the
 // budget affords) with their geometric pilot tiles, the wave settings of the pilots, and the pilot
@@ -560,16 +573,19 @@ nlohmann::json multipleDecision(const PilotContext& ctx) {
       }
     }
     on = worst > tol || judged == 0;
-    const std::string where = (bound.empty() ? "" : bound + " (" + std::to_string(open) + " of " +
-                                                        std::to_string(job.incidence.size()) + " incidences are above it); ");
+    const std::string where =
+        (bound.empty() ? ""
+                       : bound + " (" + std::to_string(open) + " of " + std::to_string(job.incidence.size()) +
+                             " incidences are above it); ");
     d = decision("multiple", on,
-                 judged == 0 ? where + (pilots.empty() ? "the pilot budget (" + fmt3(job.pilotBudget) +
-                                                            " of the job's tiles) allows no pilot: kept"
-                                                      : "no pilot incidence above it: kept")
-                             : where + "pilot multiply scattered energy " + fmt3(worstValue) + " (+3 SE: " + fmt3(worst) +
-                                   ") at theta " + fmt3(worstTheta) + " deg (" + std::to_string(judged) + " pilot incidences) " +
-                                   (on ? "exceeds" : "is below") + " the tolerance " + fmt3(tol) +
-                                   (on ? "" : "; verified on every tile, computed there after all past the tolerance"));
+                 judged == 0
+                     ? where + (pilots.empty() ? "the pilot budget (" + fmt3(job.pilotBudget) +
+                                                     " of the job's tiles) allows no pilot: kept"
+                                               : "no pilot incidence above it: kept")
+                     : where + "pilot multiply scattered energy " + fmt3(worstValue) + " (+3 SE: " + fmt3(worst) +
+                           ") at theta " + fmt3(worstTheta) + " deg (" + std::to_string(judged) +
+                           " pilot incidences) " + (on ? "exceeds" : "is below") + " the tolerance " + fmt3(tol) +
+                           (on ? "" : "; verified on every tile, computed there after all past the tolerance"));
     d["pilot_energy"] = worstValue;
     d["pilot_energy_upper"] = worst;
   }
@@ -618,7 +634,8 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpen
     const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
     binAveraged = true;
     for (int p : pilots)
-      binAveraged = binAveraged && facetGs->cheaperThan(job.incidence[size_t(p)].bin, std::nullopt, 2.0 * double(paths) * groups);
+      binAveraged =
+          binAveraged && facetGs->cheaperThan(job.incidence[size_t(p)].bin, std::nullopt, 2.0 * double(paths) * groups);
     if (binAveraged) {
       // One node order more than the job's incidence rule: the wave pilot's error estimate is
       // then the distance to the job's own rule (at the default 2 x 2 nodes the job's estimate,
@@ -650,7 +667,8 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpen
                                        : 1.0;
   const double wavePilotCost = out.wavePilotCost =
       est->deterministic() ? ruleRatio : double(ws.samplesPerBin) / double(std::max<int64_t>(1, job.waveSamplesPerBin));
-  const size_t waveAffordable = out.waveAffordable = std::min(pilots.size(), size_t(std::floor(budgetTiles / wavePilotCost + 1e-9)));
+  const size_t waveAffordable = out.waveAffordable =
+      std::min(pilots.size(), size_t(std::floor(budgetTiles / wavePilotCost + 1e-9)));
   for (size_t k = 0; k < waveAffordable && waveSpent + wavePilotCost <= budgetTiles + 1e-9; ++k) {
     const auto& inc = job.incidence[size_t(pilots[k])];
     const std::optional<Vec3> dir = binAveraged ? std::nullopt : std::optional<Vec3>(beam(pilots[k]));
@@ -693,7 +711,8 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpen
       // "On" from a Monte Carlo pilot whose noise floor is most of its difference rests on that
       // floor being right: confirmed by a replica (the gentle noise's area pilot: L1 38.6 against
       // a floor of 34.2 claimed 1.99 beyond it at one incidence).
-      marginal = marginal || (!est->deterministic() && f.l1 - f.floor - 2 * std::sqrt(f.var) > tol && f.floor > 0.5 * f.l1);
+      marginal =
+          marginal || (!est->deterministic() && f.l1 - f.floor - 2 * std::sqrt(f.var) > tol && f.floor > 0.5 * f.l1);
     }
     waveSpent += wavePilotCost;
     // A marginal pilot the budget cannot confirm decides nothing (its lower estimate is dropped).
@@ -735,7 +754,8 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
   const int computed = ctx.computed;
   const double meanLambda = job.meanLambda_um();
   const double binDeg = degrees(std::sqrt(2 * kPi / grid.binsPerHemisphere()));
-  const double upper = m.upper, lower = m.lower, worstL1 = m.worstL1, worstFloor = m.worstFloor, worstTheta = m.worstTheta;
+  const double upper = m.upper, lower = m.lower, worstL1 = m.worstL1, worstFloor = m.worstFloor,
+               worstTheta = m.worstTheta;
   const int wavePilotsRun = m.wavePilotsRun, replicas = m.replicas, nCells = m.nCells;
   const bool binAveraged = m.binAveraged;
   const double wavePilotCost = m.wavePilotCost;
@@ -746,24 +766,27 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
   // Rayleigh roughness at the job's most grazing incidence (the smallest g, the strongest
   // specular spike).
   double cosMin = 1;
-  for (const IncidenceDirection& inc : job.incidence) cosMin = std::min(cosMin, std::abs(std::cos(radians(inc.theta_deg))));
+  for (const IncidenceDirection& inc : job.incidence)
+    cosMin = std::min(cosMin, std::abs(std::cos(radians(inc.theta_deg))));
   // "On" needs one pilot incidence; "off" the first three of the planned ones (the most grazing,
   // the closest to normal and the median), the spread after them as far as the budget goes.
   const bool complete = wavePilotsRun >= std::min<int>(3, int(planned.size()));
   const double g = std::pow(4 * kPi * sigmaH * cosMin / meanLambda, 2);
   const double blurDeg = job.scene.coherenceLength_um > 0 ? degrees(meanLambda / job.scene.coherenceLength_um) : 0;
-  std::string why = std::string(binAveraged ? "pilot (averaged over the incidence bins without noise: " + m.estimatorName +
-                                                  " and the facet sum of single scattering) "
-                                            : "pilot (beams at the bins' centres) ") +
-                    "WS - GS difference sum|f_ws - f_coh| * proj. solid angle = " + fmt3(worstL1) +
-                    " (noise floor " + fmt3(worstFloor) + "; beyond noise: lower estimate " + fmt3(lower) +
-                    ", upper " + fmt3(upper) + ") at theta " + fmt3(worstTheta) + " deg" +
-                    (wavePilotsRun < int(planned.size()) ? " (" + std::to_string(wavePilotsRun) + " of " +
-                                                               std::to_string(planned.size()) + " wave pilots run)"
-                                                        : "") +
-                    (replicas > 0 ? " (" + std::to_string(replicas) + " marginal wave pilot(s) re-run with another seed: the floor is at "
-                                                      "least the noise the two show)"
-                                : "");
+  std::string why =
+      std::string(binAveraged ? "pilot (averaged over the incidence bins without noise: " + m.estimatorName +
+                                    " and the facet sum of single scattering) "
+                              : "pilot (beams at the bins' centres) ") +
+      "WS - GS difference sum|f_ws - f_coh| * proj. solid angle = " + fmt3(worstL1) + " (noise floor " +
+      fmt3(worstFloor) + "; beyond noise: lower estimate " + fmt3(lower) + ", upper " + fmt3(upper) + ") at theta " +
+      fmt3(worstTheta) + " deg" +
+      (wavePilotsRun < int(planned.size())
+           ? " (" + std::to_string(wavePilotsRun) + " of " + std::to_string(planned.size()) + " wave pilots run)"
+           : "") +
+      (replicas > 0 ? " (" + std::to_string(replicas) +
+                          " marginal wave pilot(s) re-run with another seed: the floor is at "
+                          "least the noise the two show)"
+                    : "");
   // Kirchhoff-theory estimate, used when the pilot cannot decide (its noise straddles the
   // tolerance): the diffraction-limited specular spike 2 R e^{-g} (geometric optics has none;
   // R <= 1) plus the blur of a lobe of width 2·slope by the window's diffraction, angular sd
@@ -775,10 +798,10 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
   const double lobeRad = 2 * slope;
   const double physical = 2 * std::exp(-std::min(g, 700.0)) + (lobeRad > 0 ? std::pow(blurRad / lobeRad, 2) : 1e300);
   const bool geometricRegime = corr >= 5 * meanLambda && slope > 0;
-  const std::string budgetNote = "the pilot budget (" + fmt3(job.pilotBudget) + " of the job's " +
-                                 std::to_string(computed) + " computed tiles, a wave pilot costing " +
-                                 fmt3(wavePilotCost) + " of a tile's wave term) allows " + std::to_string(waveAffordable) +
-                                 " of " + std::to_string(planned.size()) + " wave pilots";
+  const std::string budgetNote =
+      "the pilot budget (" + fmt3(job.pilotBudget) + " of the job's " + std::to_string(computed) +
+      " computed tiles, a wave pilot costing " + fmt3(wavePilotCost) + " of a tile's wave term) allows " +
+      std::to_string(waveAffordable) + " of " + std::to_string(planned.size()) + " wave pilots";
   if (wavePilotsRun == 0) {
     why = budgetNote;
     if (geometricRegime) {
@@ -798,28 +821,32 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
            (on ? " exceeds it: kept on" : " is below it too");
   } else if (upper <= tol) {
     on = false;
-    why += " is below the tolerance " + fmt3(tol) + (wavePilotsRun < int(planned.size()) ? " (" + budgetNote + ")" : "");
+    why +=
+        " is below the tolerance " + fmt3(tol) + (wavePilotsRun < int(planned.size()) ? " (" + budgetNote + ")" : "");
   } else if (lower > tol) {
     on = true;
     why += " exceeds the tolerance " + fmt3(tol);
   } else if (geometricRegime) {
     on = physical > tol;
-    why += " cannot decide at the tolerance " + fmt3(tol) + "; Kirchhoff estimate 2 exp(-g) + (blur/lobe)^2 = " +
-           fmt3(physical) + " (correlation length " + fmt3(corr) + " um >= 5 lambda, blur " + fmt3(degrees(blurRad)) +
-           " deg, lobe " + fmt3(degrees(lobeRad)) + " deg) " + (on ? "exceeds it" : "is below it");
+    why += " cannot decide at the tolerance " + fmt3(tol) +
+           "; Kirchhoff estimate 2 exp(-g) + (blur/lobe)^2 = " + fmt3(physical) + " (correlation length " + fmt3(corr) +
+           " um >= 5 lambda, blur " + fmt3(degrees(blurRad)) + " deg, lobe " + fmt3(degrees(lobeRad)) + " deg) " +
+           (on ? "exceeds it" : "is below it");
   } else {
     on = true;
     why += " cannot decide at the tolerance " + fmt3(tol) + " and the features (correlation length " + fmt3(corr) +
            " um) are not >> lambda: kept on";
   }
-  d = decision("incoherent", on,
-               why + "; Rayleigh roughness g = " + fmt3(g) +
-                   (g < 0.1 ? " (smooth: specular with a diffuse halo)" : g > 10 ? " (rough)" : " (intermediate)") +
-                   "; coherence blur lambda/delta_c = " + fmt3(blurDeg) + " deg vs bins of " + fmt3(binDeg) + " deg" +
-                   (job.scene.angularResolution_deg > 0
-                        ? " pooled to the renderer's " + fmt3(job.scene.angularResolution_deg) + " deg (" +
-                              std::to_string(nCells) + " cells)"
-                        : ""));
+  d = decision(
+      "incoherent", on,
+      why + "; Rayleigh roughness g = " + fmt3(g) +
+          (g < 0.1  ? " (smooth: specular with a diffuse halo)"
+           : g > 10 ? " (rough)"
+                    : " (intermediate)") +
+          "; coherence blur lambda/delta_c = " + fmt3(blurDeg) + " deg vs bins of " + fmt3(binDeg) + " deg" +
+          (job.scene.angularResolution_deg > 0 ? " pooled to the renderer's " + fmt3(job.scene.angularResolution_deg) +
+                                                     " deg (" + std::to_string(nCells) + " cells)"
+                                               : ""));
   d["pilot_incidence"] = binAveraged ? "bin-averaged" : "bin centre";
   d["pilot_lower"] = lower;
   d["kirchhoff_estimate"] = physical;
@@ -853,11 +880,12 @@ nlohmann::json btdfDecision(const Job& job, const ComponentSet& chosen, nlohmann
     // it), so the transmitted table keeps geometric optics. Kept when `lost` is requested (its
     // masked power needs every exit bin).
     const bool skip = !needs && chosen.has(Component::Incoherent) && !chosen.has(Component::Lost);
-    auto d = decision("btdf", needs, needs ? "a dielectric transmits and the renderer needs the BTDF"
-                                           : skip ? "the renderer needs only the BRDF: the wave term skips the transmitted "
-                                                    "bins, which keep geometric optics (incoherent = 0 there)"
-                                                  : "the renderer needs only the BRDF; transmission is traced with the "
-                                                    "reflection (the paths cross the surface) and costs no wave term here");
+    auto d = decision("btdf", needs,
+                      needs  ? "a dielectric transmits and the renderer needs the BTDF"
+                      : skip ? "the renderer needs only the BRDF: the wave term skips the transmitted "
+                               "bins, which keep geometric optics (incoherent = 0 there)"
+                             : "the renderer needs only the BRDF; transmission is traced with the "
+                               "reflection (the paths cross the surface) and costs no wave term here");
     (*plan)["wave_transmission"] = !skip;
     return d;
   }
@@ -886,10 +914,13 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   // a tile's paths, a wave pilot its samples against the job's (wavePilotCost below). The pilots run
   // in priority order (pilotIncidences): the budget keeps the first ones.
   const std::vector<int> planned = pilotIncidences(job);
-  const int computed = job.symmetryReduced() ? AzimuthalSymmetry(job, grid).representativeCount() : int(job.incidence.size());
+  const int computed =
+      job.symmetryReduced() ? AzimuthalSymmetry(job, grid).representativeCount() : int(job.incidence.size());
   const double budgetTiles = job.pilotBudget * computed;
   std::vector<int> pilots = planned;
-  pilots.resize(std::min(planned.size(), size_t(std::max(0.0, std::floor(budgetTiles * double(job.pathsPerSlice) / double(paths) + 1e-9)))));
+  pilots.resize(
+      std::min(planned.size(),
+               size_t(std::max(0.0, std::floor(budgetTiles * double(job.pathsPerSlice) / double(paths) + 1e-9)))));
   // The job's wave estimator for the pilots, with at least options.waveSamplesPerBin samples and no
   // masked sums (`lost` is decided on request only).
   WaveSettings ws = waveSettingsOf(job);
@@ -902,7 +933,8 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     const double lambdaMin = *std::min_element(lambdas.begin(), lambdas.end());
     // One cell's facets over the cell's orders (lattice_cell.h).
     const double work = job.facetsPerCell() * kPi * job.cellSizeX() * job.cellSizeY() / (lambdaMin * lambdaMin);
-    if (ws.estimator == WaveEstimatorKind::Orders && work <= kExactPilotMaxWork) ws.estimator = WaveEstimatorKind::Exact;
+    if (ws.estimator == WaveEstimatorKind::Orders && work <= kExactPilotMaxWork)
+      ws.estimator = WaveEstimatorKind::Exact;
   }
   ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));
 
@@ -953,7 +985,8 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     nlohmann::json d;
     bool on = false;
     if (job.statistical) {
-      d = decision("incoherent", false, "a statistical surface has no explicit geometry to diffract (microflake model)");
+      d = decision("incoherent", false,
+                   "a statistical surface has no explicit geometry to diffract (microflake model)");
     } else {
       const DiffractionPilots measured = runDiffractionPilots(ctx, &waveSpent);
       d = diffractionVerdict(ctx, measured);
@@ -974,8 +1007,8 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
                                        ? ""
                                        : "the pilot budget (" + fmt3(job.pilotBudget) + " of the job's " +
                                              std::to_string(computed) + " computed tiles) has no room for it";
-    nlohmann::json d = waveEstimatorDecision(job, chosen, grid, *transport.scene(), pilots.empty() ? -1 : pilots[pilots.size() / 2],
-                                             budgetNote);
+    nlohmann::json d = waveEstimatorDecision(job, chosen, grid, *transport.scene(),
+                                             pilots.empty() ? -1 : pilots[pilots.size() / 2], budgetNote);
     if (d.contains("candidates")) waveSpent += double(d["candidates"].size());  // at most one wave term each
     plan["wave_estimator"] = d["estimator"];
     decisions.push_back(d);
@@ -984,7 +1017,8 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   // Lost, transmission, wavelengths.
   {
     const bool lost = forced.has(Component::Lost);
-    decisions.push_back(decision("lost", lost, lost ? "requested" : "a diagnostic, not part of any model: only on request"));
+    decisions.push_back(
+        decision("lost", lost, lost ? "requested" : "a diagnostic, not part of any model: only on request"));
     if (lost) chosen.add(Component::Lost);
   }
   decisions.push_back(btdfDecision(job, chosen, &plan));
@@ -1000,13 +1034,15 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   if (job.scene.incidenceMax_deg < 90) {
     const int candidates = [&] {
       int n = 0;
-      for (int b = 0; b < (job.material.isConductor() ? grid.binsPerHemisphere() : nB); ++b) n += grid.projectedSolidAngle(b) > 0;
+      for (int b = 0; b < (job.material.isConductor() ? grid.binsPerHemisphere() : nB); ++b)
+        n += grid.projectedSolidAngle(b) > 0;
       return n;
     }();
-    decisions.push_back(decision("incidence", true,
-                                 "the renderer looks up incidences within " + fmt3(job.scene.incidenceMax_deg) +
-                                     " deg of the normal ([scene] incidence_max_deg): " + std::to_string(job.incidence.size()) +
-                                     (job.incidenceAll ? " of " + std::to_string(candidates) + " incidence bins" : " listed incidences")));
+    decisions.push_back(decision(
+        "incidence", true,
+        "the renderer looks up incidences within " + fmt3(job.scene.incidenceMax_deg) +
+            " deg of the normal ([scene] incidence_max_deg): " + std::to_string(job.incidence.size()) +
+            (job.incidenceAll ? " of " + std::to_string(candidates) + " incidence bins" : " listed incidences")));
   }
 
   std::vector<std::string> names;
@@ -1016,10 +1052,13 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
   plan["tolerance"] = tol;
   plan["coherence_length_um"] = job.scene.coherenceLength_um;
   plan["coherence_source"] = job.scene.coherenceSource;
-  if (job.scene.sourceAngularDiameter_deg > 0) plan["source_angular_diameter_deg"] = job.scene.sourceAngularDiameter_deg;
+  if (job.scene.sourceAngularDiameter_deg > 0)
+    plan["source_angular_diameter_deg"] = job.scene.sourceAngularDiameter_deg;
   plan["pilots"] = pilots;
   plan["pilots_planned"] = planned;
-  plan["pilot_budget"] = {{"fraction", job.pilotBudget}, {"computed_tiles", computed}, {"tiles", budgetTiles},
+  plan["pilot_budget"] = {{"fraction", job.pilotBudget},
+                          {"computed_tiles", computed},
+                          {"tiles", budgetTiles},
                           {"path_tiles_spent", double(pilots.size()) * double(paths) / double(job.pathsPerSlice)},
                           {"wave_tiles_spent", waveSpent}};
   plan["pilot_paths"] = paths;
@@ -1052,7 +1091,8 @@ std::string formatEffects(const nlohmann::json& plan) {
     const auto& b = plan["pilot_budget"];
     o << "  pilot budget " << fmt3(b["fraction"].get<double>()) << " of " << b["computed_tiles"].dump()
       << " computed tiles: spent " << fmt3(b["path_tiles_spent"].get<double>()) << " (paths) and "
-      << fmt3(b["wave_tiles_spent"].get<double>()) << " (wave terms) of " << fmt3(b["tiles"].get<double>()) << " tiles' work\n";
+      << fmt3(b["wave_tiles_spent"].get<double>()) << " (wave terms) of " << fmt3(b["tiles"].get<double>())
+      << " tiles' work\n";
   }
   for (const auto& d : plan["decisions"]) {
     std::string e = d["effect"].get<std::string>();

@@ -24,8 +24,12 @@ namespace {
 double gMaxGeneratedTriangles = 1e7;
 }  // namespace
 
-double maxGeneratedTriangles() { return gMaxGeneratedTriangles; }
-void setMaxGeneratedTriangles(double n) { gMaxGeneratedTriangles = n; }
+double maxGeneratedTriangles() {
+  return gMaxGeneratedTriangles;
+}
+void setMaxGeneratedTriangles(double n) {
+  gMaxGeneratedTriangles = n;
+}
 
 Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut) {
   const std::string kind = geo.getString("kind", "flat");
@@ -53,7 +57,8 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
   auto texels = [&](double size, double texel) {
     if (std::ceil(size / texel) > 2048)
       geo.fail("texel_um", fmt::format("{} µm / {} µm = {} texels per side; at most 2048 (use a larger texel_um or a "
-                                       "smaller size_um)", size, texel, std::ceil(size / texel)));
+                                       "smaller size_um)",
+                                       size, texel, std::ceil(size / texel)));
     return gridSizeFor(size, texel);
   };
   // Generators throw std::invalid_argument for inconsistent shapes; report them against the key
@@ -72,7 +77,8 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
   auto budget = [&](const std::string& key, double triangles) {
     if (!(triangles <= maxTriangles))
       geo.fail(key, fmt::format("would generate about {:.3g} triangles (limit {:.3g}); use a coarser resolution or "
-                                "a smaller patch", triangles, maxTriangles));
+                                "a smaller patch",
+                                triangles, maxTriangles));
   };
   auto rings = [](double length, double res) { return std::max(2.0, std::ceil(length / res)); };
   Microgeometry g;
@@ -97,7 +103,8 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     if (!(duty > 0 && duty < 1)) geo.fail("duty", "must be in (0, 1)");
     double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
     if (res < 0) geo.fail("resolution_um", "must be >= 0");
-    budget("period_um", 10.0 * std::ceil(s[0] / period) * (res > 0 ? rings(s[1], res) * rings(period + 2 * depth, res) : 1));
+    budget("period_um",
+           10.0 * std::ceil(s[0] / period) * (res > 0 ? rings(s[1], res) * rings(period + 2 * depth, res) : 1));
     g = guard("period_um", [&] { return makeBinaryGrating(s[0], s[1], period, depth, duty, res); });
   } else if (kind == "ridged") {
     auto s = size2({20.0, 20.0});
@@ -139,15 +146,17 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     const double rmax = std::max({radii[0], radii[1], radii[2]});
     budget("resolution_um", 2 * std::ceil(s[0] / sp[0]) * std::ceil(s[1] / sp[1]) * rings(2 * kPi * rmax, res) *
                                 (rings(std::max(sp[0], sp[1]), res) + rings(0.5 * kPi * rmax, res)));
-    g = guard("spacing_um", [&] { return makeDomeLattice(s[0], s[1], sp[0], sp[1], radii[0], radii[1], radii[2], res); });
+    g = guard("spacing_um",
+              [&] { return makeDomeLattice(s[0], s[1], sp[0], sp[1], radii[0], radii[1], radii[2], res); });
   } else if (kind == "overhang") {
     auto s = size2({20.0, 20.0});
     double sp = geo.positive("spacing_um", 5.0);
     double stemR = geo.positive("stem_radius_um", 0.8), stemH = geo.positive("stem_height_um", 1.5);
     double capR = geo.positive("cap_radius_um", 2.0), capH = geo.positive("cap_height_um", 1.0);
     double res = geo.positive("resolution_um", capR / 16);
-    budget("resolution_um", 2 * std::ceil(s[0] / sp) * std::ceil(s[1] / sp) * rings(2 * kPi * capR, res) *
-                                (rings(sp, res) + rings(stemH, res) + rings(capR, res) + rings(0.5 * kPi * std::max(capR, capH), res)));
+    budget("resolution_um",
+           2 * std::ceil(s[0] / sp) * std::ceil(s[1] / sp) * rings(2 * kPi * capR, res) *
+               (rings(sp, res) + rings(stemH, res) + rings(capR, res) + rings(0.5 * kPi * std::max(capR, capH), res)));
     g = guard("cap_radius_um", [&] { return makeOverhang(s[0], s[1], sp, stemR, stemH, capR, capH, res); });
   } else if (kind == "mesh") {
     std::string file = geo.getString("file", "");
@@ -159,8 +168,10 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     for (const auto& tri : g.triangles)
       for (uint32_t i : tri) {
         const Vec3& v = g.vertices[i];
-        x0 = std::min(x0, v.x); x1 = std::max(x1, v.x);
-        y0 = std::min(y0, v.y); y1 = std::max(y1, v.y);
+        x0 = std::min(x0, v.x);
+        x1 = std::max(x1, v.x);
+        y0 = std::min(y0, v.y);
+        y1 = std::max(y1, v.y);
       }
     if (g.triangles.empty()) geo.fail("file", "the mesh " + file + " has no faces");
     auto s = size2({g.sizeX, g.sizeY});

@@ -27,7 +27,8 @@ Material parseMaterial(const ParamDict& m, std::string* nameOut) {
   std::string kind = m.getString("kind", "conductor");
   if (kind != "conductor" && kind != "dielectric") m.fail("kind", "must be \"conductor\" or \"dielectric\"");
   // Default material: aluminium for a conductor, BK7 for a dielectric (unless an index is given).
-  std::string name = m.getString("name", m.has("eta") || m.has("k") || m.has("ior") ? "" : (kind == "conductor" ? "Al" : "BK7"));
+  std::string name =
+      m.getString("name", m.has("eta") || m.has("k") || m.has("ior") ? "" : (kind == "conductor" ? "Al" : "BK7"));
   if (!name.empty()) {
     if (!builtinMaterial(name, &mat)) {
       std::string list;
@@ -44,7 +45,8 @@ Material parseMaterial(const ParamDict& m, std::string* nameOut) {
     mat.model = Dielectric{ConstantIndex{n, 0.0}};
     *nameOut = "ior " + std::to_string(n);
   } else {
-    if (!m.has("eta") || !m.has("k")) m.fail(m.has("eta") ? "k" : "eta", "a conductor needs name = \"Al\" (or Ag, Au, Cu, mirror) or both eta and k");
+    if (!m.has("eta") || !m.has("k"))
+      m.fail(m.has("eta") ? "k" : "eta", "a conductor needs name = \"Al\" (or Ag, Au, Cu, mirror) or both eta and k");
     double eta = m.positive("eta", 1.0), k = m.nonNegative("k", 0.0);
     mat.model = Conductor{ConstantIndex{eta, k}};
     *nameOut = "eta " + std::to_string(eta) + " k " + std::to_string(k);
@@ -139,7 +141,8 @@ StatisticalSurface parseStatistical(const ParamDict& geo, const std::string& bas
     auto a = alphas();
     st.ndf = GgxNdf{a[0], a[1]};
   } else if (ndf == "vmf") {
-    if (geo.has("alpha") == geo.has("kappa")) geo.fail("kappa", "the vmf NDF needs either kappa or alpha (kappa = 2/alpha²)");
+    if (geo.has("alpha") == geo.has("kappa"))
+      geo.fail("kappa", "the vmf NDF needs either kappa or alpha (kappa = 2/alpha²)");
     double kappa = geo.has("kappa") ? geo.nonNegative("kappa", 0.0) : 2.0 / std::pow(geo.positive("alpha", 1.0), 2);
     if (!(kappa <= 1e4)) geo.fail(geo.has("kappa") ? "kappa" : "alpha", "kappa must be at most 1e4 (alpha >= 0.0142)");
     st.ndf = VonMisesFisherNdf{kappa};
@@ -151,9 +154,12 @@ StatisticalSurface parseStatistical(const ParamDict& geo, const std::string& bas
     geo.fail("ndf", "must be \"beckmann\", \"ggx\", \"vmf\", \"sphere\" (constant full-sphere NDF) or \"tabulated\"");
   }
   const std::string flakes = geo.getString("flakes", "specular");
-  if (flakes == "specular") st.flakes = FlakeKind::Specular;
-  else if (flakes == "diffuse") st.flakes = FlakeKind::Diffuse;
-  else geo.fail("flakes", "must be \"specular\" (the material's interface) or \"diffuse\" (Lambertian)");
+  if (flakes == "specular")
+    st.flakes = FlakeKind::Specular;
+  else if (flakes == "diffuse")
+    st.flakes = FlakeKind::Diffuse;
+  else
+    geo.fail("flakes", "must be \"specular\" (the material's interface) or \"diffuse\" (Lambertian)");
   st.flakeAlbedo = geo.nonNegative("flake_albedo", 1.0);
   if (st.flakeAlbedo > 1) geo.fail("flake_albedo", "must be in [0, 1]");
   return st;
@@ -216,8 +222,9 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       double th = *(*pair)[0].value<double>(), ph = *(*pair)[1].value<double>();
       double maxTheta = dielectric ? 180.0 : 90.0;
       if (!(th >= 0 && th <= maxTheta) || !std::isfinite(ph))
-        dirs.fail("incidence", "theta_deg must be in [0, " + std::to_string(int(maxTheta)) + "] (" +
-                                   (dielectric ? "> 90 is light from inside the material" : "light from above a conductor") + ")");
+        dirs.fail("incidence",
+                  "theta_deg must be in [0, " + std::to_string(int(maxTheta)) + "] (" +
+                      (dielectric ? "> 90 is light from inside the material" : "light from above a conductor") + ")");
       job.incidence.push_back({th, ph, grid.binOfAngles(th, ph)});
     }
     if (job.incidence.empty()) dirs.fail("incidence", "needs at least one direction");
@@ -243,7 +250,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     double diameter = 0;
     if (scene.has("light")) {
       const std::string light = scene.getString("light", "");
-      if (light != "sun") scene.fail("light", "unknown light '" + light + "' (built in: \"sun\"; or give source_angular_diameter_deg)");
+      if (light != "sun")
+        scene.fail("light", "unknown light '" + light + "' (built in: \"sun\"; or give source_angular_diameter_deg)");
       diameter = kSunAngularDiameter_deg;
       job.scene.coherenceSource = "light = \"sun\"";
     } else {
@@ -272,7 +280,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   {
     auto fromNormal = [](double theta_deg) { return theta_deg <= 90 ? theta_deg : 180 - theta_deg; };
     if (job.incidenceAll) {
-      std::erase_if(job.incidence, [&](const IncidenceDirection& d) { return fromNormal(d.theta_deg) > job.scene.incidenceMax_deg; });
+      std::erase_if(job.incidence,
+                    [&](const IncidenceDirection& d) { return fromNormal(d.theta_deg) > job.scene.incidenceMax_deg; });
       if (job.incidence.empty())
         scene.fail("incidence_max_deg", "leaves no incidence bin (the bin centres nearest the normal lie farther out)");
     } else {
@@ -309,7 +318,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.targetRelError = samp.nonNegative("target_rel_error", 0.0);
   if (!(job.targetRelError < 1)) samp.fail("target_rel_error", "must be a fraction in (0, 1), or 0 for a fixed budget");
   {
-    const int64_t maxPaths = samp.positiveInt("max_paths_per_slice", int64_t(std::min<uint64_t>(job.pathsPerSlice * 16, uint64_t(1) << 50)));
+    const int64_t maxPaths =
+        samp.positiveInt("max_paths_per_slice", int64_t(std::min<uint64_t>(job.pathsPerSlice * 16, uint64_t(1) << 50)));
     if (uint64_t(maxPaths) < job.pathsPerSlice) samp.fail("max_paths_per_slice", "must be >= paths_per_slice");
     if (job.targetRelError == 0 && samp.has("max_paths_per_slice"))
       samp.fail("max_paths_per_slice", "is the budget of progressive sampling: set target_rel_error too");
@@ -324,7 +334,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.seed = uint64_t(samp.getInt("seed", 1));
   if (const std::string e = samp.getString("wave_estimator", "auto"); e != "auto") {
     job.waveEstimator = parseWaveEstimator(e);
-    if (!job.waveEstimator) samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\", \"exact\", \"fft\" or \"paper\"");
+    if (!job.waveEstimator)
+      samp.fail("wave_estimator", "must be \"auto\", \"area\", \"orders\", \"exact\", \"fft\" or \"paper\"");
   }
   job.waveSamplesPerBin = bounded("wave_samples_per_bin", 256, 1000000000);
   job.wavePointsPerDirection = bounded("wave_points_per_direction", 64, 1000000000);
@@ -337,7 +348,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
                          : single == "facets" ? Job::SingleScatteringMode::Facets
                                               : Job::SingleScatteringMode::Auto;
   const std::string table = samp.getString("visibility_table", "auto");
-  if (table != "auto" && table != "on" && table != "off") samp.fail("visibility_table", "must be \"auto\", \"on\" or \"off\"");
+  if (table != "auto" && table != "on" && table != "off")
+    samp.fail("visibility_table", "must be \"auto\", \"on\" or \"off\"");
   job.visibilityTable = table == "on"    ? Job::VisibilityTableMode::On
                         : table == "off" ? Job::VisibilityTableMode::Off
                                          : Job::VisibilityTableMode::Auto;
@@ -353,14 +365,17 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     job.statistical = parseStatistical(geo, baseDir);
     if (!job.material.isConductor() && job.statistical->flakes == FlakeKind::Specular &&
         !isHeightfieldNdf(job.statistical->ndf))
-      geo.fail("ndf", "dielectric flakes need a heightfield NDF (beckmann or ggx): the walk continues on the "
-                      "other side of the surface");
+      geo.fail("ndf",
+               "dielectric flakes need a heightfield NDF (beckmann or ggx): the walk continues on the "
+               "other side of the surface");
     for (const auto& c : job.requestedComponents)
       if (c == "incoherent" || c == "lost")
-        eff.fail("components", "a statistical surface has no explicit geometry for scalar diffraction: use "
-                               "coherent (single scattering) and multiple");
+        eff.fail("components",
+                 "a statistical surface has no explicit geometry for scalar diffraction: use "
+                 "coherent (single scattering) and multiple");
     // "auto" is GM here (no explicit geometry for diffraction); explicit requests are already parsed.
-    if (std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") != job.requestedComponents.end()) {
+    if (std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") !=
+        job.requestedComponents.end()) {
       job.components = ComponentSet{};
       job.components.add(Component::Coherent);
       job.components.add(Component::Multiple);
@@ -381,8 +396,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     }
   }
   if (job.singleScattering == Job::SingleScatteringMode::Facets) {
-    const bool autoComponents =
-        std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") != job.requestedComponents.end();
+    const bool autoComponents = std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") !=
+                                job.requestedComponents.end();
     if (job.statistical || !job.geometry.periodic)
       samp.fail("single_scattering", "\"facets\" needs explicit periodic geometry");
     if (!job.closure.closed())
@@ -394,13 +409,16 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   // Azimuthal symmetry (symmetry.h): declared, or detected for a statistical surface whose NDF is
   // isotropic; it needs a theta-phi grid and incidence = "all" to have rings to reduce.
   {
-    const bool isotropicNdf = job.statistical && std::visit(
-        [](const auto& n) {
-          using T = std::decay_t<decltype(n)>;
-          if constexpr (std::is_same_v<T, BeckmannNdf> || std::is_same_v<T, GgxNdf>) return n.alphaX == n.alphaY;
-          else return true;  // von Mises–Fisher and tabulated D(cos θm) are isotropic
-        },
-        job.statistical->ndf);
+    const bool isotropicNdf =
+        job.statistical && std::visit(
+                               [](const auto& n) {
+                                 using T = std::decay_t<decltype(n)>;
+                                 if constexpr (std::is_same_v<T, BeckmannNdf> || std::is_same_v<T, GgxNdf>)
+                                   return n.alphaX == n.alphaY;
+                                 else
+                                   return true;  // von Mises–Fisher and tabulated D(cos θm) are isotropic
+                               },
+                               job.statistical->ndf);
     const bool wanted = symmetry == "isotropic" || (symmetry == "auto" && isotropicNdf);
     if (symmetry == "isotropic" && job.statistical && !isotropicNdf)
       dirs.fail("symmetry", "the surface's NDF is anisotropic (alpha_x != alpha_y)");
@@ -420,7 +438,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       job.symmetryReason = "not checked: needs a theta-phi grid and incidence = \"all\"";
     else if (wanted)
       job.isotropic = true, job.symmetryReason = symmetry == "isotropic" ? "declared isotropic ([directions] symmetry)"
-                                                                          : "detected: the surface's NDF is isotropic";
+                                                                         : "detected: the surface's NDF is isotropic";
     else if (found) {
       std::string what;
       if (order > 1 && tp->nPhi % order == 0) {
@@ -440,7 +458,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   }
 
   // The lattice cell, where a windowed wave term could use it (it maps every facet a few times).
-  if (!job.statistical && job.geometry.periodic && job.scene.coherenceLength_um > 0 && (job.needsWave() || job.autoComponents)) {
+  if (!job.statistical && job.geometry.periodic && job.scene.coherenceLength_um > 0 &&
+      (job.needsWave() || job.autoComponents)) {
     const LatticeCell cell = latticeCellOf(job.geometry);
     job.cellNx = cell.nx;
     job.cellNy = cell.ny;
@@ -452,8 +471,9 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     samp.fail("wave_estimator", "\"" + waveEstimatorName(*named) +
                                     "\" needs a periodic patch and a coherence window (scene.coherence_length_um > 0)");
   if (named == Fft && !job.statistical) {
-    const std::string why = fftUnsuitable(job.geometry, job.material, job.lambda_um(), windowSigma(job.scene.coherenceLength_um),
-                                          job.components.has(Component::Lost));
+    const std::string why =
+        fftUnsuitable(job.geometry, job.material, job.lambda_um(), windowSigma(job.scene.coherenceLength_um),
+                      job.components.has(Component::Lost));
     if (!why.empty()) samp.fail("wave_estimator", "\"fft\" " + why);
   }
 
@@ -485,7 +505,8 @@ WaveEstimatorKind Job::resolvedWaveEstimator() const {
 
 int Job::visibilityTableResolution() const {
   constexpr int M = 128;
-  if (visibilityTable == VisibilityTableMode::Off || statistical || resolvedWaveEstimator() != WaveEstimatorKind::Exact) return 0;
+  if (visibilityTable == VisibilityTableMode::Off || statistical || resolvedWaveEstimator() != WaveEstimatorKind::Exact)
+    return 0;
   if (visibilityTable == VisibilityTableMode::On) return M;
   const double hemispheres = material.isConductor() ? 1 : 2;
   if (VisibilityTable::bytesFor(size_t(facetsPerCell()), M, !material.isConductor()) > 1e9) return 0;
@@ -507,7 +528,8 @@ std::string Job::reciprocityOffReason() const {
   if (!incidenceAll) return "incidence is a list of directions, not \"all\"";
   if (exactIncidence) return "incidence_sampling = \"exact\" (bin-centre beams are not reciprocal bin to bin)";
   if (components.has(Component::Lost)) return "the lost component needs the masked power of every exit bin";
-  if (const WaveEstimatorKind e = resolvedWaveEstimator(); e != WaveEstimatorKind::Area && e != WaveEstimatorKind::Paper)
+  if (const WaveEstimatorKind e = resolvedWaveEstimator();
+      e != WaveEstimatorKind::Area && e != WaveEstimatorKind::Paper)
     return "the " + waveEstimatorName(e) + " estimator's cost is per incidence sample, not per exit bin";
   return "";
 }

@@ -62,8 +62,8 @@ struct Job {
   std::string text;  // the full job text (stored in the output for provenance)
   std::vector<InputFile> inputFiles;
   std::string geometryKind;
-  Microgeometry geometry;                       // empty for a statistical surface
-  SurfaceClosure closure;                       // holes and cracks of the explicit geometry
+  Microgeometry geometry;                         // empty for a statistical surface
+  SurfaceClosure closure;                         // holes and cracks of the explicit geometry
   std::optional<StatisticalSurface> statistical;  // set for kind = "statistical"
   Material material;
   std::string materialName;
@@ -71,7 +71,8 @@ struct Job {
   DirectionGrid::Layout gridLayout;
   std::vector<IncidenceDirection> incidence;
   bool exactIncidence = false;  // [directions] incidence_sampling = "exact": collimated beams
-  bool incidenceAll = false;    // [directions] incidence = "all": every bin on the incident side(s) (within scene.incidence_max_deg)
+  bool incidenceAll =
+      false;  // [directions] incidence = "all": every bin on the incident side(s) (within scene.incidence_max_deg)
   // [directions] symmetry: an isotropic surface has one incidence azimuth per θ ring computed and
   // the other slices of the ring rotated from it; a surface invariant under rotation by 2π/n
   // (rotationOrder = n >= 2, e.g. a square lattice: 4) one n-th of each ring (symmetry.h).

@@ -17,7 +17,8 @@ const std::vector<JobKey>& jobKeys() {
       {"geometry.size_um", Numbers, "[20.0, 20.0]", "> 0", "patch footprint [x, y] in µm (one number: square)"},
       {"geometry.periodic", Boolean, "true", "", "rays leaving a side re-enter from the opposite side"},
       {"geometry.seed", Integer, "1", "", "seed of the random surfaces and of the ground noise"},
-      {"geometry.ground_noise_rms_nm", Number, "0.0", ">= 0", "rms of a Gaussian displacement in z added to every vertex"},
+      {"geometry.ground_noise_rms_nm", Number, "0.0", ">= 0",
+       "rms of a Gaussian displacement in z added to every vertex"},
       {"geometry.ground_noise_correlation_um", Number, "0.2", "> 0", "its correlation length"},
       {"geometry.resolution_um", Number, "kind-dependent", "> 0 (flat: >= 0)", "target mesh edge length"},
       {"geometry.period_um", Number, "5.0 (sine-grating), 2.0 (binary-grating, ridged)", "> 0", "grating period"},
@@ -33,18 +34,22 @@ const std::vector<JobKey>& jobKeys() {
       {"geometry.feature_um", Number, "5.0", "> 0", "noise: feature size"},
       {"geometry.density", Number, "3.0", "> 0", "noise: impulses per feature area"},
       {"geometry.radius_um", Number, "2.0", "> 0", "hemispheres: radius"},
-      {"geometry.spacing_um", Numbers, "5.0 (hemispheres, overhang), 1.0 (axicon)", "> 0", "lattice spacing (one or [x, y])"},
+      {"geometry.spacing_um", Numbers, "5.0 (hemispheres, overhang), 1.0 (axicon)", "> 0",
+       "lattice spacing (one or [x, y])"},
       {"geometry.radii_um", Numbers, "[0.4, 0.45, 0.3]", "> 0", "axicon: half-ellipsoid radii (x, y, height)"},
       {"geometry.stem_radius_um", Number, "0.8", "> 0", "overhang: stem radius"},
       {"geometry.stem_height_um", Number, "1.5", "> 0", "overhang: stem height"},
       {"geometry.cap_radius_um", Number, "2.0", "> 0", "overhang: cap radius"},
       {"geometry.cap_height_um", Number, "1.0", "> 0", "overhang: cap height"},
-      {"geometry.file", String, "— (required for mesh, heightfield)", "", "mesh (OBJ, PLY) or heightfield (float EXR) file"},
+      {"geometry.file", String, "— (required for mesh, heightfield)", "",
+       "mesh (OBJ, PLY) or heightfield (float EXR) file"},
       {"geometry.units", String, "\"um\"", "nm, um, mm, m", "mesh: length unit of the file"},
       {"geometry.height_scale", Number, "1.0", "", "heightfield: pixel value × scale = height in µm"},
-      {"geometry.ndf", String, "\"beckmann\"", "beckmann, ggx, vmf, sphere, tabulated", "statistical: the microflake NDF"},
+      {"geometry.ndf", String, "\"beckmann\"", "beckmann, ggx, vmf, sphere, tabulated",
+       "statistical: the microflake NDF"},
       {"geometry.ndf_file", String, "—", "", "statistical, tabulated: lines theta_deg, D"},
-      {"geometry.alpha", Numbers, "0.3", "(0, 100]", "statistical: roughness (one or [alpha_x, alpha_y]; vmf: kappa = 2/alpha²)"},
+      {"geometry.alpha", Numbers, "0.3", "(0, 100]",
+       "statistical: roughness (one or [alpha_x, alpha_y]; vmf: kappa = 2/alpha²)"},
       {"geometry.kappa", Number, "—", "[0, 1e4]", "statistical, vmf: concentration"},
       {"geometry.flakes", String, "\"specular\"", "specular, diffuse", "statistical: what a flake does to light"},
       {"geometry.flake_albedo", Number, "1.0", "[0, 1]", "statistical: the flakes' albedo"},
@@ -72,8 +77,10 @@ const std::vector<JobKey>& jobKeys() {
       {"directions.width", Integer, "64", "> 0", "disk: pixels across"},
       {"directions.height", Integer, "64", "> 0", "disk: pixels down"},
       {"directions.incidence", StringOrNumbers, "\"all\"", "\"all\" or [[theta_deg, phi_deg], …]", "the incidences"},
-      {"directions.incidence_sampling", String, "\"bin\"", "bin, exact", "spread over the incidence bin, or a collimated beam"},
-      {"directions.symmetry", String, "\"auto\"", "auto, none, isotropic", "compute part of each θ ring and rotate the rest"},
+      {"directions.incidence_sampling", String, "\"bin\"", "bin, exact",
+       "spread over the incidence bin, or a collimated beam"},
+      {"directions.symmetry", String, "\"auto\"", "auto, none, isotropic",
+       "compute part of each θ ring and rotate the rest"},
 
       {"scene", Table, "", "", "what the renderer needs: the light, the colour, the accuracy"},
       {"scene.coherence_length_um", Number, "50.0", ">= 0", "coherence length δc of the light"},
@@ -88,21 +95,26 @@ const std::vector<JobKey>& jobKeys() {
       {"effects", Table, "", "", "which components the job computes"},
       {"effects.components", Strings, "\"auto\"", "auto, coherent, incoherent, multiple, lost",
        "\"auto\" (the effects planner decides) or a list"},
-      {"effects.pilot_budget", Number, "0.5", "> 0", "the pilots' work at most, as a fraction of the job's computed tiles"},
+      {"effects.pilot_budget", Number, "0.5", "> 0",
+       "the pilots' work at most, as a fraction of the job's computed tiles"},
       {"effects.reciprocity", Boolean, "true", "", "halve the wave term by reciprocity where the job allows it"},
 
       {"sampling", Table, "", "", "budgets, seeds and estimators"},
       {"sampling.paths_per_slice", Integer, "1000000", "> 0", "paths per incidence slice"},
       {"sampling.target_rel_error", Number, "0", "[0, 1)", "progressive sampling's target (0: a fixed budget)"},
-      {"sampling.max_paths_per_slice", Integer, "16 × paths_per_slice", ">= paths_per_slice", "progressive sampling's budget"},
+      {"sampling.max_paths_per_slice", Integer, "16 × paths_per_slice", ">= paths_per_slice",
+       "progressive sampling's budget"},
       {"sampling.max_depth", Integer, "100", "[1, 1e6]", "bounces before a path is cut"},
       {"sampling.seed", Integer, "1", "", "seed of the path tracer's and wave estimators' random numbers"},
       {"sampling.wave_estimator", String, "\"auto\"", "auto, area, orders, exact, fft, paper", "the wave estimator"},
       {"sampling.wave_samples_per_bin", Integer, "256", "[1, 1e9]", "Kirchhoff samples per exit bin"},
       {"sampling.wave_points_per_direction", Integer, "64", "[2, 1e9]", "area: surface points per exit direction"},
-      {"sampling.visibility_table", String, "\"auto\"", "auto, on, off", "exact: the shared table of first-level masking rays"},
-      {"sampling.single_scattering", String, "\"auto\"", "auto, paths, facets", "how single scattering is computed without deeper paths"},
-      {"sampling.wave_incidence_directions", Integer, "4", "[1, 1e6]", "orders, bin-averaged: incidence directions per bin"},
+      {"sampling.visibility_table", String, "\"auto\"", "auto, on, off",
+       "exact: the shared table of first-level masking rays"},
+      {"sampling.single_scattering", String, "\"auto\"", "auto, paths, facets",
+       "how single scattering is computed without deeper paths"},
+      {"sampling.wave_incidence_directions", Integer, "4", "[1, 1e6]",
+       "orders, bin-averaged: incidence directions per bin"},
 
       {"output", Table, "", "", "the output file"},
       {"output.path", String, "\"out.h5\"", "", "output HDF5 file (-o overrides it)"},
@@ -152,15 +164,24 @@ std::string nearestJobKey(std::string_view path) {
 
 std::string_view keyTypeName(KeyType t) {
   switch (t) {
-    case KeyType::Table: return "table";
-    case KeyType::String: return "string";
-    case KeyType::Strings: return "string or [strings]";
-    case KeyType::Number: return "number";
-    case KeyType::Numbers: return "number or [numbers]";
-    case KeyType::Integer: return "integer";
-    case KeyType::Boolean: return "boolean";
-    case KeyType::StringOrNumbers: return "string or [[numbers]]";
-    case KeyType::NumbersOrTable: return "[numbers] or table";
+    case KeyType::Table:
+      return "table";
+    case KeyType::String:
+      return "string";
+    case KeyType::Strings:
+      return "string or [strings]";
+    case KeyType::Number:
+      return "number";
+    case KeyType::Numbers:
+      return "number or [numbers]";
+    case KeyType::Integer:
+      return "integer";
+    case KeyType::Boolean:
+      return "boolean";
+    case KeyType::StringOrNumbers:
+      return "string or [[numbers]]";
+    case KeyType::NumbersOrTable:
+      return "[numbers] or table";
   }
   return "?";
 }
@@ -169,8 +190,8 @@ std::string jobKeysMarkdown() {
   std::string out = "| key | type | default | accepted | meaning |\n|---|---|---|---|---|\n";
   for (const JobKey& k : jobKeys()) {
     if (k.type == KeyType::Table) continue;
-    out += fmt::format("| `{}` | {} | {} | {} | {} |\n", k.path, keyTypeName(k.type), k.defaultText.empty() ? "—" : k.defaultText,
-                       k.range.empty() ? "any" : k.range, k.meaning);
+    out += fmt::format("| `{}` | {} | {} | {} | {} |\n", k.path, keyTypeName(k.type),
+                       k.defaultText.empty() ? "—" : k.defaultText, k.range.empty() ? "any" : k.range, k.meaning);
   }
   return out;
 }
@@ -183,8 +204,8 @@ std::string jobKeysText() {
       continue;
     }
     out += fmt::format("  {:<36} {:<22} default {}{}\n      {}\n", k.path, keyTypeName(k.type),
-                       k.defaultText.empty() ? "—" : k.defaultText, k.range.empty() ? "" : "; accepted: " + std::string(k.range),
-                       k.meaning);
+                       k.defaultText.empty() ? "—" : k.defaultText,
+                       k.range.empty() ? "" : "; accepted: " + std::string(k.range), k.meaning);
   }
   return out;
 }

@@ -15,11 +15,11 @@ namespace mbsdf {
 enum class KeyType { Table, String, Strings, Number, Numbers, Integer, Boolean, StringOrNumbers, NumbersOrTable };
 
 struct JobKey {
-  std::string_view path;          // "section.name" ("spectrum.wavelengths_nm.min" inside a sub-table)
+  std::string_view path;  // "section.name" ("spectrum.wavelengths_nm.min" inside a sub-table)
   KeyType type;
-  std::string_view defaultText;   // as the reference shows it ("—": none, the key is optional)
-  std::string_view range;         // accepted values ("> 0", a closed set), "" when any of the type
-  std::string_view meaning;       // one line
+  std::string_view defaultText;  // as the reference shows it ("—": none, the key is optional)
+  std::string_view range;        // accepted values ("> 0", a closed set), "" when any of the type
+  std::string_view meaning;      // one line
 };
 
 const std::vector<JobKey>& jobKeys();

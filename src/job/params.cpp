@@ -33,13 +33,17 @@ ParamDict ParamDict::parseFile(const std::string& path) {
   return parseString(ss.str(), path);
 }
 
-std::string ParamDict::path(const std::string& key) const { return prefix_.empty() ? key : prefix_ + "." + key; }
+std::string ParamDict::path(const std::string& key) const {
+  return prefix_.empty() ? key : prefix_ + "." + key;
+}
 
 std::string ParamDict::where(const std::string& key) const {
   int line = 0;
   if (table_) {
-    if (const toml::node* n = table_->get(key)) line = int(n->source().begin.line);
-    else line = int(table_->source().begin.line);
+    if (const toml::node* n = table_->get(key))
+      line = int(n->source().begin.line);
+    else
+      line = int(table_->source().begin.line);
   }
   return formatLocation(state_->file, line, path(key));
 }
@@ -65,7 +69,9 @@ const toml::node* ParamDict::lookup(const std::string& key) const {
   return n;
 }
 
-bool ParamDict::has(const std::string& key) const { return table_ && table_->contains(key); }
+bool ParamDict::has(const std::string& key) const {
+  return table_ && table_->contains(key);
+}
 
 const toml::node* ParamDict::node(const std::string& key) const {
   expect(key, {KeyType::Table, KeyType::String, KeyType::Strings, KeyType::Number, KeyType::Numbers, KeyType::Integer,
@@ -175,7 +181,8 @@ void ParamDict::reportUnused() const {
       if (!state_->used.count(p)) {
         const std::string nearest = nearestJobKey(p);
         unused.push_back(formatLocation(state_->file, int(v.source().begin.line), p) + ": unknown key" +
-                         (nearest.empty() ? "" : " (did you mean '" + nearest + "'?)") + "; `microbsdf keys` lists every key");
+                         (nearest.empty() ? "" : " (did you mean '" + nearest + "'?)") +
+                         "; `microbsdf keys` lists every key");
       } else if (v.is_table()) {
         self(self, *v.as_table(), p);
       }

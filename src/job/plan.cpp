@@ -106,23 +106,30 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
     *worst = 0;
     for (size_t k = 0; k < atPilot.size() && k < pilots.size(); ++k) {
       const auto& inc = job.incidence[size_t(pilots[k])];
-      list.push_back({{"incidence", pilots[k]}, {"theta_deg", inc.theta_deg}, {"phi_deg", inc.phi_deg},
+      list.push_back({{"incidence", pilots[k]},
+                      {"theta_deg", inc.theta_deg},
+                      {"phi_deg", inc.phi_deg},
                       {"rel_error", atPilot[k] * factor}});
       *worst = std::max(*worst, atPilot[k] * factor);
     }
     return list;
   };
   double pathErr = 0;
-  const nlohmann::json pathList =
-      scaled(pathErrPilot, pathsDeterministic ? 0.0 : std::sqrt(double(pilotPaths) / double(job.pathsPerSlice)), &pathErr);
-  a["paths"] = {{"rel_error", pathErr}, {"per_pilot", pathList}, {"paths_per_slice", job.pathsPerSlice},
+  const nlohmann::json pathList = scaled(
+      pathErrPilot, pathsDeterministic ? 0.0 : std::sqrt(double(pilotPaths) / double(job.pathsPerSlice)), &pathErr);
+  a["paths"] = {{"rel_error", pathErr},
+                {"per_pilot", pathList},
+                {"paths_per_slice", job.pathsPerSlice},
                 {"monte_carlo", !pathsDeterministic}};
   const bool wave = job.needsWave();
   double waveErr = 0;
   if (wave) {
     const nlohmann::json waveList = scaled(waveErrAtJob, 1.0, &waveErr);
-    a["wave"] = {{"rel_error", waveErr}, {"per_pilot", waveList}, {"estimator", waveEstimatorName(job.resolvedWaveEstimator())},
-                 {"samples_per_bin", job.waveSamplesPerBin}, {"monte_carlo", !waveDeterministic}};
+    a["wave"] = {{"rel_error", waveErr},
+                 {"per_pilot", waveList},
+                 {"estimator", waveEstimatorName(job.resolvedWaveEstimator())},
+                 {"samples_per_bin", job.waveSamplesPerBin},
+                 {"monte_carlo", !waveDeterministic}};
     if (!waveDeterministic) a["wave"]["rate"] = waveRate;
   }
   nlohmann::json targets = nlohmann::json::array();
@@ -134,8 +141,8 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
     // The wave term's budget from its measured rate; a rate near 0 (an error the pilots could not
     // see fall) buys nothing by samples.
     const bool waveByBudget = wave && !waveDeterministic && waveErr > 0 && waveRate > 0.05;
-    const double fw = !waveByBudget ? 1.0
-                                    : std::max(16.0 / double(job.waveSamplesPerBin), std::pow(waveErr / target, 1 / waveRate));
+    const double fw =
+        !waveByBudget ? 1.0 : std::max(16.0 / double(job.waveSamplesPerBin), std::pow(waveErr / target, 1 / waveRate));
     nlohmann::json t = {{"rel_error", target},
                         {"core_hours", (pathSeconds * fp + waveSeconds * fw) * computedTiles * cores / 3600.0}};
     if (!pathsDeterministic) {
@@ -145,18 +152,21 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
       // worst one's; the budget is the worst pilot's rounds.
       double meanRounds = 0, maxRounds = 1;
       for (double e : pathErrPilot) {
-        const double rounds = std::max(1.0, std::ceil(std::pow(e * std::sqrt(double(pilotPaths) / double(job.pathsPerSlice)) /
-                                                               target, 2) - 1e-9));
+        const double rounds = std::max(
+            1.0, std::ceil(std::pow(e * std::sqrt(double(pilotPaths) / double(job.pathsPerSlice)) / target, 2) - 1e-9));
         meanRounds += rounds / double(pathErrPilot.size());
         maxRounds = std::max(maxRounds, rounds);
       }
-      t["progressive"] = {{"target_rel_error", target},
-                          {"max_paths_per_slice", uint64_t(maxRounds) * job.pathsPerSlice},
-                          {"core_hours", (pathSeconds * meanRounds + waveSeconds * fw) * computedTiles * cores / 3600.0}};
+      t["progressive"] = {
+          {"target_rel_error", target},
+          {"max_paths_per_slice", uint64_t(maxRounds) * job.pathsPerSlice},
+          {"core_hours", (pathSeconds * meanRounds + waveSeconds * fw) * computedTiles * cores / 3600.0}};
     }
-    if (waveByBudget) t["wave_samples_per_bin"] = uint64_t(std::ceil(std::min(double(job.waveSamplesPerBin) * fw, 9e18)));
-    t["reached"] = (pathsDeterministic || pathErr * std::sqrt(1 / fp) <= target * 1.0000001) &&
-                   (!wave || waveErr <= target || (waveByBudget && waveErr * std::pow(fw, -waveRate) <= target * 1.0000001));
+    if (waveByBudget)
+      t["wave_samples_per_bin"] = uint64_t(std::ceil(std::min(double(job.waveSamplesPerBin) * fw, 9e18)));
+    t["reached"] =
+        (pathsDeterministic || pathErr * std::sqrt(1 / fp) <= target * 1.0000001) &&
+        (!wave || waveErr <= target || (waveByBudget && waveErr * std::pow(fw, -waveRate) <= target * 1.0000001));
     targets.push_back(t);
   }
   a["targets"] = targets;
@@ -179,9 +189,12 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   const int nTiles = int(job.incidence.size()), nL = int(job.lambda_nm.size()), nB = grid.binCount();
   nlohmann::json p;
   p["job"] = job.file;
-  p["geometry"] = {{"kind", job.geometryKind}, {"triangles", job.geometry.triangles.size()},
-                   {"size_um", {job.geometry.sizeX, job.geometry.sizeY}}, {"periodic", job.geometry.periodic},
-                   {"open_edges", job.closure.openEdges}, {"uncovered_fraction", job.closure.uncoveredFraction},
+  p["geometry"] = {{"kind", job.geometryKind},
+                   {"triangles", job.geometry.triangles.size()},
+                   {"size_um", {job.geometry.sizeX, job.geometry.sizeY}},
+                   {"periodic", job.geometry.periodic},
+                   {"open_edges", job.closure.openEdges},
+                   {"uncovered_fraction", job.closure.uncoveredFraction},
                    {"surface", job.statistical ? std::string("statistical") : job.closure.describe()}};
   if (job.statistical) p["geometry"]["model"] = MicroflakeDistribution(job.statistical->ndf).describe();
   p["material"] = job.material.describe();
@@ -190,7 +203,11 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   p["tiles"] = nTiles;
   // Symmetry: one computed tile per θ ring of an isotropic surface (symmetry.h).
   const int computedTiles = job.symmetryReduced() ? AzimuthalSymmetry(job, grid).representativeCount() : nTiles;
-  p["symmetry"] = {{"reduced", job.symmetryReduced()}, {"isotropic", job.isotropic}, {"rotation_order", job.rotationOrder}, {"reason", job.symmetryReason}, {"tiles_computed", computedTiles}};
+  p["symmetry"] = {{"reduced", job.symmetryReduced()},
+                   {"isotropic", job.isotropic},
+                   {"rotation_order", job.rotationOrder},
+                   {"reason", job.symmetryReason},
+                   {"tiles_computed", computedTiles}};
   if (!effects.is_null()) p["effects"] = effects;
   std::vector<std::string> comps;
   for (Component c : job.components.list()) comps.push_back(componentName(c));
@@ -198,9 +215,9 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   if (job.needsWave()) p["wave_estimator"] = waveEstimatorName(job.resolvedWaveEstimator());
 
   // Pilots at a reduced budget, spread as the effects planner spreads them (the most grazing, the
-  // closest to normal, the median, then the farthest in angle: the cost depends on θi differently for explicit geometry, which bounces more at grazing
-  // incidence, and for the microflake walk, which goes deeper at normal incidence); a tile's cost is
-  // their mean.
+  // closest to normal, the median, then the farthest in angle: the cost depends on θi differently for explicit
+  // geometry, which bounces more at grazing incidence, and for the microflake walk, which goes deeper at normal
+  // incidence); a tile's cost is their mean.
   const std::vector<int> pilots = pilotIncidences(job);
   const int pilot = *std::min_element(pilots.begin(), pilots.end(), [&](int a, int b) {
     return std::abs(std::cos(radians(job.incidence[size_t(a)].theta_deg))) <
@@ -237,7 +254,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
     pathRelErrors.push_back(*std::max_element(e.begin(), e.end()));
     pilotSeconds += r.seconds / double(pilots.size());
-    pathSeconds += r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
+    pathSeconds +=
+        r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
     facetTiles += r.samples == 0;
   }
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
@@ -247,8 +265,9 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   bool waveDeterministic = true;
   if (job.needsWave()) {
     WaveSettings ws = waveSettingsOf(job);
-    ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
-                                     ws.estimator == WaveEstimatorKind::Area ? 2 * int(job.wavePointsPerDirection) : 16);
+    ws.samplesPerBin =
+        std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
+                      ws.estimator == WaveEstimatorKind::Area ? 2 * int(job.wavePointsPerDirection) : 16);
     auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
     waveDeterministic = est->deterministic();
     // A Monte Carlo wave term's error falls as 1/√N only once its samples resolve the lobes (with a
@@ -259,7 +278,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     WaveSettings ws2 = ws;
     ws2.samplesPerBin = std::min<int>(int(job.waveSamplesPerBin), 4 * ws.samplesPerBin);
     const bool twoPasses = !waveDeterministic && ws2.samplesPerBin > ws.samplesPerBin;
-    std::unique_ptr<WaveEstimator> est2 = twoPasses ? makeJobWaveEstimator(job, grid, *transport.scene(), ws2) : nullptr;
+    std::unique_ptr<WaveEstimator> est2 =
+        twoPasses ? makeJobWaveEstimator(job, grid, *transport.scene(), ws2) : nullptr;
     const int timedSamples = twoPasses ? ws2.samplesPerBin : ws.samplesPerBin;
     // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
     const double scale = waveDeterministic ? 1.0 : double(job.waveSamplesPerBin) / double(timedSamples);
@@ -278,13 +298,17 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
       } else {
         const WaveTileResult w2 = est2->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
         const double e2 = waveRelativeError(w2, grid);
-        const double rate = e1 > 0 && e2 > 0 ? std::clamp(std::log(e1 / e2) / std::log(double(ws2.samplesPerBin) / ws.samplesPerBin), 0.0, 0.5) : 0.5;
+        const double rate =
+            e1 > 0 && e2 > 0
+                ? std::clamp(std::log(e1 / e2) / std::log(double(ws2.samplesPerBin) / ws.samplesPerBin), 0.0, 0.5)
+                : 0.5;
         waveRate = std::min(waveRate, rate);
         waveRelErrors.push_back(e2 * std::pow(N / double(ws2.samplesPerBin), -rate));
         waveSeconds += w2.seconds;
       }
       if (pilotTiles[k].has(Component::Coherent))
-        addWaveComponents(pilotTiles[k], w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
+        addWaveComponents(pilotTiles[k], w, job.components.has(Component::Incoherent),
+                          job.components.has(Component::Lost));
     }
     // What the first pilot built for every later tile (exact's visibility table) is paid once per
     // rank, not per tile.
@@ -319,8 +343,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     for (const TileResult& r : pilotTiles)
       for (double b : energyBalance(r, grid, model, job.material.lossless()))
         if (std::abs(b) > std::abs(worst)) worst = b;
-    p["energy_balance"] = {{"worst_at_pilots", worst}, {"tolerance", job.scene.tolerance},
-                           {"lossless", job.material.lossless()}};
+    p["energy_balance"] = {
+        {"worst_at_pilots", worst}, {"tolerance", job.scene.tolerance}, {"lossless", job.material.lossless()}};
   }
   p["scalar_validity"] = toJson(scalarValidity(job));
   // Rank 0 writes every slice (rotated ones too) with a flush and a journal fsync: measured by the
@@ -338,9 +362,10 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
                 {"cores", cores}};
   if (job.targetRelError > 0) {
     // Progressive sampling: the estimate above is the first round; the budget bounds the rest.
-    p["progressive"] = {{"target_rel_error", job.targetRelError},
-                        {"max_paths_per_slice", job.maxPathsPerSlice},
-                        {"path_seconds_per_tile_max", pathSeconds * double(job.maxPathsPerSlice) / double(job.pathsPerSlice)}};
+    p["progressive"] = {
+        {"target_rel_error", job.targetRelError},
+        {"max_paths_per_slice", job.maxPathsPerSlice},
+        {"path_seconds_per_tile_max", pathSeconds * double(job.maxPathsPerSlice) / double(job.pathsPerSlice)}};
   }
   p["accuracy"] = accuracyTable(job, pilots, pathRelErrors, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
                                 waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
@@ -363,9 +388,9 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
       (tileSeconds * std::ceil(double(computedTiles) / ntasks) + waveSetupSeconds) * cores / cpusPerTask / 3600.0;
   int minutes = int(std::ceil(wallHours * 60 * 1.3)) + 10;
   std::ostringstream sb;
-  sb << "#SBATCH --ntasks=" << ntasks << "\n#SBATCH --cpus-per-task=" << cpusPerTask << "\n#SBATCH --time="
-     << minutes / 60 << ":" << (minutes % 60 < 10 ? "0" : "") << minutes % 60 << ":00\n#SBATCH --mem-per-cpu="
-     << std::max(1, int(std::ceil(memoryBytes / cpusPerTask / 1e9 * 2))) << "G\n"
+  sb << "#SBATCH --ntasks=" << ntasks << "\n#SBATCH --cpus-per-task=" << cpusPerTask
+     << "\n#SBATCH --time=" << minutes / 60 << ":" << (minutes % 60 < 10 ? "0" : "") << minutes % 60
+     << ":00\n#SBATCH --mem-per-cpu=" << std::max(1, int(std::ceil(memoryBytes / cpusPerTask / 1e9 * 2))) << "G\n"
      << "#SBATCH --signal=B:USR1@300\n#SBATCH --requeue\n";
   p["sbatch"] = sb.str();
   return p;
@@ -376,12 +401,13 @@ namespace {
 std::string fmtAccuracy(const nlohmann::json& a) {
   auto pct = [](double e) { return fmt::format("{:.2g} %", 100 * e); };
   const auto& paths = a["paths"];
-  std::string o = "accuracy:       paths " +
-                  (paths["monte_carlo"].get<bool>()
-                       ? pct(paths["rel_error"].get<double>()) + " per slice at " + paths["paths_per_slice"].dump() + " paths"
-                       : std::string("deterministic (the facet sum)"));
+  std::string o = "accuracy:       paths " + (paths["monte_carlo"].get<bool>()
+                                                  ? pct(paths["rel_error"].get<double>()) + " per slice at " +
+                                                        paths["paths_per_slice"].dump() + " paths"
+                                                  : std::string("deterministic (the facet sum)"));
   if (a.contains("wave"))
-    o += "; wave term (" + a["wave"]["estimator"].get<std::string>() + ") " + pct(a["wave"]["rel_error"].get<double>()) +
+    o += "; wave term (" + a["wave"]["estimator"].get<std::string>() + ") " +
+         pct(a["wave"]["rel_error"].get<double>()) +
          (a["wave"]["monte_carlo"].get<bool>()
               ? " at " + a["wave"]["samples_per_bin"].dump() + " samples per bin" +
                     (a["wave"].contains("rate") && a["wave"]["rate"].get<double>() < 0.45
@@ -389,17 +415,21 @@ std::string fmtAccuracy(const nlohmann::json& a) {
                                        a["wave"]["rate"].get<double>())
                          : std::string())
               : std::string(" (its rules' error, whatever the budget)"));
-  o += "\n                (largest relative error of a slice of that table, √Σ(σ Ω⊥)² / Σ|f| Ω⊥, from the pilots; Monte Carlo errors fall as 1/√budget)\n";
+  o += "\n                (largest relative error of a slice of that table, √Σ(σ Ω⊥)² / Σ|f| Ω⊥, from the pilots; "
+       "Monte Carlo errors fall as 1/√budget)\n";
   for (const auto& t : a["targets"]) {
     o += fmt::format("  for {:>4}: ", pct(t["rel_error"].get<double>()));
     if (t.contains("paths_per_slice")) o += "paths_per_slice = " + t["paths_per_slice"].dump() + ", ";
     if (t.contains("wave_samples_per_bin")) o += "wave_samples_per_bin = " + t["wave_samples_per_bin"].dump() + ", ";
     o += fmt::format("{:.3g} core-hours", t["core_hours"].get<double>());
-    if (t.contains("progressive") && t["progressive"]["core_hours"].get<double>() < 0.95 * t["core_hours"].get<double>())
+    if (t.contains("progressive") &&
+        t["progressive"]["core_hours"].get<double>() < 0.95 * t["core_hours"].get<double>())
       o += fmt::format("; or target_rel_error = {}, max_paths_per_slice = {}: {:.3g} core-hours",
-                       t["progressive"]["target_rel_error"].get<double>(), t["progressive"]["max_paths_per_slice"].dump(),
-                       t["progressive"]["core_hours"].get<double>());
-    if (!t["reached"].get<bool>()) o += " (not reached by budget: a deterministic part's own error, or a wave error the pilots did not see fall, stays above it)";
+                       t["progressive"]["target_rel_error"].get<double>(),
+                       t["progressive"]["max_paths_per_slice"].dump(), t["progressive"]["core_hours"].get<double>());
+    if (!t["reached"].get<bool>())
+      o += " (not reached by budget: a deterministic part's own error, or a wave error the pilots did not see fall, "
+           "stays above it)";
     o += "\n";
   }
   return o;
@@ -430,16 +460,17 @@ std::string formatPlan(const nlohmann::json& p) {
   };
   o << "job:            " << p["job"].get<std::string>() << "\n"
     << "geometry:       " << p["geometry"]["kind"].get<std::string>() << ", "
-    << (p["geometry"].contains("model") ? p["geometry"]["model"].get<std::string>()
-                                        : p["geometry"]["triangles"].dump() + " triangles, " +
-                                              p["geometry"]["surface"].get<std::string>())
+    << (p["geometry"].contains("model")
+            ? p["geometry"]["model"].get<std::string>()
+            : p["geometry"]["triangles"].dump() + " triangles, " + p["geometry"]["surface"].get<std::string>())
     << "\n"
     << "material:       " << p["material"].get<std::string>() << "\n"
-    << "components:     " << p["components"].dump() << (p.contains("wave_estimator") ? " (wave estimator " + p["wave_estimator"].get<std::string>() + ")" : "") << "\n"
+    << "components:     " << p["components"].dump()
+    << (p.contains("wave_estimator") ? " (wave estimator " + p["wave_estimator"].get<std::string>() + ")" : "") << "\n"
     << "grid:           " << p["grid"]["kind"].get<std::string>() << ", " << p["grid"]["bins"] << " bins; "
     << p["wavelengths"] << " wavelengths\n"
-    << (p.contains("effects") ? formatEffects(p["effects"]) : std::string())
-    << "tiles:          " << p["tiles"] << " (one per incidence direction, all wavelengths)"
+    << (p.contains("effects") ? formatEffects(p["effects"]) : std::string()) << "tiles:          " << p["tiles"]
+    << " (one per incidence direction, all wavelengths)"
     << (p["symmetry"]["reduced"].get<bool>()
             ? "; " + p["symmetry"]["tiles_computed"].dump() + " computed, the rest rotated (" +
                   p["symmetry"]["reason"].get<std::string>() + ")"
@@ -448,9 +479,9 @@ std::string formatPlan(const nlohmann::json& p) {
     << "pilot:          tile " << p["pilot"]["tile"] << " (theta " << n(p["pilot"]["theta_deg"]) << "°), "
     << p["pilot"]["paths"] << " paths in " << n(p["pilot"]["path_seconds"]) << " s on " << p["pilot"]["cores"]
     << " cores\n"
-    << "per tile:       " << n(p["estimate"]["seconds_per_tile"]) << " s (paths " << n(p["estimate"]["path_seconds_per_tile"])
-    << " s, wave " << n(p["estimate"]["wave_seconds_per_tile"]) << " s) on these cores; writing "
-    << n(p["estimate"]["write_seconds_per_slice"]) << " s per slice"
+    << "per tile:       " << n(p["estimate"]["seconds_per_tile"]) << " s (paths "
+    << n(p["estimate"]["path_seconds_per_tile"]) << " s, wave " << n(p["estimate"]["wave_seconds_per_tile"])
+    << " s) on these cores; writing " << n(p["estimate"]["write_seconds_per_slice"]) << " s per slice"
     << (p["estimate"]["wave_setup_seconds_per_rank"].get<double>() > 0
             ? "; once per rank " + n(p["estimate"]["wave_setup_seconds_per_rank"]) + " s (exact's visibility table)"
             : std::string())
@@ -468,11 +499,12 @@ std::string formatPlan(const nlohmann::json& p) {
                   p["progressive"]["max_paths_per_slice"].dump() + " paths)\n"
             : std::string())
     << (p.contains("reciprocity")
-            ? std::string("reciprocity:    ") + (p["reciprocity"]["used"].get<bool>()
-                                        ? "wave term for " + n(p["reciprocity"]["computed_fraction"].get<double>() * 100) +
-                                              "% of the same-side bin pairs, the rest mirrored (saves " +
-                                              n(p["reciprocity"]["core_hours_saved"]) + " core-hours)\n"
-                                        : "not used: " + p["reciprocity"]["reason"].get<std::string>() + "\n")
+            ? std::string("reciprocity:    ") +
+                  (p["reciprocity"]["used"].get<bool>()
+                       ? "wave term for " + n(p["reciprocity"]["computed_fraction"].get<double>() * 100) +
+                             "% of the same-side bin pairs, the rest mirrored (saves " +
+                             n(p["reciprocity"]["core_hours_saved"]) + " core-hours)\n"
+                       : "not used: " + p["reciprocity"]["reason"].get<std::string>() + "\n")
             : std::string())
     << "output:         " << gb(p["output_bytes_uncompressed"].get<double>()) << " uncompressed (upper bound)\n"
     << "memory / rank:  " << gb(p["memory_bytes_per_rank"].get<double>()) << "\n"

@@ -53,11 +53,14 @@ std::optional<double> lookUp(double periodOverLambda, double depthOverLambda) {
 
 }  // namespace
 
-const ValidityMap& validityMap() { return kMap; }
+const ValidityMap& validityMap() {
+  return kMap;
+}
 
 ScalarValidity scalarValidity(const Job& job) {
   ScalarValidity v;
-  if (job.statistical || !job.geometry.periodic || job.scene.coherenceLength_um <= 0 || !(job.needsWave() || job.autoComponents))
+  if (job.statistical || !job.geometry.periodic || job.scene.coherenceLength_um <= 0 ||
+      !(job.needsWave() || job.autoComponents))
     return v;
   const double period = shortestPeriod(job), height = job.geometry.zMax() - job.geometry.zMin();
   if (period <= 0 || height <= 0) return v;  // flat, or no variation: Fresnel, nothing to judge
@@ -65,7 +68,8 @@ ScalarValidity scalarValidity(const Job& job) {
   // The worse of the shortest and longest wavelengths: outside the map first, then the larger error.
   const auto lambdas = job.lambda_um();
   bool first = true;
-  for (double lambda : {*std::min_element(lambdas.begin(), lambdas.end()), *std::max_element(lambdas.begin(), lambdas.end())}) {
+  for (double lambda :
+       {*std::min_element(lambdas.begin(), lambdas.end()), *std::max_element(lambdas.begin(), lambdas.end())}) {
     const double p = period / lambda, h = height / lambda;
     const std::optional<double> e = lookUp(p, h);
     const bool worse = first || (!e && v.maxOrderError) || (e && v.maxOrderError && *e > *v.maxOrderError);
@@ -75,14 +79,16 @@ ScalarValidity scalarValidity(const Job& job) {
   const std::string where = fmt::format("period {:.3g} λ, height {:.3g} λ", v.periodOverLambda, v.heightOverLambda);
   if (!v.maxOrderError) {
     v.beyondTolerance = true;
-    v.note = where + ": outside the rigorously validated range (period ≥ 2 λ, height ≤ 2 λ; docs/validation.md) — "
-                     "scalar diffraction is not vouched for; compare the energy balance";
+    v.note = where +
+             ": outside the rigorously validated range (period ≥ 2 λ, height ≤ 2 λ; docs/validation.md) — "
+             "scalar diffraction is not vouched for; compare the energy balance";
   } else {
     v.beyondTolerance = *v.maxOrderError > job.scene.tolerance;
-    v.note = fmt::format("{}: binary gratings there are off by up to {:.3f} per order against FDTD "
-                         "(docs/validation.md){}",
-                         where, *v.maxOrderError,
-                         v.beyondTolerance ? fmt::format(", beyond the tolerance {}", job.scene.tolerance) : "");
+    v.note = fmt::format(
+        "{}: binary gratings there are off by up to {:.3f} per order against FDTD "
+        "(docs/validation.md){}",
+        where, *v.maxOrderError,
+        v.beyondTolerance ? fmt::format(", beyond the tolerance {}", job.scene.tolerance) : "");
   }
   return v;
 }

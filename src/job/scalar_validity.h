@@ -18,10 +18,10 @@ namespace mbsdf {
 struct Job;
 
 struct ScalarValidity {
-  bool applies = false;  // a periodic patch under a coherence window (diffraction orders)
+  bool applies = false;                               // a periodic patch under a coherence window (diffraction orders)
   double periodOverLambda = 0, heightOverLambda = 0;  // at the wavelength that places it worst
-  std::optional<double> maxOrderError;  // the map's value; empty outside the map
-  std::string note;  // one line for plan and the run log
+  std::optional<double> maxOrderError;                // the map's value; empty outside the map
+  std::string note;                                   // one line for plan and the run log
   bool beyondTolerance = false;
 };
 

@@ -36,7 +36,8 @@ PatchSymmetry patchSymmetryOf(const Microgeometry& g) {
   // Invariance under the map (x, y) -> (a x + b y, c x + d y) of centroids and normals.
   auto invariantUnder = [&](double a, double b, double c, double d) {
     for (const auto& [p, n] : index.facets())
-      if (!index.find({a * p.x + b * p.y, c * p.x + d * p.y, p.z}, {a * n.x + b * n.y, c * n.x + d * n.y, n.z})) return false;
+      if (!index.find({a * p.x + b * p.y, c * p.x + d * p.y, p.z}, {a * n.x + b * n.y, c * n.x + d * n.y, n.z}))
+        return false;
     return true;
   };
   auto rotation = [&](int order) {
@@ -44,15 +45,18 @@ PatchSymmetry patchSymmetryOf(const Microgeometry& g) {
     return invariantUnder(std::cos(t), -std::sin(t), std::sin(t), std::cos(t));
   };
   PatchSymmetry s;
-  if (std::abs(g.sizeX - g.sizeY) <= 1e-6 * g.sizeX && rotation(4)) s.rotationOrder = 4;
-  else if (rotation(2)) s.rotationOrder = 2;
+  if (std::abs(g.sizeX - g.sizeY) <= 1e-6 * g.sizeX && rotation(4))
+    s.rotationOrder = 4;
+  else if (rotation(2))
+    s.rotationOrder = 2;
   s.mirror = invariantUnder(1, 0, 0, -1) || mirrorOfSurface(g, index.facets(), wrap);
   return s;
 }
 
 AzimuthalSymmetry::AzimuthalSymmetry(const Job& job, const DirectionGrid& grid) {
   const auto* tp = std::get_if<ThetaPhiGrid>(&grid.layout());
-  if (!job.symmetryReduced() || !tp || !job.incidenceAll) throw std::logic_error("AzimuthalSymmetry: job is not reducible");
+  if (!job.symmetryReduced() || !tp || !job.incidenceAll)
+    throw std::logic_error("AzimuthalSymmetry: job is not reducible");
   nPhi_ = tp->nPhi;
   // Rotations by whole multiples of `step` bins are symmetries: every bin for an isotropic surface,
   // nPhi / n bins for an n-fold one (the job checks that n divides nPhi); with a mirror also

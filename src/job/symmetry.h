@@ -1,6 +1,6 @@
 // Azimuthal symmetry of an isotropic surface. Rotating an isotropic surface about z by any angle
-// leaves its BSDF unchanged, so on a theta-phi grid (rings of nPhi equal bins at every θ, in both hemispheres) the slice of the
-// incidence bin (t, p) is the slice of (t, 0) with every exit bin's φ index shifted by p:
+// leaves its BSDF unchanged, so on a theta-phi grid (rings of nPhi equal bins at every θ, in both hemispheres) the
+// slice of the incidence bin (t, p) is the slice of (t, 0) with every exit bin's φ index shifted by p:
 //   f((t, p) → (t', p')) = f((t, 0) → (t', p' − p mod nPhi)).
 // This is exact for bin-averaged values (a rotation by whole bins maps bins onto bins, with their
 // solid angles) and for collimated beams through bin centres. A job with incidence = "all" then

@@ -11,7 +11,9 @@ namespace mbsdf {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
 
 // Full-depth paths that bound a skipped `multiple` on a tile whose single scattering came from the
 // facet sum: its energy (+ 3 standard errors) is resolved to about 0.01 at this many.
@@ -43,11 +45,13 @@ TileComputer::TileComputer(const Job& job, const DirectionGrid& grid)
     : job_(job), grid_(grid), planned_(withoutGuarded(job)), transport_(planned_, grid, job.pathsPerSlice) {
   if (job.guarded.has(Component::Multiple)) singleBounceLimit_ = singleBounceLimit_deg(job);
   if (job.guarded.has(Component::Multiple) && transport_.mayUseFacetSum()) {
-    checkTransport_ = std::make_unique<GeometricTransport>(job, grid, std::min<uint64_t>(job.pathsPerSlice, kMultipleCheckPaths));
+    checkTransport_ =
+        std::make_unique<GeometricTransport>(job, grid, std::min<uint64_t>(job.pathsPerSlice, kMultipleCheckPaths));
     fullTransport_ = std::make_unique<GeometricTransport>(job, grid, job.pathsPerSlice);
   }
   if (job.needsWave()) wave_ = makeJobWaveEstimator(job, grid, *transport_.scene(), waveSettingsOf(job));
-  if (wave_ && job.halvesWaveByReciprocity()) pairs_.emplace(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere());
+  if (wave_ && job.halvesWaveByReciprocity())
+    pairs_.emplace(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere());
 }
 
 TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb, double* pathSeconds,
@@ -127,8 +131,8 @@ void TileComputer::addWaveTerm(int t, const std::optional<Vec3>& exact, const st
 // tile is traced in full after all, otherwise its `multiple` is stored as zero (within the
 // tolerance by the bound). Either way the slice records the bound and whether it was re-enabled.
 // An incidence below the geometry's single-bounce limit (effects_planner.h) has none: its check is 0.
-void TileComputer::verifySkippedMultiple(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& cb,
-                                         TileResult& r) const {
+void TileComputer::verifySkippedMultiple(int t, const std::optional<Vec3>& exact,
+                                         const std::function<void(uint64_t)>& cb, TileResult& r) const {
   const Job& job = job_;
   const DirectionGrid& grid = grid_;
   const GeometricTransport* check = checkTransport_.get();
@@ -157,9 +161,10 @@ void TileComputer::verifySkippedMultiple(int t, const std::optional<Vec3>& exact
   }
   r.multipleReenabled = r.multipleCheck > job.scene.tolerance;
   if (r.multipleReenabled)
-    spdlog::warn("tile {} (theta_i {:.3g} deg, phi_i {:.3g} deg): multiple scattering up to {:.4f} (+3 standard errors), "
-                 "beyond the tolerance {}: the effects planner's pilots did not see it, this slice has it",
-                 t, inc.theta_deg, inc.phi_deg, r.multipleCheck, job.scene.tolerance);
+    spdlog::warn(
+        "tile {} (theta_i {:.3g} deg, phi_i {:.3g} deg): multiple scattering up to {:.4f} (+3 standard errors), "
+        "beyond the tolerance {}: the effects planner's pilots did not see it, this slice has it",
+        t, inc.theta_deg, inc.phi_deg, r.multipleCheck, job.scene.tolerance);
 }
 
 }  // namespace mbsdf

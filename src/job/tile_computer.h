@@ -24,7 +24,8 @@ class TileComputer {
   // Tile t (an index into job.incidence). progress(done) is called from the inner loops and may
   // throw to abandon the tile; the seconds spent on paths and on the wave term are added to the
   // counters given.
-  TileResult compute(int t, const std::function<void(uint64_t)>& progress, double* pathSeconds, double* waveSeconds) const;
+  TileResult compute(int t, const std::function<void(uint64_t)>& progress, double* pathSeconds,
+                     double* waveSeconds) const;
 
   const GeometricTransport& transport() const { return transport_; }
   const WaveEstimator* wave() const { return wave_.get(); }

@@ -56,10 +56,12 @@ std::string GeometricTransport::describe() const {
   if (flakes_) return "microflake random walk, " + flakes_->describe();
   if (facets_)
     return std::string("path tracer through the explicit microgeometry; single scattering by the facet sum ") +
-           (singleScattering_ == Job::SingleScatteringMode::Facets ? "on every tile" : "on the tiles where it is cheaper") +
-           (facets_->maxSlope() ? fmt::format(" (heightfield, steepest slope {:.3g}: no ray above {:.3g} deg elevation)",
-                                              *facets_->maxSlope(), degrees(std::atan(*facets_->maxSlope())))
-                                : " (visibility by rays from each facet's first-level points, split where they disagree)");
+           (singleScattering_ == Job::SingleScatteringMode::Facets ? "on every tile"
+                                                                   : "on the tiles where it is cheaper") +
+           (facets_->maxSlope()
+                ? fmt::format(" (heightfield, steepest slope {:.3g}: no ray above {:.3g} deg elevation)",
+                              *facets_->maxSlope(), degrees(std::atan(*facets_->maxSlope())))
+                : " (visibility by rays from each facet's first-level points, split where they disagree)");
   return "path tracer through the explicit microgeometry";
 }
 
@@ -75,12 +77,13 @@ WaveSettings waveSettingsOf(const Job& job) {
   return ws;
 }
 
-std::unique_ptr<WaveEstimator> makeJobWaveEstimator(const Job& job, const DirectionGrid& grid, const PeriodicScene& scene,
-                                                    const WaveSettings& settings) {
-  return makeWaveEstimator(WaveContext{job.geometry, scene, job.material, job.lambda_um(), grid,
-                                       CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um, job.geometry.sizeX,
-                                                                            job.geometry.sizeY, job.geometry.periodic),
-                                       settings});
+std::unique_ptr<WaveEstimator> makeJobWaveEstimator(const Job& job, const DirectionGrid& grid,
+                                                    const PeriodicScene& scene, const WaveSettings& settings) {
+  return makeWaveEstimator(
+      WaveContext{job.geometry, scene, job.material, job.lambda_um(), grid,
+                  CoherenceWindow::fromCoherenceLength(job.scene.coherenceLength_um, job.geometry.sizeX,
+                                                       job.geometry.sizeY, job.geometry.periodic),
+                  settings});
 }
 
 }  // namespace mbsdf

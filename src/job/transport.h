@@ -52,7 +52,7 @@ class GeometricTransport {
 // seed; masked sums when `lost` is a component), for the run and, adjusted, for the pilots.
 WaveSettings waveSettingsOf(const Job& job);
 // The job's wave estimator on `scene` with `settings` and the coherence window of [scene].
-std::unique_ptr<WaveEstimator> makeJobWaveEstimator(const Job& job, const DirectionGrid& grid, const PeriodicScene& scene,
-                                                    const WaveSettings& settings);
+std::unique_ptr<WaveEstimator> makeJobWaveEstimator(const Job& job, const DirectionGrid& grid,
+                                                    const PeriodicScene& scene, const WaveSettings& settings);
 
 }  // namespace mbsdf

@@ -40,7 +40,9 @@ double chandrasekharH(double u, double a) {
   return std::exp(-u / kPi * I);
 }
 
-double isotropicMediumSingleBRDF(double mu_i, double mu_o, double a) { return a / (4 * kPi * (mu_i + mu_o)); }
+double isotropicMediumSingleBRDF(double mu_i, double mu_o, double a) {
+  return a / (4 * kPi * (mu_i + mu_o));
+}
 
 double isotropicMediumBRDF(double mu_i, double mu_o, double a) {
   return a / (4 * kPi) * chandrasekharH(mu_i, a) * chandrasekharH(mu_o, a) / (mu_i + mu_o);

@@ -106,8 +106,12 @@ nlohmann::json compareSmith(const CompareSmithOptions& o) {
         as += fs * op;
         l1 += std::abs(fe - fs) * op;
       }
-      row[name] = {{"albedo_explicit", ae}, {"albedo_smith", as},       {"albedo_se_explicit", std::sqrt(se2e)},
-                   {"albedo_se_smith", std::sqrt(se2s)}, {"lobe_l1", l1}, {"lobe_l1_noise", l1Noise}};
+      row[name] = {{"albedo_explicit", ae},
+                   {"albedo_smith", as},
+                   {"albedo_se_explicit", std::sqrt(se2e)},
+                   {"albedo_se_smith", std::sqrt(se2s)},
+                   {"lobe_l1", l1},
+                   {"lobe_l1_noise", l1Noise}};
     }
     // Plane-of-incidence lobe (φ = 0 and φ = 180° columns), total of both components.
     nlohmann::json lobe = nlohmann::json::array();
@@ -133,15 +137,17 @@ nlohmann::json compareSmith(const CompareSmithOptions& o) {
 
 std::string formatCompareSmith(const nlohmann::json& r) {
   std::ostringstream os;
-  os << fmt::format("Smith microflake model vs explicit Gaussian heightfield: Beckmann α = {} (mesh α = {:.4f}, {} "
-                    "triangles), {} at {} nm, {} paths per angle\n",
-                    r["alpha"].get<double>(), r["mesh_alpha"].get<double>(), r["mesh_triangles"].get<size_t>(),
-                    r["material"].get<std::string>(), r["lambda_nm"].get<double>(), r["paths"].get<uint64_t>());
+  os << fmt::format(
+      "Smith microflake model vs explicit Gaussian heightfield: Beckmann α = {} (mesh α = {:.4f}, {} "
+      "triangles), {} at {} nm, {} paths per angle\n",
+      r["alpha"].get<double>(), r["mesh_alpha"].get<double>(), r["mesh_triangles"].get<size_t>(),
+      r["material"].get<std::string>(), r["lambda_nm"].get<double>(), r["paths"].get<uint64_t>());
   os << fmt::format("{:>7} | {:>21} | {:>21} | {:>21} | {:>17} | {:>17}\n", "θi (°)", "single albedo e/S",
                     "multiple albedo e/S", "total albedo e/S", "L1 total (noise)", "L1 mult (noise)");
   for (const auto& row : r["rows"]) {
     auto pair = [&](const char* c) {
-      return fmt::format("{:.4f} / {:.4f}", row[c]["albedo_explicit"].get<double>(), row[c]["albedo_smith"].get<double>());
+      return fmt::format("{:.4f} / {:.4f}", row[c]["albedo_explicit"].get<double>(),
+                         row[c]["albedo_smith"].get<double>());
     };
     auto l1 = [&](const char* c) {
       return fmt::format("{:.4f} ({:.4f})", row[c]["lobe_l1"].get<double>(), row[c]["lobe_l1_noise"].get<double>());

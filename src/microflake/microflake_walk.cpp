@@ -127,8 +127,15 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
 TileResult MicroflakeWalk::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
                                const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
   if (exactDirection) exactDirection = normalize(*exactDirection);
-  const PathTallyPlan plan{tile,     incidenceIndex, incidenceBin,    &grid_, int(lambda_um_.size()),
-                           groups_,  settings_.paths, firstPath, {Component::Coherent, Component::Multiple}};
+  const PathTallyPlan plan{tile,
+                           incidenceIndex,
+                           incidenceBin,
+                           &grid_,
+                           int(lambda_um_.size()),
+                           groups_,
+                           settings_.paths,
+                           firstPath,
+                           {Component::Coherent, Component::Multiple}};
   return runPaths(
       plan, [&](uint64_t p, int g, PathChunk& c) { walk(tile, incidenceBin, exactDirection, p, g, c, nullptr); },
       progress);

@@ -54,7 +54,8 @@ void normaliseNdfTable(TabulatedNdf& t) {
   for (size_t i = 0; i < n; ++i) {
     if (!(t.cosTheta[i] >= -1 && t.cosTheta[i] <= 1) || !(t.value[i] >= 0) || !std::isfinite(t.value[i]))
       throw std::invalid_argument("NDF table: cos θ must be in [−1, 1] and D finite and >= 0");
-    if (i > 0 && !(t.cosTheta[i] > t.cosTheta[i - 1])) throw std::invalid_argument("NDF table: θ must be strictly monotone");
+    if (i > 0 && !(t.cosTheta[i] > t.cosTheta[i - 1]))
+      throw std::invalid_argument("NDF table: θ must be strictly monotone");
   }
   // Eq. 17: ∫ D ⟨m,z⟩ dm = 2π ∫_0^1 D(μ) μ dμ, exact (Simpson) for the piecewise-linear D.
   double proj = 0;
@@ -110,13 +111,15 @@ MicroflakeDistribution::MicroflakeDistribution(Ndf ndf) : ndf_(ndf) {
                           const size_t n = t.cosTheta.size();
                           tabCdf_.assign(n, 0.0);
                           for (size_t i = 1; i < n; ++i)
-                            tabCdf_[i] = tabCdf_[i - 1] + 0.5 * (t.value[i - 1] + t.value[i]) * (t.cosTheta[i] - t.cosTheta[i - 1]);
+                            tabCdf_[i] = tabCdf_[i - 1] +
+                                         0.5 * (t.value[i - 1] + t.value[i]) * (t.cosTheta[i] - t.cosTheta[i - 1]);
                           for (double& c : tabCdf_) c /= tabCdf_.back();
                           // σ(μ) by quadrature in the frame around −d: u = ⟨−d,m⟩, ψ the azimuth.
                           QuadratureRule gu = gaussLegendre(8, 0.0, 1.0 / 32), gp = gaussLegendre(8, 0.0, kPi / 8);
                           sigmaTable_.resize(kVmfTableSize);
                           for (int i = 0; i < kVmfTableSize; ++i) {
-                            const double mu = -1.0 + 2.0 * i / (kVmfTableSize - 1), sd = std::sqrt(std::max(0.0, 1 - mu * mu));
+                            const double mu = -1.0 + 2.0 * i / (kVmfTableSize - 1),
+                                         sd = std::sqrt(std::max(0.0, 1 - mu * mu));
                             double sum = 0;
                             for (int p = 0; p < 32; ++p)
                               for (size_t j = 0; j < gu.x.size(); ++j) {
@@ -136,43 +139,45 @@ MicroflakeDistribution::MicroflakeDistribution(Ndf ndf) : ndf_(ndf) {
 double MicroflakeDistribution::tabulatedD(double mz) const {
   const auto& t = std::get<TabulatedNdf>(ndf_);
   if (mz < t.cosTheta.front() || mz > t.cosTheta.back()) return 0.0;
-  const size_t i = std::min(t.cosTheta.size() - 2,
-                            size_t(std::upper_bound(t.cosTheta.begin(), t.cosTheta.end(), mz) - t.cosTheta.begin()) - 1);
+  const size_t i =
+      std::min(t.cosTheta.size() - 2,
+               size_t(std::upper_bound(t.cosTheta.begin(), t.cosTheta.end(), mz) - t.cosTheta.begin()) - 1);
   const double f = (mz - t.cosTheta[i]) / (t.cosTheta[i + 1] - t.cosTheta[i]);
   return t.value[i] + f * (t.value[i + 1] - t.value[i]);
 }
 
 std::string MicroflakeDistribution::describe() const {
-  return std::visit(Overloaded{[](const BeckmannNdf& n) { return fmt::format("Beckmann αx={} αy={}", n.alphaX, n.alphaY); },
-                               [](const GgxNdf& n) { return fmt::format("GGX αx={} αy={}", n.alphaX, n.alphaY); },
-                               [](const VonMisesFisherNdf& n) {
-                                 return n.kappa == 0 ? std::string("constant full-sphere NDF (isotropic medium)")
-                                                     : fmt::format("von Mises–Fisher κ={}", n.kappa);
-                               },
-                               [](const TabulatedNdf& n) {
-                                 return fmt::format("tabulated isotropic NDF ({} rows, θ from {:.3g}° to {:.3g}°)",
-                                                    n.cosTheta.size(), degrees(std::acos(n.cosTheta.back())),
-                                                    degrees(std::acos(n.cosTheta.front())));
-                               }},
-                    ndf_);
+  return std::visit(
+      Overloaded{[](const BeckmannNdf& n) { return fmt::format("Beckmann αx={} αy={}", n.alphaX, n.alphaY); },
+                 [](const GgxNdf& n) { return fmt::format("GGX αx={} αy={}", n.alphaX, n.alphaY); },
+                 [](const VonMisesFisherNdf& n) {
+                   return n.kappa == 0 ? std::string("constant full-sphere NDF (isotropic medium)")
+                                       : fmt::format("von Mises–Fisher κ={}", n.kappa);
+                 },
+                 [](const TabulatedNdf& n) {
+                   return fmt::format("tabulated isotropic NDF ({} rows, θ from {:.3g}° to {:.3g}°)", n.cosTheta.size(),
+                                      degrees(std::acos(n.cosTheta.back())), degrees(std::acos(n.cosTheta.front())));
+                 }},
+      ndf_);
 }
 
 double MicroflakeDistribution::D(const Vec3& m) const {
-  return std::visit(Overloaded{[&](const BeckmannNdf& n) {
-                                 if (m.z <= 0) return 0.0;
-                                 const double z2 = m.z * m.z;
-                                 const double e = (m.x * m.x / (n.alphaX * n.alphaX) + m.y * m.y / (n.alphaY * n.alphaY)) / z2;
-                                 return std::exp(-e) / (kPi * n.alphaX * n.alphaY * z2 * z2);
-                               },
-                               [&](const GgxNdf& n) {
-                                 if (m.z <= 0) return 0.0;
-                                 const double z2 = m.z * m.z;
-                                 const double e = (m.x * m.x / (n.alphaX * n.alphaX) + m.y * m.y / (n.alphaY * n.alphaY)) / z2;
-                                 return 1.0 / (kPi * n.alphaX * n.alphaY * z2 * z2 * (1 + e) * (1 + e));
-                               },
-                               [&](const VonMisesFisherNdf& n) { return vmfNorm_ * std::exp(n.kappa * (m.z - 1)); },
-                               [&](const TabulatedNdf&) { return tabulatedD(m.z); }},
-                    ndf_);
+  return std::visit(
+      Overloaded{[&](const BeckmannNdf& n) {
+                   if (m.z <= 0) return 0.0;
+                   const double z2 = m.z * m.z;
+                   const double e = (m.x * m.x / (n.alphaX * n.alphaX) + m.y * m.y / (n.alphaY * n.alphaY)) / z2;
+                   return std::exp(-e) / (kPi * n.alphaX * n.alphaY * z2 * z2);
+                 },
+                 [&](const GgxNdf& n) {
+                   if (m.z <= 0) return 0.0;
+                   const double z2 = m.z * m.z;
+                   const double e = (m.x * m.x / (n.alphaX * n.alphaX) + m.y * m.y / (n.alphaY * n.alphaY)) / z2;
+                   return 1.0 / (kPi * n.alphaX * n.alphaY * z2 * z2 * (1 + e) * (1 + e));
+                 },
+                 [&](const VonMisesFisherNdf& n) { return vmfNorm_ * std::exp(n.kappa * (m.z - 1)); },
+                 [&](const TabulatedNdf&) { return tabulatedD(m.z); }},
+      ndf_);
 }
 
 double MicroflakeDistribution::sigmaUpHeightfield(const Vec3& d) const {
@@ -245,7 +250,8 @@ std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler
         sPar = ggx ? (2 * u1 - 1) / (2 * std::sqrt(std::max(u1 * (1 - u1), 1e-300)))
                    : standardNormal(u1, u2) / std::sqrt(2.0);
       } else {
-        const double a = ggx ? std::sqrt(std::max(0.0, 1.0 / ((1 - u1) * (1 - u1)) - 1.0)) : std::sqrt(-std::log1p(-u1));
+        const double a =
+            ggx ? std::sqrt(std::max(0.0, 1.0 / ((1 - u1) * (1 - u1)) - 1.0)) : std::sqrt(-std::log1p(-u1));
         sPar = u2 < 0.5 ? a : -a;
       }
       const double wgt = v.z - r * sPar;
@@ -279,13 +285,13 @@ std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler
                      const double rr = std::sqrt(u1), phi = 2 * kPi * u2;
                      Vec3 t, b;
                      frame(v, &t, &b);
-                     return normalize(t * (rr * std::cos(phi)) + b * (rr * std::sin(phi)) + v * std::sqrt(std::max(0.0, 1 - u1)));
+                     return normalize(t * (rr * std::cos(phi)) + b * (rr * std::sin(phi)) +
+                                      v * std::sqrt(std::max(0.0, 1 - u1)));
                    }
                    // Propose from the vMF density on the sphere (exact inversion of m_z), accept with ⟨v,m⟩.
                    for (int tries = 0; tries < kMaxRejections; ++tries) {
                      const double u1 = s.get1D(), u2 = s.get1D(), u3 = s.get1D();
-                     const double mz = std::clamp(
-                         1 + std::log1p(-u1 * -std::expm1(-2 * n.kappa)) / n.kappa, -1.0, 1.0);
+                     const double mz = std::clamp(1 + std::log1p(-u1 * -std::expm1(-2 * n.kappa)) / n.kappa, -1.0, 1.0);
                      const double sr = std::sqrt(std::max(0.0, 1 - mz * mz)), phi = 2 * kPi * u2;
                      const Vec3 m{sr * std::cos(phi), sr * std::sin(phi), mz};
                      const double c = dot(v, m);
@@ -298,8 +304,9 @@ std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler
                    // inside an interval), φ uniform; accept with ⟨v,m⟩.
                    for (int tries = 0; tries < kMaxRejections; ++tries) {
                      const double u1 = s.get1D(), u2 = s.get1D(), u3 = s.get1D(), u4 = s.get1D();
-                     const size_t i = std::min(tabCdf_.size() - 2,
-                                               size_t(std::upper_bound(tabCdf_.begin(), tabCdf_.end(), u1) - tabCdf_.begin()) - 1);
+                     const size_t i =
+                         std::min(tabCdf_.size() - 2,
+                                  size_t(std::upper_bound(tabCdf_.begin(), tabCdf_.end(), u1) - tabCdf_.begin()) - 1);
                      const double a = t.cosTheta[i], w = t.cosTheta[i + 1] - a, da = t.value[i], db = t.value[i + 1];
                      // Density ∝ da + (db − da) x on x ∈ [0, 1]: solve (db − da) x²/2 + da x = u (da + db)/2.
                      double x;

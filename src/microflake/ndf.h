@@ -1,6 +1,7 @@
 // Microflake normal distributions for statistically described surfaces (docs/physics.md §9).
-// Sources: Dupuy, Heitz & d'Eon 2016 (Additional Progress Towards the Unification of Microfacet and Microflake Theories, EGSR), Heitz 2014 ("Understanding
-// the masking-shadowing function in microfacet-based BRDFs": Λ, G2) and Heitz & d'Eon 2014
+// Sources: Dupuy, Heitz & d'Eon 2016 (Additional Progress Towards the Unification of Microfacet and Microflake
+// Theories, EGSR), Heitz 2014 ("Understanding the masking-shadowing function in microfacet-based BRDFs": Λ, G2) and
+// Heitz & d'Eon 2014
 // ("Importance sampling microfacet-based BSDFs using the distribution of visible normals").
 //
 // A closed set of value types:

@@ -17,8 +17,11 @@ FresnelAmplitudes fresnelAmplitudes(double cosTheta_i, double n1, Complex n2) {
   Complex n1c(n1, 0), ci(cosTheta_i, 0);
   Complex ds = n1c * ci + w;
   Complex dp = n2 * n2 * ci + n1c * w;  // n2 cos θi + n1 cos θt, multiplied through by n2
-  if (std::abs(ds) == 0) {  // grazing incidence onto an index-matched medium: limit r = -1
-    f.rs = -1; f.rp = -1; f.ts = 0; f.tp = 0;
+  if (std::abs(ds) == 0) {              // grazing incidence onto an index-matched medium: limit r = -1
+    f.rs = -1;
+    f.rp = -1;
+    f.ts = 0;
+    f.tp = 0;
     return f;
   }
   f.rs = (n1c * ci - w) / ds;
@@ -35,7 +38,11 @@ double fresnelReflectance(double cosTheta_i, double n1, Complex n2) {
 
 FresnelAmplitudes perfectConductorAmplitudes() {
   FresnelAmplitudes f;
-  f.rs = -1; f.rp = 1; f.ts = 0; f.tp = 0; f.cosTheta_t = 0;
+  f.rs = -1;
+  f.rp = 1;
+  f.ts = 0;
+  f.tp = 0;
+  f.cosTheta_t = 0;
   return f;
 }
 

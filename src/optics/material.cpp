@@ -69,9 +69,10 @@ Complex Material::ior(double lambda_um) const {
                                      c.index);
                  },
                  [&](const Dielectric& d) {
-                   return std::visit(Overloaded{[](const ConstantIndex& k) { return Complex(k.eta, k.k); },
-                                                [&](const SellmeierIndex& s) { return Complex(sellmeier(s, lambda_um), 0.0); }},
-                                     d.index);
+                   return std::visit(
+                       Overloaded{[](const ConstantIndex& k) { return Complex(k.eta, k.k); },
+                                  [&](const SellmeierIndex& s) { return Complex(sellmeier(s, lambda_um), 0.0); }},
+                       d.index);
                  }},
       model);
 }
@@ -79,17 +80,19 @@ Complex Material::ior(double lambda_um) const {
 std::string Material::describe() const {
   return std::visit(
       Overloaded{[](const Conductor& c) {
-                   return std::visit(Overloaded{[](const TabulatedIndex& t) { return "conductor " + t.name; },
-                                                [](const ConstantIndex& k) {
-                                                  return "conductor eta=" + std::to_string(k.eta) + " k=" + std::to_string(k.k);
-                                                },
-                                                [](const PerfectConductor&) { return std::string("perfect conductor"); }},
-                                     c.index);
+                   return std::visit(
+                       Overloaded{[](const TabulatedIndex& t) { return "conductor " + t.name; },
+                                  [](const ConstantIndex& k) {
+                                    return "conductor eta=" + std::to_string(k.eta) + " k=" + std::to_string(k.k);
+                                  },
+                                  [](const PerfectConductor&) { return std::string("perfect conductor"); }},
+                       c.index);
                  },
                  [](const Dielectric& d) {
-                   return std::visit(Overloaded{[](const ConstantIndex& k) { return "dielectric n=" + std::to_string(k.eta); },
-                                                [](const SellmeierIndex& s) { return "dielectric " + s.name + " (Sellmeier)"; }},
-                                     d.index);
+                   return std::visit(
+                       Overloaded{[](const ConstantIndex& k) { return "dielectric n=" + std::to_string(k.eta); },
+                                  [](const SellmeierIndex& s) { return "dielectric " + s.name + " (Sellmeier)"; }},
+                       d.index);
                  }},
       model);
 }
@@ -104,16 +107,21 @@ bool builtinMaterial(const std::string& name, Material* out) {
   if (name == "Ag") return metal("Ag", kAgEta, kAgK);
   if (name == "Au") return metal("Au", kAuEta, kAuK);
   if (name == "Cu") return metal("Cu", kCuEta, kCuK);
-  if (name == "mirror") { out->model = Conductor{PerfectConductor{}}; return true; }
+  if (name == "mirror") {
+    out->model = Conductor{PerfectConductor{}};
+    return true;
+  }
   if (name == "BK7") {
     // Schott N-BK7 Sellmeier coefficients (Schott optical glass data sheet).
-    out->model = Dielectric{SellmeierIndex{"BK7", {1.03961212, 0.231792344, 1.01046945},
-                                           {0.00600069867, 0.0200179144, 103.560653}}};
+    out->model = Dielectric{
+        SellmeierIndex{"BK7", {1.03961212, 0.231792344, 1.01046945}, {0.00600069867, 0.0200179144, 103.560653}}};
     return true;
   }
   return false;
 }
 
-std::vector<std::string> builtinMaterialNames() { return {"Al", "Ag", "Au", "Cu", "mirror", "BK7"}; }
+std::vector<std::string> builtinMaterialNames() {
+  return {"Al", "Ag", "Au", "Cu", "mirror", "BK7"};
+}
 
 }  // namespace mbsdf

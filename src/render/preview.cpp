@@ -134,7 +134,8 @@ RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
         }
         const size_t p = (size_t(j + top) * img.width + size_t(mi) * S + i) * 3;
         for (int k = 0; k < 3; ++k)
-          img.rgb[p + k] = uint8_t(std::lround(std::clamp(srgbEncode(std::max(0.0, rgb[k]) * req.exposure), 0.0, 1.0) * 255));
+          img.rgb[p + k] =
+              uint8_t(std::lround(std::clamp(srgbEncode(std::max(0.0, rgb[k]) * req.exposure), 0.0, 1.0) * 255));
       }
     drawText(img, int(mi) * S + 4, 4, models[mi], std::max(1, S / 96), 235);
   }

@@ -19,8 +19,8 @@ struct RenderRequest {
   std::vector<std::string> models;  // empty: the GS, GM, WS, WM the file can form
   int size = 192;                   // pixels per sphere
   double lightTheta_deg = 45, lightPhi_deg = 0;
-  double lightIrradiance = 1.0;     // E on a plane normal to the light
-  double environment = 0.05;        // L_env (0: the light alone)
+  double lightIrradiance = 1.0;  // E on a plane normal to the light
+  double environment = 0.05;     // L_env (0: the light alone)
   double exposure = 1.0;
 };
 

@@ -55,7 +55,10 @@ class ExitDirectionSampler {
       const double gy0 = -nO * k0 * (y1 + m) - nI * k0 * wi.y, gy1 = -nO * k0 * (y0 - m) - nI * k0 * wi.y;
       const long a0 = long(std::ceil(gx0 * Lx / (2 * kPi))), a1 = long(std::floor(gx1 * Lx / (2 * kPi)));
       const long b0 = long(std::ceil(gy0 * Ly / (2 * kPi))), b1 = long(std::floor(gy1 * Ly / (2 * kPi)));
-      if ((a1 - a0 + 1) * (b1 - b0 + 1) > long(kMaxLobes)) { lobes_.clear(); return; }
+      if ((a1 - a0 + 1) * (b1 - b0 + 1) > long(kMaxLobes)) {
+        lobes_.clear();
+        return;
+      }
       for (long a = a0; a <= a1; ++a)
         for (long b = b0; b <= b1; ++b) {
           double cx = -(2 * kPi * a / Lx + nI * k0 * wi.x) / (nO * k0);
@@ -68,7 +71,10 @@ class ExitDirectionSampler {
               if (r2 < 1 && grid_.binOf({px, py, zs * std::sqrt(1 - r2)}) == bin_) reaches = true;
             }
           if (reaches) lobes_.push_back({cx, cy, sd});
-          if (lobes_.size() > kMaxLobes) { lobes_.clear(); return; }
+          if (lobes_.size() > kMaxLobes) {
+            lobes_.clear();
+            return;
+          }
         }
     }
   }
@@ -174,7 +180,8 @@ WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<
         if (cosLocal <= 0) continue;  // back-facing: X_j = 0
         ++localRays;
         if (!wave::escapes(ctx_.scene, sp.x, m, wi, sp.prim, fromAbove)) continue;  // shadowed
-        const ExitVisibility vis = wave::visibleExit(ctx_.scene, sp.x, m, wo, sp.prim, fromAbove, transmission, &localRays);
+        const ExitVisibility vis =
+            wave::visibleExit(ctx_.scene, sp.x, m, wo, sp.prim, fromAbove, transmission, &localRays);
         if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
         const bool visible = vis == ExitVisibility::Visible;
         auto& S = visible ? sv : sm;

@@ -14,7 +14,9 @@ inline constexpr int kComponentCount = 5;
 inline constexpr std::array<const char*, kComponentCount> kComponentNames = {"coherent", "incoherent", "multiple",
                                                                              "lost", "geo_masked"};
 
-inline const char* componentName(Component c) { return kComponentNames[int(c)]; }
+inline const char* componentName(Component c) {
+  return kComponentNames[int(c)];
+}
 std::optional<Component> componentFromName(const std::string& name);
 
 // Which components a model sums ("GS", "GM", "WS", "WM", or a single component name).

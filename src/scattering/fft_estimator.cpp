@@ -68,7 +68,9 @@ Axis makeAxis(int pixels, int sub, int n, double qOffset, double nOk0, double si
 class FftSpeckleEstimator : public WaveEstimator {
  public:
   explicit FftSpeckleEstimator(const WaveContext& ctx)
-      : ctx_(ctx), grid_(*heightGridOf(ctx.geometry)), spectrum_(ctx.geometry, grid_, ctx.scene, fourierMaxTexel(ctx.material, ctx.lambda_um)) {
+      : ctx_(ctx),
+        grid_(*heightGridOf(ctx.geometry)),
+        spectrum_(ctx.geometry, grid_, ctx.scene, fourierMaxTexel(ctx.material, ctx.lambda_um)) {
     if (!ctx.material.isConductor()) denseSide_ = std::make_unique<AreaWaveEstimator>(ctx);
   }
   std::string name() const override { return "fft"; }
@@ -76,11 +78,14 @@ class FftSpeckleEstimator : public WaveEstimator {
     const double theta = 90.0 - std::atan(spectrum_.maxSlope()) * 180.0 / kPi;
     char buf[256];
     std::snprintf(buf, sizeof buf,
-                  "deterministic (error: 3x3 vs 2x2 Gauss-Legendre per cell, cells <= speckle size); %d x %d FFT of the facets (texels split %d x %d); "
+                  "deterministic (error: 3x3 vs 2x2 Gauss-Legendre per cell, cells <= speckle size); %d x %d FFT of "
+                  "the facets (texels split %d x %d); "
                   "window narrower than the patch: masking not modelled, exact for exits below theta = %.1f deg "
                   "(steepest facet slope %.3f)",
-                  spectrum_.nx(), spectrum_.ny(), spectrum_.refinement(), spectrum_.refinement(), theta, spectrum_.maxSlope());
-    return std::string(buf) + (denseSide_ ? "; transmission from the denser medium by the area estimator (Monte Carlo)" : "");
+                  spectrum_.nx(), spectrum_.ny(), spectrum_.refinement(), spectrum_.refinement(), theta,
+                  spectrum_.maxSlope());
+    return std::string(buf) +
+           (denseSide_ ? "; transmission from the denser medium by the area estimator (Monte Carlo)" : "");
   }
   bool deterministic() const override { return true; }
   double memoryBytes() const override;
@@ -140,10 +145,15 @@ void FftSpeckleEstimator::exitIntegral(const HeightfieldSpectrum::FacetFields& f
   // Pixels wider than the speckle 1/(σ n_o k0) are cut into that many cells per axis, each with the
   // rule: the specular lobe of a wide window is narrower than a pixel.
   const double speckle = 1.0 / (sigma * nO * k0);
-  const int subX = std::max(1, int(std::ceil(2.0 / disk.width / speckle))), subY = std::max(1, int(std::ceil(2.0 / disk.height / speckle)));
+  const int subX = std::max(1, int(std::ceil(2.0 / disk.width / speckle))),
+            subY = std::max(1, int(std::ceil(2.0 / disk.height / speckle)));
   for (int n : rules) {
     Rule r{makeAxis(disk.width, subX, n, -nI * k0 * wi.x, nO * k0, sigma, Lx),
-           makeAxis(disk.height, subY, n, -nI * k0 * wi.y, nO * k0, sigma, Ly), {}, {}, {}, {}};
+           makeAxis(disk.height, subY, n, -nI * k0 * wi.y, nO * k0, sigma, Ly),
+           {},
+           {},
+           {},
+           {}};
     for (size_t i = 0; i < r.X.x.size(); ++i)
       for (size_t j = 0; j < r.Y.x.size(); ++j) {
         const double c2 = r.cos2(i, j);
@@ -383,7 +393,8 @@ WaveTileResult FftSpeckleEstimator::run(int tile, int incidenceBin, std::optiona
   r.rays = rays;
   if (denseSide) {
     std::vector<uint8_t> other(size_t(nB), 0);
-    for (int b = 0; b < nB; ++b) other[size_t(b)] = grid.isUpper(b) != fromAbove && (exitMask.empty() || exitMask[size_t(b)]);
+    for (int b = 0; b < nB; ++b)
+      other[size_t(b)] = grid.isUpper(b) != fromAbove && (exitMask.empty() || exitMask[size_t(b)]);
     const WaveTileResult t = denseSide_->run(tile, incidenceBin, exactDirection, {}, other);
     for (size_t i = 0; i < n; ++i)
       if (other[i % size_t(nB)]) r.fws[i] = t.fws[i], r.fwsErr[i] = t.fwsErr[i];
@@ -406,18 +417,18 @@ std::string fftUnsuitable(const Microgeometry& g, const Material& material, cons
   const double cells = double(hg->nx) * hg->ny * double(r) * double(r);
   if (cells > double(kMaxFourierCells) || texel / r > maxTexel)
     return "would need " + std::to_string(static_cast<long long>(hg->nx) * r) + " x " +
-           std::to_string(static_cast<long long>(hg->ny) * r) +
-           " texels (texels split " + std::to_string(r) + " x " + std::to_string(r) +
-           " for the shortest wavelength), above its limit of 2^22";
+           std::to_string(static_cast<long long>(hg->ny) * r) + " texels (texels split " + std::to_string(r) + " x " +
+           std::to_string(r) + " for the shortest wavelength), above its limit of 2^22";
   if (orderLobesSeparate(sigma, g.sizeX, g.sizeY)) return "";
   if (masked) return "with a coherence length below 12 L / π does not model the masked field (the lost component)";
   return "";
 }
 
 std::unique_ptr<WaveEstimator> makeFftWaveEstimator(const WaveContext& ctx) {
-  const std::string why = fftUnsuitable(ctx.geometry, ctx.material, ctx.lambda_um, ctx.window.active() ? ctx.window.sigma() : 0.0,
-                                        ctx.settings.computeMasked);
-  if (!why.empty() || !ctx.scene.periodic()) throw std::invalid_argument("the fft estimator " + (why.empty() ? "needs a periodic patch" : why));
+  const std::string why = fftUnsuitable(ctx.geometry, ctx.material, ctx.lambda_um,
+                                        ctx.window.active() ? ctx.window.sigma() : 0.0, ctx.settings.computeMasked);
+  if (!why.empty() || !ctx.scene.periodic())
+    throw std::invalid_argument("the fft estimator " + (why.empty() ? "needs a periodic patch" : why));
   if (orderLobesSeparate(ctx.window.sigma(), ctx.scene.sizeX(), ctx.scene.sizeY()))
     return std::make_unique<OrdersWaveEstimator>(ctx, OrderAmplitudes::Fourier);
   return std::make_unique<FftSpeckleEstimator>(ctx);

@@ -21,7 +21,8 @@ constexpr double kInterpolationError = 1e-7;  // relative, on the amplitude
 
 double indexSum(const Material& material, double lambda_um) {
   const double reflection = 2 * material.outsideIor;
-  return material.isConductor() ? reflection : std::max(reflection, material.outsideIor + material.ior(lambda_um).real());
+  return material.isConductor() ? reflection
+                                : std::max(reflection, material.outsideIor + material.ior(lambda_um).real());
 }
 
 double fourierMaxTexel(const Material& material, const std::vector<double>& lambda_um) {
@@ -46,7 +47,9 @@ HeightfieldSpectrum::HeightfieldSpectrum(const Microgeometry& g, const HeightGri
   const int r = refine_;
   nx_ = grid.nx * r;
   ny_ = grid.ny * r;
-  auto h0 = [&](int i, int j) { return grid.h[size_t((j % grid.ny + grid.ny) % grid.ny) * grid.nx + size_t((i % grid.nx + grid.nx) % grid.nx)]; };
+  auto h0 = [&](int i, int j) {
+    return grid.h[size_t((j % grid.ny + grid.ny) % grid.ny) * grid.nx + size_t((i % grid.nx + grid.nx) % grid.nx)];
+  };
   // Height of the refined vertex (I, J): on the original triangle that contains it.
   auto height = [&](int I, int J) {
     const int i = I / r, j = J / r;
@@ -106,8 +109,8 @@ fftw_plan HeightfieldSpectrum::columnPlan(int columns) const {
   if (!p) {
     auto scratch = fftw::allocate<fftw_complex>(size_t(columns) * size_t(ny_));
     std::lock_guard<std::mutex> planLock(fftw::planMutex());
-    p.reset(fftw_plan_many_dft(1, &ny_, columns, scratch.get(), nullptr, 1, ny_, scratch.get(), nullptr, 1, ny_, FFTW_BACKWARD,
-                               FFTW_ESTIMATE));
+    p.reset(fftw_plan_many_dft(1, &ny_, columns, scratch.get(), nullptr, 1, ny_, scratch.get(), nullptr, 1, ny_,
+                               FFTW_BACKWARD, FFTW_ESTIMATE));
   }
   return p.get();
 }
@@ -137,8 +140,9 @@ std::vector<uint8_t> HeightfieldSpectrum::lit(const Vec3& wi, bool fromAbove, ui
   return v;
 }
 
-HeightfieldSpectrum::FacetFields HeightfieldSpectrum::fields(const Vec3& wi, bool fromAbove, int l, double k0, double nI,
-                                                             double nO, bool transmission, const wave::Media& media,
+HeightfieldSpectrum::FacetFields HeightfieldSpectrum::fields(const Vec3& wi, bool fromAbove, int l, double k0,
+                                                             double nI, double nO, bool transmission,
+                                                             const wave::Media& media,
                                                              const std::vector<uint8_t>& lit) const {
   FacetFields f;
   f.cells = facets() / 2;
@@ -219,9 +223,8 @@ void HeightfieldSpectrum::nodeTables(const FacetFields& f, double qn, long a0, l
   auto wrap = [](long k, int n) { return size_t(((k % n) + n) % n); };
   // e^{i q_n (z − z̄)} per facet, lattice by lattice, shared by the 8 transforms.
   std::vector<Complex> zPhase(facets());
-  tbb::parallel_for(size_t(0), facets(), [&](size_t t) {
-    zPhase[(t & 1) * cells + t / 2] = std::polar(1.0, qn * (centroid_[t].z - zc_));
-  });
+  tbb::parallel_for(size_t(0), facets(),
+                    [&](size_t t) { zPhase[(t & 1) * cells + t / 2] = std::polar(1.0, qn * (centroid_[t].z - zc_)); });
   // The columns (a mod nx) the orders need, in the order of a.
   const int columns = int(std::min<long>(na, nx_));
   const fftw_plan colPlan = columnPlan(columns);
@@ -259,10 +262,13 @@ void HeightfieldSpectrum::nodeTables(const FacetFields& f, double qn, long a0, l
   });
 }
 
-std::array<Complex, 2> HeightfieldSpectrum::facetTerm(const FacetFields& f, size_t t, const Vec3& q, const Vec3& k2) const {
+std::array<Complex, 2> HeightfieldSpectrum::facetTerm(const FacetFields& f, size_t t, const Vec3& q,
+                                                      const Vec3& k2) const {
   const Complex phase = std::polar(1.0, dot(q, centroid_[t]));
   auto term = [&](int pol) {
-    return (f.at(pol * 4, t) + f.at(pol * 4 + 1, t) * k2.x + f.at(pol * 4 + 2, t) * k2.y + f.at(pol * 4 + 3, t) * k2.z) * phase;
+    return (f.at(pol * 4, t) + f.at(pol * 4 + 1, t) * k2.x + f.at(pol * 4 + 2, t) * k2.y +
+            f.at(pol * 4 + 3, t) * k2.z) *
+           phase;
   };
   return {term(0), term(1)};
 }

@@ -114,7 +114,7 @@ class HeightfieldSpectrum {
   size_t facets() const { return centroid_.size(); }
   const Vec3& centroid(size_t t) const { return centroid_[t]; }
   const Vec3& normal(size_t t) const { return normal_[t]; }  // unit, facing up
-  unsigned parent(size_t t) const { return parent_[t]; }   // the geometry's triangle holding facet t
+  unsigned parent(size_t t) const { return parent_[t]; }     // the geometry's triangle holding facet t
   // The facets split from the geometry's triangle p (one when texels are not split).
   const uint32_t* childrenBegin(size_t p) const { return children_.data() + childStart_[p]; }
   const uint32_t* childrenEnd(size_t p) const { return children_.data() + childStart_[p + 1]; }

@@ -17,7 +17,7 @@
 namespace mbsdf {
 
 struct KirchhoffValue {
-  Complex s, p;  // g_s e^{iφ}, g_p e^{iφ}
+  Complex s, p;           // g_s e^{iφ}, g_p e^{iφ}
   double qx = 0, qy = 0;  // tangential part of k1 − k2 (for the coherence-window copies)
 };
 

@@ -31,10 +31,10 @@ constexpr uint32_t kOrdersStream = 0x0D0E5;
 constexpr int kGroups = 8;  // jackknife groups of points
 
 struct Order {
-  long a, b;    // G = 2π (a/Lx, b/Ly)
-  bool below;   // a conductor's reflected order below the horizon (masked field only)
+  long a, b;   // G = 2π (a/Lx, b/Ly)
+  bool below;  // a conductor's reflected order below the horizon (masked field only)
   int lambda;
-  Vec3 wo;      // order direction
+  Vec3 wo;  // order direction
   bool transmission;
   double scale;  // Q_G / |Ĥ_G|² (mean of s and p), Q_G = P_G cos θ_G (lobeBins applies 1/cos θ_G)
   double sd;     // lobe standard deviation in (x, y) of ωo
@@ -57,7 +57,8 @@ const std::vector<double>& lobeNodes(int K) {
     for (int i = 0; i < k; ++i) {
       const double p = (i + 0.5) / k;
       double x = 0;  // Newton on erfc, enough for a stratified pattern
-      for (int it = 0; it < 40; ++it) x -= (0.5 * std::erfc(-x / std::sqrt(2.0)) - p) / (std::exp(-0.5 * x * x) / std::sqrt(2 * kPi));
+      for (int it = 0; it < 40; ++it)
+        x -= (0.5 * std::erfc(-x / std::sqrt(2.0)) - p) / (std::exp(-0.5 * x * x) / std::sqrt(2 * kPi));
       v[size_t(i)] = x;
     }
     return v;
@@ -69,7 +70,8 @@ const std::vector<double>& lobeNodes(int K) {
 // Half the spacing of node i of the K-point pattern around it (units of sd): the cell a node stands for.
 double lobeCellHalfWidth(int K, int i) {
   const std::vector<double>& n = lobeNodes(K);
-  const double lo = i > 0 ? n[size_t(i - 1)] : 2 * n[0] - n[1], hi = i + 1 < K ? n[size_t(i + 1)] : 2 * n[size_t(K - 1)] - n[size_t(K - 2)];
+  const double lo = i > 0 ? n[size_t(i - 1)] : 2 * n[0] - n[1],
+               hi = i + 1 < K ? n[size_t(i + 1)] : 2 * n[size_t(K - 1)] - n[size_t(K - 2)];
   return 0.25 * (hi - lo);
 }
 
@@ -146,11 +148,16 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
     for (int j = 0; j < K; ++j) {
       int b = binAt(cx + sd * nodes[size_t(i)], cy + sd * nodes[size_t(j)]);
       if (b < 0) continue;
-      if (!out->empty() && out->back().first == b) out->back().second += w;
+      if (!out->empty() && out->back().first == b)
+        out->back().second += w;
       else {
         bool found = false;
         for (auto& e : *out)
-          if (e.first == b) { e.second += w; found = true; break; }
+          if (e.first == b) {
+            e.second += w;
+            found = true;
+            break;
+          }
         if (!found) out->push_back({b, w});
       }
     }
@@ -183,7 +190,8 @@ std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCe
     for (int k = 0; k < 4; ++k) {
       const std::optional<bool> known = table ? table->escapes(uint32_t(t), k, m, wi, fromAbove) : std::nullopt;
       if (!known) ++count;
-      if (known ? *known : wave::escapes(ctx.scene, pts[size_t(k)], m, wi, unsigned(t), fromAbove)) bits |= uint8_t(1 << k);
+      if (known ? *known : wave::escapes(ctx.scene, pts[size_t(k)], m, wi, unsigned(t), fromAbove))
+        bits |= uint8_t(1 << k);
     }
     lit[t] = bits;
   });
@@ -208,9 +216,8 @@ struct ShadowCache {
 // firstLevelShadowing for this ωi (deeper points cast their own shadow rays). The order lies on
 // the reciprocal lattice of `cell`, so the patch's sum is nx ny times the cell's (lattice_cell.h).
 void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
-                    const SlopeBound& slope, const Order& ord, const Vec3& wi, bool fromAbove,
-                    const wave::Media& media, bool masked, const std::vector<uint8_t>& lit, ShadowCache& shadow,
-                    Complex* H, uint64_t* rays) {
+                    const SlopeBound& slope, const Order& ord, const Vec3& wi, bool fromAbove, const wave::Media& media,
+                    bool masked, const std::vector<uint8_t>& lit, ShadowCache& shadow, Complex* H, uint64_t* rays) {
   const Microgeometry& g = ctx.geometry;
   const int l = ord.lambda;
   const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
@@ -233,7 +240,8 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
     const double mo = dot(m, ord.wo);
     if (ord.transmission ? mo >= 0 : mo <= 0) continue;  // back-facing to the order direction
     // g (s, p) of the facet: the integrand without its phase.
-    const KirchhoffValue g0 = wave::integrandAt(media, l, Vec3{0, 0, 0}, m, wi, ord.wo, k0, fromAbove, ord.transmission);
+    const KirchhoffValue g0 =
+        wave::integrandAt(media, l, Vec3{0, 0, 0}, m, wi, ord.wo, k0, fromAbove, ord.transmission);
     // 0 shadowed, 1 visible, 2 masked, for a point of facet t; `firstLevel` >= 0: the point is the
     // facet's first-level point of that index, whose shadowing is known (`lit`) and whose masking
     // the shared table may answer (the facet faces ω_G here, so visibleExit's answer is escapes');
@@ -256,7 +264,8 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
         if (const auto e = ord.transmission ? table->escapes(t, firstLevel, -m, ord.wo, !fromAbove)
                                             : table->escapes(t, firstLevel, m, ord.wo, fromAbove))
           return *e ? 1 : 2;
-      const ExitVisibility v = wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(t), fromAbove, ord.transmission, rays);
+      const ExitVisibility v =
+          wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(t), fromAbove, ord.transmission, rays);
       return v == ExitVisibility::Visible ? 1 : 2;
     };
     auto add = [&](const Vec3& a, const Vec3& b, const Vec3& c, int st) {
@@ -295,18 +304,21 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
 // fft (header): Ĥ_G of every order from the heightfield's FFT tables, one group of orders per
 // wavelength and side; then the sparse masking correction below the steepest slope.
 void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectrum, const std::vector<Order>& orders,
-                       const Vec3& wi, bool fromAbove, const wave::Media& media, bool masked, Complex* H, uint64_t* rays) {
+                       const Vec3& wi, bool fromAbove, const wave::Media& media, bool masked, Complex* H,
+                       uint64_t* rays) {
   const std::vector<uint8_t> lit = spectrum.lit(wi, fromAbove, rays);
   // Triangles of the geometry with a lit facet (the masking correction visits only those).
   std::vector<uint8_t> anyLit(spectrum.parents(), 0);
   for (size_t p = 0; p < spectrum.parents(); ++p)
-    for (const uint32_t* c = spectrum.childrenBegin(p); c != spectrum.childrenEnd(p) && !anyLit[p]; ++c) anyLit[p] = lit[*c];
+    for (const uint32_t* c = spectrum.childrenBegin(p); c != spectrum.childrenEnd(p) && !anyLit[p]; ++c)
+      anyLit[p] = lit[*c];
   const int nL = int(ctx.lambda_um.size());
   for (int l = 0; l < nL; ++l)
     for (int trans = 0; trans < 2; ++trans) {
       std::vector<size_t> group, below;
       for (size_t o = 0; o < orders.size(); ++o)
-        if (orders[o].lambda == l && orders[o].transmission == bool(trans)) (orders[o].below ? below : group).push_back(o);
+        if (orders[o].lambda == l && orders[o].transmission == bool(trans))
+          (orders[o].below ? below : group).push_back(o);
       if (group.empty() && below.empty()) continue;
       const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
       const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
@@ -360,7 +372,8 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
           const Vec3 n = spectrum.normal(*spectrum.childrenBegin(p));
           const Vec3 m = fromAbove ? n : -n;
           auto visibility = [&](const Vec3& x) {
-            return wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(p), fromAbove, ord.transmission, &grazingRays[g]);
+            return wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(p), fromAbove, ord.transmission,
+                                     &grazingRays[g]);
           };
           // The triangle's four first-level points decide for all its facets when they agree;
           // otherwise each facet by its own centroid.
@@ -389,14 +402,19 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
 }  // namespace
 
 OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx, OrderAmplitudes amplitudes)
-    : ctx_(ctx), sampler_(ctx.geometry), amplitudes_(amplitudes), cell_(latticeCellOf(ctx.geometry)),
+    : ctx_(ctx),
+      sampler_(ctx.geometry),
+      amplitudes_(amplitudes),
+      cell_(latticeCellOf(ctx.geometry)),
       slope_(SlopeBound::of(ctx.geometry)) {
   if (!ctx.scene.periodic() || !ctx.window.active())
     throw std::invalid_argument("the " + name() + " estimator needs a periodic patch and a coherence window");
   if (amplitudes == OrderAmplitudes::Fourier) {
     const std::optional<HeightGrid> hg = heightGridOf(ctx.geometry);
-    if (!hg) throw std::invalid_argument("the fft estimator needs a heightfield (a gaussian, noise or heightmap patch)");
-    spectrum_ = std::make_unique<HeightfieldSpectrum>(ctx.geometry, *hg, ctx.scene, fourierMaxTexel(ctx.material, ctx.lambda_um));
+    if (!hg)
+      throw std::invalid_argument("the fft estimator needs a heightfield (a gaussian, noise or heightmap patch)");
+    spectrum_ = std::make_unique<HeightfieldSpectrum>(ctx.geometry, *hg, ctx.scene,
+                                                      fourierMaxTexel(ctx.material, ctx.lambda_um));
   }
 }
 
@@ -413,17 +431,19 @@ std::string OrdersWaveEstimator::notes() const {
          std::to_string(ctx_.settings.visibilityTable) + " directions per hemisphere (" +
          std::to_string(int(std::lround(memoryBytes() / 1e6))) + " MB)";
   if (spectrum_)
-    s += "; " + std::to_string(spectrum_->nx()) + " x " + std::to_string(spectrum_->ny()) + " FFT of the facets (texels split " +
-         std::to_string(spectrum_->refinement()) + " x " + std::to_string(spectrum_->refinement()) + ")";
+    s += "; " + std::to_string(spectrum_->nx()) + " x " + std::to_string(spectrum_->ny()) +
+         " FFT of the facets (texels split " + std::to_string(spectrum_->refinement()) + " x " +
+         std::to_string(spectrum_->refinement()) + ")";
   return s;
 }
 
 double OrdersWaveEstimator::memoryBytes() const {
   // The FFT's facet data, fields and per-thread transforms; the order tables are small beside them.
   // The visibility table: one bit per first-level point and direction (visibility_table.h).
-  const double table = amplitudes_ == OrderAmplitudes::Exact && ctx_.settings.visibilityTable > 0
-                           ? VisibilityTable::bytesFor(cell_.facets.size(), ctx_.settings.visibilityTable, !ctx_.material.isConductor())
-                           : 0.0;
+  const double table =
+      amplitudes_ == OrderAmplitudes::Exact && ctx_.settings.visibilityTable > 0
+          ? VisibilityTable::bytesFor(cell_.facets.size(), ctx_.settings.visibilityTable, !ctx_.material.isConductor())
+          : 0.0;
   // The shadow cache of the split pieces' points (one byte each, per incidence direction).
   const double shadow = amplitudes_ == OrderAmplitudes::Exact ? double(cell_.facets.size()) * kSubPoints : 0.0;
   return (spectrum_ ? spectrum_->memoryBytes() : 0.0) + table + shadow;
@@ -440,7 +460,9 @@ const VisibilityTable* OrdersWaveEstimator::visibilityTable() const {
   return table_.get();
 }
 
-double OrdersWaveEstimator::setupSeconds() const { return table_ ? table_->buildSeconds() : 0.0; }
+double OrdersWaveEstimator::setupSeconds() const {
+  return table_ ? table_->buildSeconds() : 0.0;
+}
 
 std::string OrdersWaveEstimator::name() const {
   return amplitudes_ == OrderAmplitudes::Exact ? "exact" : amplitudes_ == OrderAmplitudes::Fourier ? "fft" : "orders";
@@ -461,8 +483,8 @@ std::string OrdersWaveEstimator::name() const {
 // grating at 5°, 39.4°, 65° within 0.013–0.019 (L1 per slice) of the mean of 24 × 24 collimated
 // tables over the bin, reported 0.051–0.059; n = 2 and n = 8 differ by 0.0002–0.019.
 static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& grid, int incidenceBin, bool fromAbove,
-                                const wave::Media& media, const std::vector<NodePowers>& nodePower,
-                                bool masked, WaveTileResult* r) {
+                                const wave::Media& media, const std::vector<NodePowers>& nodePower, bool masked,
+                                WaveTileResult* r) {
   const int nB = grid.binCount();
   const int n = incidenceRuleOrder(ctx.settings.incidenceDirections);
   const QuadratureRule qh = gaussLegendre(n, 0.0, 1.0), ql = gaussLegendre(n - 1, 0.0, 1.0);
@@ -485,14 +507,16 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     std::vector<int> perm(size_t(M * M));
     for (int i = 0; i < M * M; ++i) perm[size_t(i)] = i;
     Sampler shuffle(0x10BE5EEDu, 0, uint64_t(M), 0);
-    for (int i = M * M - 1; i > 0; --i) std::swap(perm[size_t(i)], perm[size_t(std::min(i, int(shuffle.get1D() * (i + 1))))]);
+    for (int i = M * M - 1; i > 0; --i)
+      std::swap(perm[size_t(i)], perm[size_t(std::min(i, int(shuffle.get1D() * (i + 1))))]);
     for (int i = 0; i < M; ++i)
       for (int j = 0; j < M; ++j) {
         const double u = (i + 0.5) / M, w = (j + 0.5) / M;
         Sub sub;
         sub.u = u, sub.v = w;
         sub.wi = grid.sampleCosine(incidenceBin, u, w).w;
-        const std::vector<double> hu = lagrange(qh.x, u), hv = lagrange(qh.x, w), lu = lagrange(ql.x, u), lv = lagrange(ql.x, w);
+        const std::vector<double> hu = lagrange(qh.x, u), hv = lagrange(qh.x, w), lu = lagrange(ql.x, u),
+                                  lv = lagrange(ql.x, w);
         for (int a = 0; a < n; ++a)
           for (int b = 0; b < n; ++b) sub.wh.push_back(hu[size_t(a)] * hv[size_t(b)]);
         for (int a = 0; a < n - 1; ++a)
@@ -524,7 +548,8 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
   tbb::parallel_for(size_t(0), nodePower.size(), [&](size_t o) {
     const Order& ord = nodePower[o].ord;
     const std::vector<double>& Q = nodePower[o].q;
-    if (std::all_of(Q.begin(), Q.end(), [&](double v) { return v <= 1e-13 * strongest; })) return;  // negligible everywhere
+    if (std::all_of(Q.begin(), Q.end(), [&](double v) { return v <= 1e-13 * strongest; }))
+      return;  // negligible everywhere
     const std::vector<uint8_t>& present = nodePower[o].present;
     // Lagrange over a rule's nodes where the order propagates at all of them; else (it crosses the
     // horizon inside the bin) the nearest node where it propagates.
@@ -557,7 +582,7 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     auto bin = [&](const Sub& sub, std::initializer_list<int> tables, const std::vector<Sub>& set) {
       const double x = -(2 * kPi * double(ord.a) / Lx + nI * k0 * sub.wi.x) / (nO * k0);
       const double y = -(2 * kPi * double(ord.b) / Ly + nI * k0 * sub.wi.y) / (nO * k0);
-      if (x * x + y * y >= 1) return;  // evanescent here
+      if (x * x + y * y >= 1) return;                  // evanescent here
       const double secant = lobeSecant(x, y, ord.sd);  // 1/cos θ_G, finite at the horizon
       const double bx = x + ord.sd * sub.lx, by = y + ord.sd * sub.ly, r2 = bx * bx + by * by;
       if (r2 >= 1) return;
@@ -582,8 +607,10 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
           auto& list = parts[o];
           auto hit = std::find_if(list.rbegin(), list.rend(),
                                   [&](const Part& q) { return q.at == at && q.table == table && q.msk == msk; });
-          if (hit != list.rend()) hit->value += add;
-          else list.push_back({table, msk, at, add});
+          if (hit != list.rend())
+            hit->value += add;
+          else
+            list.push_back({table, msk, at, add});
         }
       }
     };
@@ -666,7 +693,8 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
         const double reach = nO * k0 + nI * k0;  // |G| can be at most this for a propagating order
         // Only the orders of the cell's lattice carry power (lattice_cell.h): a = nx a', b = ny b'.
-        const long amax = long(std::ceil(reach * cell_.sizeX / (2 * kPi))), bmax = long(std::ceil(reach * cell_.sizeY / (2 * kPi)));
+        const long amax = long(std::ceil(reach * cell_.sizeX / (2 * kPi))),
+                   bmax = long(std::ceil(reach * cell_.sizeY / (2 * kPi)));
         for (long ac = -amax; ac <= amax; ++ac)
           for (long bc = -bmax; bc <= bmax; ++bc) {
             const long a = ac * cell_.nx, b = bc * cell_.ny;
@@ -692,8 +720,9 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     }
     const size_t nO = orders.size();
     pointOrderPairs += uint64_t(amplitudes_ == OrderAmplitudes::Exact ? cell_.facets.size()
-                                : deterministic                     ? ctx_.geometry.triangles.size()
-                                                                    : size_t(N)) * nO;
+                                : deterministic                       ? ctx_.geometry.triangles.size()
+                                                                      : size_t(N)) *
+                       nO;
     // Accumulators per order, polarisation, group and visible/masked: Σ X.
     std::vector<Complex> S(nO * 2 * kGroups * 2, 0.0);
     auto idx = [&](size_t o, int pol, int g, int msk) { return ((o * 2 + pol) * kGroups + g) * 2 + msk; };
@@ -731,37 +760,38 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
       });
       for (uint64_t v : orderRays) rays += v;
     } else if (!deterministic) {
-    // Points in parallel blocks, each block accumulating into its own group: deterministic.
-    tbb::parallel_for(0, blocks, [&](int g) {
-      if (stopRequested()) return;
-      const int j0 = g * N / blocks, j1 = (g + 1) * N / blocks;
-      for (int j = j0; j < j1; ++j) {
-        Sampler ps(ctx_.settings.seed, uint32_t(tile), (uint64_t(k) << 32) | uint64_t(j), kOrdersStream + 1);
-        // Stratified over the surface within each group (the groups are independent replicas).
-        const double u1 = (double(j - j0) + ps.get1D()) / double(j1 - j0);
-        SurfaceSample sp = sampler_.sample(u1, ps.get1D(), ps.get1D());
-        const Vec3 m = fromAbove ? sp.n : -sp.n;
-        const double cosLocal = dot(m, wi);
-        if (cosLocal <= 0) continue;
-        ++blockRays[g];
-        if (!wave::escapes(scene, sp.x, m, wi, sp.prim, fromAbove)) continue;
-        for (size_t o = 0; o < nO; ++o) {
-          const Order& ord = orders[o];
-          const ExitVisibility vis = wave::visibleExit(scene, sp.x, m, ord.wo, sp.prim, fromAbove, ord.transmission, &blockRays[g]);
-        if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
-        const bool visible = vis == ExitVisibility::Visible;
-          const int l = ord.lambda;
-          const double k0 = 2 * kPi / ctx_.lambda_um[l];
-          KirchhoffValue kv = wave::integrandAt(media, l, sp.x, m, wi, ord.wo, k0, fromAbove, ord.transmission);
-          // kirchhoffIntegrand's phase is q·x with q_xy = G exactly at the order direction: it is
-          // the e^{i (G·x_xy + q_z z)} of Ĥ_G.
-          const int msk = visible ? 0 : 1;
-          const Complex xs = kv.s * area, xp = kv.p * area;
-          S[idx(o, 0, g, msk)] += xs;
-          S[idx(o, 1, g, msk)] += xp;
+      // Points in parallel blocks, each block accumulating into its own group: deterministic.
+      tbb::parallel_for(0, blocks, [&](int g) {
+        if (stopRequested()) return;
+        const int j0 = g * N / blocks, j1 = (g + 1) * N / blocks;
+        for (int j = j0; j < j1; ++j) {
+          Sampler ps(ctx_.settings.seed, uint32_t(tile), (uint64_t(k) << 32) | uint64_t(j), kOrdersStream + 1);
+          // Stratified over the surface within each group (the groups are independent replicas).
+          const double u1 = (double(j - j0) + ps.get1D()) / double(j1 - j0);
+          SurfaceSample sp = sampler_.sample(u1, ps.get1D(), ps.get1D());
+          const Vec3 m = fromAbove ? sp.n : -sp.n;
+          const double cosLocal = dot(m, wi);
+          if (cosLocal <= 0) continue;
+          ++blockRays[g];
+          if (!wave::escapes(scene, sp.x, m, wi, sp.prim, fromAbove)) continue;
+          for (size_t o = 0; o < nO; ++o) {
+            const Order& ord = orders[o];
+            const ExitVisibility vis =
+                wave::visibleExit(scene, sp.x, m, ord.wo, sp.prim, fromAbove, ord.transmission, &blockRays[g]);
+            if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
+            const bool visible = vis == ExitVisibility::Visible;
+            const int l = ord.lambda;
+            const double k0 = 2 * kPi / ctx_.lambda_um[l];
+            KirchhoffValue kv = wave::integrandAt(media, l, sp.x, m, wi, ord.wo, k0, fromAbove, ord.transmission);
+            // kirchhoffIntegrand's phase is q·x with q_xy = G exactly at the order direction: it is
+            // the e^{i (G·x_xy + q_z z)} of Ĥ_G.
+            const int msk = visible ? 0 : 1;
+            const Complex xs = kv.s * area, xp = kv.p * area;
+            S[idx(o, 0, g, msk)] += xs;
+            S[idx(o, 1, g, msk)] += xp;
+          }
         }
-      }
-    });
+      });
     }
     for (uint64_t b : blockRays) rays += b;
     // |Ĥ_G|² per order (pairwise, unbiased) with a delete-a-group jackknife error, then the lobe
@@ -829,7 +859,8 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         const Order& ord = orders[o];
         const auto key = std::make_tuple(ord.lambda, int(ord.transmission) + 2 * int(ord.below), ord.a, ord.b);
         auto [it, fresh] = slotOf.emplace(key, nodePower.size());
-        if (fresh) nodePower.push_back({ord, std::vector<double>(size_t(K) * 2, 0.0), std::vector<uint8_t>(size_t(K), 0)});
+        if (fresh)
+          nodePower.push_back({ord, std::vector<double>(size_t(K) * 2, 0.0), std::vector<uint8_t>(size_t(K), 0)});
         NodePowers& np = nodePower[it->second];
         np.q[size_t(k) * 2] = op[o].P[0];
         np.q[size_t(k) * 2 + 1] = op[o].P[1];

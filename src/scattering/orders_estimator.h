@@ -14,8 +14,8 @@
 // deviation 1/(√2 σ n_o k0) in (x, y) of ωo; its power is shared among the bins it covers.
 // |Ĥ_G|² is estimated from N points sampled uniformly by area, in 8 independent groups each
 // stratified over the surface (Morton order), by the unbiased cross-group form
-// (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)), with a delete-a-group jackknife standard error. Points and shadow rays are
-// shared by all orders and wavelengths; each (point, order direction) needs one masking ray.
+// (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)), with a delete-a-group jackknife standard error. Points and shadow rays
+// are shared by all orders and wavelengths; each (point, order direction) needs one masking ray.
 //
 // `exact`: the same lobes, but Ĥ_G summed over the facets
 // with the phase integrated in closed form (triangle_fourier.h): over a flat facet g is constant,

@@ -30,7 +30,8 @@ WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional
   const bool masked = ctx_.settings.computeMasked;
   // One incidence direction for the whole slice (Appendix A).
   Sampler s0(ctx_.settings.seed, uint32_t(tile), 0, kPaperStream);
-  const Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s0.get1D(), s0.get1D()).w;
+  const Vec3 wi =
+      exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s0.get1D(), s0.get1D()).w;
   const bool fromAbove = wi.z >= 0;
   const double cosI = std::abs(wi.z);
   const wave::Media media(ctx_);
@@ -78,8 +79,8 @@ WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional
       if (cosLocal <= 0) continue;
       const bool transmission = wave::isTransmission(media.conductor(), fromAbove, wo);
       const ExitVisibility vis = wave::visibleExit(scene, hit.p, m, wo, hit.prim, fromAbove, transmission, &localRays);
-        if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
-        const bool visible = vis == ExitVisibility::Visible;
+      if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
+      const bool visible = vis == ExitVisibility::Visible;
       // Surface pdf of the traced point: pdf_u |m·ωi| / |n·ωi| (projection along ωi).
       const double jac = cosI / (cosLocal * pdfU);
       const double px = hit.p.x + shiftX, py = hit.p.y + shiftY;
@@ -105,7 +106,7 @@ WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional
         const double scale = kirchhoffPowerScale(window.w2(), cosI, nI, nO) * toF;
         double mean2 = 0.5 * (std::norm(S[2 * l] / double(P)) + std::norm(S[2 * l + 1] / double(P)));
         double var = 0.5 * (Q[2 * l] + Q[2 * l + 1]) / P - mean2;
-        f[size_t(l) * nB + b] = mean2 * scale;              // |mean|² (biased, as in the paper)
+        f[size_t(l) * nB + b] = mean2 * scale;                   // |mean|² (biased, as in the paper)
         e[size_t(l) * nB + b] = std::max(0.0, var) / P * scale;  // its bias Var/P
       }
     };

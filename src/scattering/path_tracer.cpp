@@ -36,7 +36,10 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
   double w[64];
   double* wp = w;
   std::vector<double> wbig;
-  if (nl > 64) { wbig.resize(nl); wp = wbig.data(); }
+  if (nl > 64) {
+    wbig.resize(nl);
+    wp = wbig.data();
+  }
   for (size_t k = 0; k < nl; ++k) wp[k] = wi.weight;
   const double n1 = material_.outsideIor;
   const bool conductor = material_.isConductor(), perfect = material_.isPerfectConductor();
@@ -135,12 +138,18 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
 TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
                            const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
   if (exactDirection) exactDirection = normalize(*exactDirection);
-  PathTallyPlan plan{tile,    incidenceIndex,  incidenceBin, &grid_, int(lambda_um_.size()),
-                     groups_, settings_.paths, firstPath,    {Component::Coherent, Component::Multiple}};
+  PathTallyPlan plan{tile,
+                     incidenceIndex,
+                     incidenceBin,
+                     &grid_,
+                     int(lambda_um_.size()),
+                     groups_,
+                     settings_.paths,
+                     firstPath,
+                     {Component::Coherent, Component::Multiple}};
   if (settings_.tallyGeoMasked) plan.components.push_back(Component::GeoMasked);
   return runPaths(
-      plan,
-      [&](uint64_t p, int g, PathChunk& c) { tracePath(tile, incidenceBin, exactDirection, p, g, c, nullptr); },
+      plan, [&](uint64_t p, int g, PathChunk& c) { tracePath(tile, incidenceBin, exactDirection, p, g, c, nullptr); },
       progress);
 }
 

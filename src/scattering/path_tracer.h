@@ -61,13 +61,13 @@ class PathTracer {
                     std::optional<Vec3> exactDirection = std::nullopt) const;
 
  private:
-  void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group,
-                 PathChunk& out, PathRecord* rec) const;
+  void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, PathChunk& out,
+                 PathRecord* rec) const;
 
   const PeriodicScene& scene_;
   const Material& material_;
   std::vector<double> lambda_um_;
-  std::vector<Complex> ior_;  // lower-medium index per wavelength
+  std::vector<Complex> ior_;              // lower-medium index per wavelength
   std::vector<std::vector<int>> groups_;  // wavelengths that share one path
   const DirectionGrid& grid_;
   PathTracerSettings settings_;

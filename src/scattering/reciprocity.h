@@ -39,7 +39,7 @@ class ReciprocalPairs {
   bool upper(int bin) const { return bin < binsPerHemisphere_; }
   std::vector<int> incidenceBins_;
   std::vector<int> incidenceOfBin_;
-  std::vector<int> rank_;   // rank of each incidence index among the incidence bins of its side
+  std::vector<int> rank_;      // rank of each incidence index among the incidence bins of its side
   int sideCount_[2] = {0, 0};  // incidence bins above, below
   int binsPerHemisphere_;
 };

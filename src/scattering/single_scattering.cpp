@@ -33,9 +33,10 @@ double visibleFraction(const Vec3& a, const Vec3& b, const Vec3& c, const Test& 
   }
   const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
   double u = 0;
-  const double f = (visibleFraction(a, ab, ca, test, depth - 1, &u) + visibleFraction(ab, b, bc, test, depth - 1, &u) +
-                    visibleFraction(ca, bc, c, test, depth - 1, &u) + visibleFraction(ab, bc, ca, test, depth - 1, &u)) /
-                   4;
+  const double f =
+      (visibleFraction(a, ab, ca, test, depth - 1, &u) + visibleFraction(ab, b, bc, test, depth - 1, &u) +
+       visibleFraction(ca, bc, c, test, depth - 1, &u) + visibleFraction(ab, bc, ca, test, depth - 1, &u)) /
+      4;
   *uncertain += u / 4;
   return f;
 }
@@ -46,8 +47,9 @@ constexpr int kBlocks = 8;
 
 }  // namespace
 
-FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const PeriodicScene& scene, const Material& material,
-                                             std::vector<double> lambda_um, const DirectionGrid& grid)
+FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const PeriodicScene& scene,
+                                             const Material& material, std::vector<double> lambda_um,
+                                             const DirectionGrid& grid)
     : g_(g), scene_(scene), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid) {
   for (double l : lambda_um_) ior_.push_back(material_.isPerfectConductor() ? Complex(0, 0) : material_.ior(l));
   // Facets in one plane orientation reflect (and refract) into the same direction: where no ray is
@@ -76,7 +78,8 @@ FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const Perio
   if (material_.isConductor() && !material_.isPerfectConductor())
     for (const Complex& n2 : ior_) {
       std::vector<double> f(kFresnelTable + 1);
-      for (int i = 0; i <= kFresnelTable; ++i) f[size_t(i)] = fresnelReflectance(double(i) / kFresnelTable, material_.outsideIor, n2);
+      for (int i = 0; i <= kFresnelTable; ++i)
+        f[size_t(i)] = fresnelReflectance(double(i) / kFresnelTable, material_.outsideIor, n2);
       fresnel_.push_back(std::move(f));
     }
   slope_ = SlopeBound::of(g);
@@ -123,7 +126,8 @@ FacetSingleScattering::Cost FacetSingleScattering::cost(int incidenceBin, const 
         if (dot(wi.w, side) <= 0) continue;
         const Vec3 rf = reflect(wi.w, side);
         // A reflection into the other half-space is blocked on a periodic surface: no ray.
-        if ((rf.z >= 0) == fromAbove && !(litClear && slope_.clear(rf))) c.rays += perFacet * nDir * double(p.facets.size());
+        if ((rf.z >= 0) == fromAbove && !(litClear && slope_.clear(rf)))
+          c.rays += perFacet * nDir * double(p.facets.size());
         if (dielectric && !litClear) c.rays += perFacet * nDir * double(p.facets.size());  // the refracted side
       }
       if (c.rays > stopAbove) return c;  // the caller only needs to know the budget is exceeded
@@ -139,7 +143,8 @@ double FacetSingleScattering::pairs(bool collimated) const {
   return directions * double(planes_.size()) * nDir;
 }
 
-bool FacetSingleScattering::cheaperThan(int incidenceBin, const std::optional<Vec3>& exactDirection, double rays) const {
+bool FacetSingleScattering::cheaperThan(int incidenceBin, const std::optional<Vec3>& exactDirection,
+                                        double rays) const {
   // The pair count needs no loop: a tile that loses on pairs alone (a large heightfield) costs no
   // counting pass, and the count stops once the rays pass what is left of the budget.
   const double budget = rays - pairs(exactDirection.has_value()) / kPairsPerRay;
@@ -147,7 +152,8 @@ bool FacetSingleScattering::cheaperThan(int incidenceBin, const std::optional<Ve
   return cost(incidenceBin, exactDirection, budget).rays <= budget;
 }
 
-void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::vector<double>& uncertain, uint64_t* rays) const {
+void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::vector<double>& uncertain,
+                                uint64_t* rays) const {
   const int nL = int(lambda_um_.size()), nB = grid_.binCount();
   const bool conductor = material_.isConductor(), perfect = material_.isPerfectConductor();
   const bool shared = material_.directionsIndependentOfLambda();

@@ -106,9 +106,10 @@ void TileResult::poolPaths(const TileResult& more) {
       e[i] = std::sqrt(std::max(0.0, (s2 - s1 * s1 / n) / (n - 1)) / n);
     }
   }
-  for (auto [mine, theirs] : {std::pair{&truncated, &more.truncated}, std::pair{&leaked, &more.leaked},
-                              std::pair{&missed, &more.missed}})
-    for (size_t l = 0; l < mine->size() && l < theirs->size(); ++l) (*mine)[l] = ((*mine)[l] * na + (*theirs)[l] * nb) / n;
+  for (auto [mine, theirs] :
+       {std::pair{&truncated, &more.truncated}, std::pair{&leaked, &more.leaked}, std::pair{&missed, &more.missed}})
+    for (size_t l = 0; l < mine->size() && l < theirs->size(); ++l)
+      (*mine)[l] = ((*mine)[l] * na + (*theirs)[l] * nb) / n;
   for (int c = 0; c < kComponentCount; ++c)  // means over all paths
     for (size_t i = 0; i < pathMoments[c].size() && i < more.pathMoments[c].size(); ++i)
       pathMoments[c][i] = (pathMoments[c][i] * na + more.pathMoments[c][i] * nb) / n;

@@ -32,18 +32,18 @@ struct TileResult {
   // has the per-path variance Σ_S m2 − (Σ_S m1)², and its standard error over N paths the square
   // root of that over N − 1 (the covariance across bins included, unlike a per-bin sum).
   std::array<std::vector<double>, kComponentCount> pathMoments;
-  uint64_t samples = 0;           // paths per wavelength
+  uint64_t samples = 0;  // paths per wavelength
   // Progressive sampling ([sampling] target_rel_error): rounds of paths run, and why it stopped.
   enum class SamplingStop : int { FixedBudget = 0, TargetReached = 1, BudgetExhausted = 2 };
   int rounds = 1;
   SamplingStop samplingStop = SamplingStop::FixedBudget;
-  uint64_t waveSamples = 0;       // Kirchhoff samples (point x direction) per wavelength, 0 without a wave term
+  uint64_t waveSamples = 0;  // Kirchhoff samples (point x direction) per wavelength, 0 without a wave term
   // A `multiple` the effects planner skipped, verified on this tile (Job::guarded): the bound on its
   // energy (largest over λ of energy + 3 standard errors; NaN when not verified) and whether it
   // exceeded the tolerance, so that the tile computed it after all.
   double multipleCheck = std::numeric_limits<double>::quiet_NaN();
   bool multipleReenabled = false;
-  uint64_t rays = 0;              // ray casts through the scene (for speed figures)
+  uint64_t rays = 0;  // ray casts through the scene (for speed figures)
   double seconds = 0;
 
   double& at(Component c, int lambda, int bin) { return value[int(c)][size_t(lambda) * nBins + bin]; }

@@ -1,5 +1,6 @@
-// The Fourier integral of a flat triangle, ∫_T e^{i q·x} dA, in closed form: the phase of the Kirchhoff integrand (docs/physics.md §5) is linear over a flat
-// facet, so over a fully visible facet under a constant window the integral is exact.
+// The Fourier integral of a flat triangle, ∫_T e^{i q·x} dA, in closed form: the phase of the Kirchhoff integrand
+// (docs/physics.md §5) is linear over a flat facet, so over a fully visible facet under a constant window the integral
+// is exact.
 //
 // With x = a + u e1 + v e2 (e1 = b − a, e2 = c − a; u, v >= 0, u + v <= 1), dA = 2A du dv:
 //   ∫_T e^{i q·x} dA = 2A e^{i q·a} F(q·e1, q·e2),   F(α, β) = ∫∫ e^{i(αu + βv)} du dv,

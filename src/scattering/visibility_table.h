@@ -32,7 +32,8 @@ namespace mbsdf {
 class VisibilityTable {
  public:
   // Casts 4 F (M+1)² rays per hemisphere (in parallel) for the facets of `cell`.
-  VisibilityTable(const Microgeometry& g, const PeriodicScene& scene, const LatticeCell& cell, int M, bool lowerHemisphere);
+  VisibilityTable(const Microgeometry& g, const PeriodicScene& scene, const LatticeCell& cell, int M,
+                  bool lowerHemisphere);
   // wave::escapes(scene, point k of facet t, side, d, t, up) where the table decides it; none where
   // the caller must cast the ray. `side` is the facet's unit normal or its opposite.
   std::optional<bool> escapes(uint32_t t, int k, const Vec3& side, const Vec3& d, bool up) const;
@@ -52,10 +53,10 @@ class VisibilityTable {
 
   int M_;
   bool lower_;
-  size_t words_;                      // per point row
-  std::vector<int32_t> slot_;         // triangle -> index into cell.facets (−1: not in the table)
-  std::vector<Vec3> normal_;          // per slot: unit normal
-  std::vector<uint64_t> bits_;        // [hemisphere][slot][k][word]
+  size_t words_;                // per point row
+  std::vector<int32_t> slot_;   // triangle -> index into cell.facets (−1: not in the table)
+  std::vector<Vec3> normal_;    // per slot: unit normal
+  std::vector<uint64_t> bits_;  // [hemisphere][slot][k][word]
   uint64_t rays_ = 0;
   double seconds_ = 0;
 };

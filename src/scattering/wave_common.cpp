@@ -5,7 +5,9 @@
 #include "core/quadrature.h"
 
 namespace mbsdf {
-int incidenceRuleOrder(int directions) { return std::max(2, int(std::ceil(std::sqrt(double(std::max(1, directions)))))); }
+int incidenceRuleOrder(int directions) {
+  return std::max(2, int(std::ceil(std::sqrt(double(std::max(1, directions))))));
+}
 }  // namespace mbsdf
 
 namespace mbsdf::wave {
@@ -41,8 +43,8 @@ std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielec
   return bins;
 }
 
-std::vector<IncidenceNode> incidenceRule(const DirectionGrid& grid, int incidenceBin, const std::optional<Vec3>& exactDirection,
-                                         int directions) {
+std::vector<IncidenceNode> incidenceRule(const DirectionGrid& grid, int incidenceBin,
+                                         const std::optional<Vec3>& exactDirection, int directions) {
   if (exactDirection) return {{normalize(*exactDirection), 1.0, true}};
   const int n = incidenceRuleOrder(directions);
   std::vector<IncidenceNode> nodes;
@@ -50,8 +52,8 @@ std::vector<IncidenceNode> incidenceRule(const DirectionGrid& grid, int incidenc
     const QuadratureRule q = gaussLegendre(rule, 0.0, 1.0);
     for (int i = 0; i < rule; ++i)
       for (int j = 0; j < rule; ++j)
-        nodes.push_back({grid.sampleCosine(incidenceBin, q.x[size_t(i)], q.x[size_t(j)]).w, q.w[size_t(i)] * q.w[size_t(j)],
-                         rule == n});
+        nodes.push_back({grid.sampleCosine(incidenceBin, q.x[size_t(i)], q.x[size_t(j)]).w,
+                         q.w[size_t(i)] * q.w[size_t(j)], rule == n});
   }
   return nodes;
 }

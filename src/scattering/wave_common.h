@@ -48,7 +48,8 @@ class Media {
 inline KirchhoffValue integrandAt(const Media& media, int l, const Vec3& x, const Vec3& m, const Vec3& wi,
                                   const Vec3& wo, double k0, bool fromAbove, bool transmission) {
   const double nI = media.incident(l, fromAbove);
-  if (!transmission) return kirchhoffIntegrand(x, m, wi, wo, k0, nI, nI, media.fresnel(l, dot(m, wi), fromAbove), false);
+  if (!transmission)
+    return kirchhoffIntegrand(x, m, wi, wo, k0, nI, nI, media.fresnel(l, dot(m, wi), fromAbove), false);
   const double nO = media.other(l, fromAbove);
   if (!media.reverseTransmission(l, fromAbove))
     return kirchhoffIntegrand(x, m, wi, wo, k0, nI, nO, media.fresnel(l, dot(m, wi), fromAbove), true);
@@ -120,7 +121,7 @@ struct IncidenceNode {
   double weight;
   bool high;
 };
-std::vector<IncidenceNode> incidenceRule(const DirectionGrid& grid, int incidenceBin, const std::optional<Vec3>& exactDirection,
-                                         int directions);
+std::vector<IncidenceNode> incidenceRule(const DirectionGrid& grid, int incidenceBin,
+                                         const std::optional<Vec3>& exactDirection, int directions);
 
 }  // namespace mbsdf::wave

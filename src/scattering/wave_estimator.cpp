@@ -15,11 +15,16 @@ namespace mbsdf {
 
 std::string waveEstimatorName(WaveEstimatorKind k) {
   switch (k) {
-    case WaveEstimatorKind::Area: return "area";
-    case WaveEstimatorKind::Paper: return "paper";
-    case WaveEstimatorKind::Orders: return "orders";
-    case WaveEstimatorKind::Exact: return "exact";
-    case WaveEstimatorKind::Fft: return "fft";
+    case WaveEstimatorKind::Area:
+      return "area";
+    case WaveEstimatorKind::Paper:
+      return "paper";
+    case WaveEstimatorKind::Orders:
+      return "orders";
+    case WaveEstimatorKind::Exact:
+      return "exact";
+    case WaveEstimatorKind::Fft:
+      return "fft";
   }
   return "?";
 }
@@ -37,11 +42,16 @@ WaveEstimatorKind waveEstimatorKind(std::string_view name) {
 
 std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx) {
   switch (ctx.settings.estimator) {
-    case WaveEstimatorKind::Area: return std::make_unique<AreaWaveEstimator>(ctx);
-    case WaveEstimatorKind::Paper: return std::make_unique<PaperWaveEstimator>(ctx);
-    case WaveEstimatorKind::Orders: return std::make_unique<OrdersWaveEstimator>(ctx);
-    case WaveEstimatorKind::Exact: return std::make_unique<OrdersWaveEstimator>(ctx, OrderAmplitudes::Exact);
-    case WaveEstimatorKind::Fft: return makeFftWaveEstimator(ctx);
+    case WaveEstimatorKind::Area:
+      return std::make_unique<AreaWaveEstimator>(ctx);
+    case WaveEstimatorKind::Paper:
+      return std::make_unique<PaperWaveEstimator>(ctx);
+    case WaveEstimatorKind::Orders:
+      return std::make_unique<OrdersWaveEstimator>(ctx);
+    case WaveEstimatorKind::Exact:
+      return std::make_unique<OrdersWaveEstimator>(ctx, OrderAmplitudes::Exact);
+    case WaveEstimatorKind::Fft:
+      return makeFftWaveEstimator(ctx);
   }
   throw std::logic_error("makeWaveEstimator: no such estimator");
 }

@@ -25,11 +25,11 @@ namespace mbsdf {
 
 struct WaveSettings {
   WaveEstimatorKind estimator = WaveEstimatorKind::Area;
-  int samplesPerBin = 256;         // area: points x directions per exit bin; paper: passes
-  int pointsPerDirection = 64;     // area: points per exit direction; directions = samples / points (>= 2)
-  int incidenceDirections = 4;     // orders: incidence directions per slice (bin-averaged incidence)
+  int samplesPerBin = 256;      // area: points x directions per exit bin; paper: passes
+  int pointsPerDirection = 64;  // area: points per exit direction; directions = samples / points (>= 2)
+  int incidenceDirections = 4;  // orders: incidence directions per slice (bin-averaged incidence)
   uint64_t seed = 1;
-  bool computeMasked = false;      // also estimate P_msk for the lost component
+  bool computeMasked = false;  // also estimate P_msk for the lost component
   // exact: directions per axis of the shared visibility table (visibility_table.h); 0 casts every
   // ray per order instead.
   int visibilityTable = 0;
@@ -39,8 +39,12 @@ struct WaveTileResult {
   WaveTileResult() = default;
   // Zeroed tables for nLambda x nBins values (P_msk too when `masked`).
   WaveTileResult(int nL, int nB, bool masked)
-      : nLambda(nL), nBins(nB), fws(size_t(nL) * nB, 0.0), fwsErr(size_t(nL) * nB, 0.0),
-        pmsk(masked ? size_t(nL) * nB : 0, 0.0), pmskErr(masked ? size_t(nL) * nB : 0, 0.0) {}
+      : nLambda(nL),
+        nBins(nB),
+        fws(size_t(nL) * nB, 0.0),
+        fwsErr(size_t(nL) * nB, 0.0),
+        pmsk(masked ? size_t(nL) * nB : 0, 0.0),
+        pmskErr(masked ? size_t(nL) * nB : 0, 0.0) {}
   int nLambda = 0, nBins = 0;
   // Per (λ, bin), λ-major, 1/sr. Bins that were not computed (the other hemisphere of a
   // conductor) hold 0.

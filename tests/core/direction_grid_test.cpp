@@ -32,7 +32,8 @@ TEST(DirectionGrid, DiskMeasuresSumToSphere) {
 }
 
 TEST(DirectionGrid, CentresAndSamplesFallInTheirBins) {
-  for (DirectionGrid::Layout l : {DirectionGrid::Layout(ThetaPhiGrid{9, 24}), DirectionGrid::Layout(DiskGrid{16, 16})}) {
+  for (DirectionGrid::Layout l :
+       {DirectionGrid::Layout(ThetaPhiGrid{9, 24}), DirectionGrid::Layout(DiskGrid{16, 16})}) {
     DirectionGrid g(l);
     Sampler s(1, 0, 0);
     for (int b = 0; b < g.binCount(); ++b) {

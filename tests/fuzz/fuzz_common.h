@@ -9,7 +9,9 @@
 
 namespace mbsdf::fuzz {
 
-inline void quietLogs() { spdlog::set_level(spdlog::level::off); }
+inline void quietLogs() {
+  spdlog::set_level(spdlog::level::off);
+}
 
 // Writes the input to a per-process temporary file with the given extension.
 inline std::string writeTemp(const uint8_t* data, size_t size, const char* ext) {

@@ -99,7 +99,10 @@ TEST(RandomField, GaussianHasRequestedRmsAndCorrelation) {
   const double L = 32, rms = 0.2, corr = 2.0;
   auto h = gaussianRandomField(n, n, L, L, rms, corr, 11);
   double s2 = 0, m = 0;
-  for (double v : h) { m += v; s2 += v * v; }
+  for (double v : h) {
+    m += v;
+    s2 += v * v;
+  }
   EXPECT_NEAR(m / h.size(), 0.0, 1e-12);
   EXPECT_NEAR(std::sqrt(s2 / h.size()), rms, 1e-12);
   // Autocorrelation at lag = corr along x: exp(-1) of the variance (statistical: ±0.1).

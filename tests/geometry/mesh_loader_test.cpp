@@ -19,7 +19,9 @@ std::string tmp(const std::string& name) {
   std::filesystem::create_directories(dir);
   return (dir / name).string();
 }
-void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+void write(const std::string& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
 std::string errorOf(const std::string& path) {
   try {
     loadMesh(path, 1.0);
@@ -66,16 +68,19 @@ TEST(MeshLoader, BrokenFilesAreNamed) {
   write(empty, "# nothing\n");
   EXPECT_NE(errorOf(empty).find("empty"), std::string::npos);
   std::string bad = tmp("bad.ply");
-  write(bad, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-             "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n");
+  write(bad,
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n");
   EXPECT_NE(errorOf(bad).find("bad.ply"), std::string::npos);
   std::string nanPly = tmp("nan.ply");
-  write(nanPly, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 nan\n1 1 0\n3 0 1 2\n");
+  write(nanPly,
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 nan\n1 1 0\n3 0 1 2\n");
   EXPECT_NE(errorOf(nanPly).find("vertex 1"), std::string::npos);
   std::string oob = tmp("oob.ply");
-  write(oob, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-             "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n3 0 1 7\n");
+  write(oob,
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n3 0 1 7\n");
   EXPECT_NE(errorOf(oob).find("refers to vertex 7"), std::string::npos);
   EXPECT_NE(errorOf(tmp("missing.ply")).find("not found"), std::string::npos);
   std::string txt = tmp("mesh.stl");
@@ -101,8 +106,9 @@ TEST(MeshLoader, MalformedObjLinesAndShortFacesAreNamed) {
   }
   // Accepted: w, vertex colours, relative indices, slashes, groups and comments.
   const std::string ok = tmp("ok.obj");
-  write(ok, "# patch\no patch\nv -1 -1 0 1\nv 1 -1 0 0.5 0.5 0.5\nv 1 1 0\nv -1 1 0\nvn 0 0 1\ng top\ns off\n"
-            "f 1//1 2//1 3//1\n# last\nf -4 -2 -1\n");
+  write(ok,
+        "# patch\no patch\nv -1 -1 0 1\nv 1 -1 0 0.5 0.5 0.5\nv 1 1 0\nv -1 1 0\nvn 0 0 1\ng top\ns off\n"
+        "f 1//1 2//1 3//1\n# last\nf -4 -2 -1\n");
   Microgeometry g = loadMesh(ok, 1.0);
   EXPECT_EQ(g.triangles.size(), 2u);
   // A vertex no face uses does not enlarge the footprint.
@@ -112,9 +118,10 @@ TEST(MeshLoader, MalformedObjLinesAndShortFacesAreNamed) {
   EXPECT_DOUBLE_EQ(g.sizeY, 2.0);
   // PLY faces with fewer than three indices name the face.
   const std::string ply = tmp("short.ply");
-  write(ply, "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
-             "element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
-             "3 0 1 2\n2 0 2\n");
+  write(ply,
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+        "3 0 1 2\n2 0 2\n");
   EXPECT_NE(errorOf(ply).find("short.ply: face 1 has 2 vertex indices"), std::string::npos) << errorOf(ply);
 }
 
@@ -144,7 +151,8 @@ TEST(HeightfieldLoader, ExrRoundTripAndNaN) {
 
 // Inputs found by the fuzzers (scripts/fuzz): each must end in an InputError naming the file.
 TEST(MeshLoader, FuzzRegressions) {
-  for (const auto& entry : std::filesystem::directory_iterator(std::string(MICROBSDF_SOURCE_DIR) + "/tests/fuzz/regressions/mesh")) {
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::string(MICROBSDF_SOURCE_DIR) + "/tests/fuzz/regressions/mesh")) {
     std::ifstream in(entry.path(), std::ios::binary);
     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     ASSERT_FALSE(bytes.empty());

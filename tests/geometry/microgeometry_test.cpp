@@ -20,8 +20,8 @@ Microgeometry square(bool both) {
 }  // namespace
 
 TEST(SurfaceClosure, GeneratedPatchesAreClosed) {
-  for (const Microgeometry& g : {makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.3), makeOverhang(10, 10, 5, 0.8, 1.5, 2, 1, 0.4),
-                                 square(true)}) {
+  for (const Microgeometry& g :
+       {makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.3), makeOverhang(10, 10, 5, 0.8, 1.5, 2, 1, 0.4), square(true)}) {
     const SurfaceClosure c = surfaceClosureOf(g);
     EXPECT_TRUE(c.closed()) << c.describe();
     EXPECT_EQ(c.openEdges, 0u);

@@ -17,7 +17,8 @@ namespace {
 std::string writeMirrorFile() {
   Job job = loadJobFromString(
       "[geometry]\nkind = \"flat\"\nsize_um = [4.0, 4.0]\n[material]\nname = \"mirror\"\n"
-      "[directions]\ngrid = \"disk\"\nwidth = 33\nheight = 33\nincidence = [[30.0, 0.0]]\nincidence_sampling = \"exact\"\n"
+      "[directions]\ngrid = \"disk\"\nwidth = 33\nheight = 33\nincidence = [[30.0, 0.0]]\nincidence_sampling = "
+      "\"exact\"\n"
       "[spectrum]\nwavelengths_nm = [450.0, 550.0, 650.0]\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n",
       "t.toml", "");
   DirectionGrid grid(job.gridLayout);
@@ -76,7 +77,11 @@ TEST(SliceExport, ImagesHaveSizeChannelsAndTheSpecularPixel) {
     for (int y = 0; y < 128; ++y)
       for (int x = 0; x < 128; ++x) {
         const uint8_t* p = &img.rgb[(size_t(y) * 128 + x) * 3];
-        if (p[0] + p[1] + p[2] > best) { best = p[0] + p[1] + p[2]; bx = x; by = y; }
+        if (p[0] + p[1] + p[2] > best) {
+          best = p[0] + p[1] + p[2];
+          bx = x;
+          by = y;
+        }
       }
     EXPECT_NEAR(bx, 32, 3) << style;
     EXPECT_NEAR(by, 64, 3) << style;

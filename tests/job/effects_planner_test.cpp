@@ -44,9 +44,11 @@ TEST(EffectsPlanner, ResolutionCellsPartitionTheBins) {
 TEST(EffectsPlanner, DiffractionJudgedAtTheRenderersResolution) {
   auto plan = [](double res_deg) {
     const Job job = loadJobFromString(
-        "[geometry]\nkind = \"flat\"\nsize_um = [2.5, 2.5]\n[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [500.0]\n"
+        "[geometry]\nkind = \"flat\"\nsize_um = [2.5, 2.5]\n[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = "
+        "[500.0]\n"
         "[directions]\nn_theta = 64\nn_phi = 16\nincidence = [[0.0, 0.0]]\n[scene]\ncoherence_length_um = 10.0\n"
-        "tolerance = 0.05\nangular_resolution_deg = " + std::to_string(res_deg) + "\n[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n",
+        "tolerance = 0.05\nangular_resolution_deg = " +
+            std::to_string(res_deg) + "\n[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n",
         "t.toml", "");
     const nlohmann::json p = planEffects(job);
     for (const auto& d : p["decisions"])
@@ -70,9 +72,11 @@ TEST(EffectsPlanner, DiffractionJudgedAtTheRenderersResolution) {
 // fft's table) predicts area's error: checked against a whole area tile's distance from fft's table.
 TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
   const std::string text =
-      "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.1\ncorrelation_um = 1.0\n[material]\nname = \"Al\"\n"
+      "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.1\ncorrelation_um = 1.0\n[material]\nname = "
+      "\"Al\"\n"
       "[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\nincidence = [[20.0, 0.0]]\n"
-      "[scene]\ncoherence_length_um = 20.0\ntolerance = 0.02\n[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n"
+      "[scene]\ncoherence_length_um = 20.0\ntolerance = 0.02\n[effects]\npilot_budget = "
+      "10.0\n[sampling]\npaths_per_slice = 20000\n"
       "wave_samples_per_bin = 1024\nseed = 5\n";
   const Job job = loadJobFromString(text, "t.toml", "");
   ASSERT_EQ(job.resolvedWaveEstimator(), WaveEstimatorKind::Area);
@@ -84,7 +88,8 @@ TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
   EXPECT_EQ(d["estimator"], "fft") << d.dump();
   EXPECT_EQ(p["wave_estimator"], "fft");
   double fftError = -1, areaError = -1;
-  for (const auto& c : d["candidates"]) (c["estimator"] == "fft" ? fftError : areaError) = c["predicted_error"].get<double>();
+  for (const auto& c : d["candidates"])
+    (c["estimator"] == "fft" ? fftError : areaError) = c["predicted_error"].get<double>();
   ASSERT_GT(fftError, 0);
   EXPECT_LT(fftError * 10, areaError) << d.dump();
 
@@ -95,11 +100,13 @@ TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
   auto table = [&](const std::string& name) {
     Job j = job;
     j.waveEstimator = waveEstimatorKind(name);
-    return makeJobWaveEstimator(j, grid, *transport.scene(), waveSettingsOf(j))->run(0, job.incidence[0].bin, std::nullopt);
+    return makeJobWaveEstimator(j, grid, *transport.scene(), waveSettingsOf(j))
+        ->run(0, job.incidence[0].bin, std::nullopt);
   };
   const WaveTileResult fft = table("fft"), area = table("area");
   double l1 = 0;
-  for (int b = 0; b < grid.binCount(); ++b) l1 += std::abs(area.fws[size_t(b)] - fft.fws[size_t(b)]) * grid.projectedSolidAngle(b);
+  for (int b = 0; b < grid.binCount(); ++b)
+    l1 += std::abs(area.fws[size_t(b)] - fft.fws[size_t(b)]) * grid.projectedSolidAngle(b);
   std::printf("fft predicted error %.4g; area predicted %.4g, its tile's L1 distance from fft's %.4g\n", fftError,
               areaError, l1);
   EXPECT_GT(areaError, 0.5 * l1) << l1;
@@ -117,7 +124,8 @@ TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
     if (x["effect"] == "estimator") {
       EXPECT_EQ(x["estimator"], "exact");
       EXPECT_FALSE(x.contains("candidates"));
-      EXPECT_NE(x["reason"].get<std::string>().find("deterministic; no estimator pilot"), std::string::npos) << x.dump();
+      EXPECT_NE(x["reason"].get<std::string>().find("deterministic; no estimator pilot"), std::string::npos)
+          << x.dump();
     }
 }
 
@@ -132,8 +140,10 @@ TEST(EffectsPlanner, PilotsFollowTheJobsExactDirections) {
     const Job job = loadJobFromString(
         "[geometry]\nkind = \"binary-grating\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\ndepth_um = 1.0\nduty = 0.5\n"
         "[material]\nname = \"mirror\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 9\nn_phi = 8\n"
-        "incidence = [[40.0, 90.0]]\nincidence_sampling = \"" + sampling + "\"\n[scene]\ncoherence_length_um = 0.0\n"
-        "[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n",
+        "incidence = [[40.0, 90.0]]\nincidence_sampling = \"" +
+            sampling +
+            "\"\n[scene]\ncoherence_length_um = 0.0\n"
+            "[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n",
         "t.toml", "");
     const nlohmann::json p = planEffects(job);
     for (const auto& d : p["decisions"])
@@ -151,7 +161,9 @@ Job vGrooveJob(double apex_deg, const std::string& material, const std::string& 
   return loadJobFromString("[geometry]\nkind = \"ridged\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\napex_angle_deg = " +
                                std::to_string(apex_deg) + "\n[material]\n" + material +
                                "\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 9\nn_phi = 8\n"
-                               "incidence = " + incidence + "\nincidence_sampling = \"exact\"\n[scene]\n"
+                               "incidence = " +
+                               incidence +
+                               "\nincidence_sampling = \"exact\"\n[scene]\n"
                                "coherence_length_um = 0.0\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n"
                                "[sampling]\npaths_per_slice = 20000\nseed = 9\n",
                            "t.toml", "");
@@ -224,10 +236,12 @@ TEST(EffectsPlanner, SingleBounceBoundOnlyForGraphs) {
 // grazing first, then the closest to normal, and azimuths as well as polar angles.
 TEST(EffectsPlanner, PilotsSpreadOverTheIncidences) {
   auto job = [](const std::string& incidence) {
-    return loadJobFromString("[geometry]\nkind = \"flat\"\nsize_um = [2.0, 2.0]\n[material]\nname = \"Al\"\n"
-                             "[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
-                             "incidence = " + incidence + "\nsymmetry = \"none\"\n[scene]\ncoherence_length_um = 0.0\n",
-                             "t.toml", "");
+    return loadJobFromString(
+        "[geometry]\nkind = \"flat\"\nsize_um = [2.0, 2.0]\n[material]\nname = \"Al\"\n"
+        "[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
+        "incidence = " +
+            incidence + "\nsymmetry = \"none\"\n[scene]\ncoherence_length_um = 0.0\n",
+        "t.toml", "");
   };
   const Job few = job("[[10.0, 0.0], [50.0, 90.0], [30.0, 0.0], [0.0, 0.0]]");
   EXPECT_EQ(pilotIncidences(few), (std::vector<int>{1, 3, 2, 0}));
@@ -236,12 +250,14 @@ TEST(EffectsPlanner, PilotsSpreadOverTheIncidences) {
   ASSERT_EQ(p.size(), size_t(kMaxPilots));
   EXPECT_EQ(std::set<int>(p.begin(), p.end()).size(), p.size());
   double maxTheta = 0, minTheta = 90;
-  for (const auto& inc : all.incidence) maxTheta = std::max(maxTheta, inc.theta_deg), minTheta = std::min(minTheta, inc.theta_deg);
+  for (const auto& inc : all.incidence)
+    maxTheta = std::max(maxTheta, inc.theta_deg), minTheta = std::min(minTheta, inc.theta_deg);
   EXPECT_EQ(all.incidence[size_t(p[0])].theta_deg, maxTheta);
   EXPECT_EQ(all.incidence[size_t(p[1])].theta_deg, minTheta);
   std::set<int> quadrants;
   for (int i : p)
-    if (all.incidence[size_t(i)].theta_deg > 20) quadrants.insert(int(std::floor(all.incidence[size_t(i)].phi_deg / 90.0)) % 4);
+    if (all.incidence[size_t(i)].theta_deg > 20)
+      quadrants.insert(int(std::floor(all.incidence[size_t(i)].phi_deg / 90.0)) % 4);
   EXPECT_GE(quadrants.size(), size_t(3)) << "pilots cover the azimuths";
 }
 
@@ -252,11 +268,14 @@ TEST(EffectsPlanner, PilotsSpreadOverTheIncidences) {
 TEST(EffectsPlanner, PilotBudgetBoundsThePilots) {
   for (double budget : {0.1, 0.5, 2.0, 10.0}) {
     const Job job = loadJobFromString(
-        "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0\n[material]\nname = \"Al\"\n"
+        "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0\n[material]\nname "
+        "= \"Al\"\n"
         "[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
         "incidence = [[0.0, 0.0], [40.0, 0.0], [70.0, 30.0]]\n[scene]\ncoherence_length_um = 20.0\ntolerance = 0.02\n"
-        "[effects]\npilot_budget = " + std::to_string(budget) + "\n[sampling]\npaths_per_slice = 50000\n"
-        "wave_samples_per_bin = 256\nseed = 5\n",
+        "[effects]\npilot_budget = " +
+            std::to_string(budget) +
+            "\n[sampling]\npaths_per_slice = 50000\n"
+            "wave_samples_per_bin = 256\nseed = 5\n",
         "t.toml", "");
     const nlohmann::json p = planEffects(job);
     const auto& spent = p["pilot_budget"];

@@ -27,7 +27,9 @@ std::string readFile(const std::filesystem::path& p) {
   return s.str();
 }
 
-std::string reference() { return readFile(std::string(MICROBSDF_SOURCE_DIR) + "/docs/job-reference.md"); }
+std::string reference() {
+  return readFile(std::string(MICROBSDF_SOURCE_DIR) + "/docs/job-reference.md");
+}
 
 constexpr const char* kGeneratedHeading = "## Every key at a glance";
 
@@ -38,7 +40,9 @@ TEST(JobKeys, PathsAreUniqueAndSectionsRegistered) {
   for (const JobKey& k : jobKeys()) {
     EXPECT_TRUE(seen.insert(std::string(k.path)).second) << k.path;
     const size_t dot = k.path.rfind('.');
-    if (dot != std::string_view::npos) EXPECT_NE(findJobKey(k.path.substr(0, dot)), nullptr) << k.path;
+    if (dot != std::string_view::npos) {
+      EXPECT_NE(findJobKey(k.path.substr(0, dot)), nullptr) << k.path;
+    }
     EXPECT_FALSE(k.meaning.empty()) << k.path;
   }
 }
@@ -82,9 +86,10 @@ TEST(JobKeys, TheReferenceDescribesEveryRegisteredKey) {
     if (k.type == KeyType::Table) continue;
     const std::string path(k.path);
     const std::string name = path.substr(path.rfind('.') + 1);
-    const bool described = prose.find("`" + path + "`") != std::string::npos || prose.find("`" + name + "`") != std::string::npos ||
-                           prose.find("`" + name + " ") != std::string::npos ||
-                           prose.find("{ " + name + " = ") != std::string::npos || prose.find(", " + name + " = ") != std::string::npos;
+    const bool described =
+        prose.find("`" + path + "`") != std::string::npos || prose.find("`" + name + "`") != std::string::npos ||
+        prose.find("`" + name + " ") != std::string::npos || prose.find("{ " + name + " = ") != std::string::npos ||
+        prose.find(", " + name + " = ") != std::string::npos;
     EXPECT_TRUE(described) << path << " is registered but the job reference does not describe it";
   }
   // And the other way: every key the reference's tables describe is registered. The first cell of

@@ -147,15 +147,15 @@ TEST(Job, TabulatedNdfFile) {
   std::ofstream(dir / "good.csv") << "# theta_deg, D\n0, 2.0\n45, 1.0\n90, 0.0\n";
   std::ofstream(dir / "bad.csv") << "0, 1.0\n10, -3\n";
   std::ofstream(dir / "order.csv") << "0, 1.0\n20 1.0\n10 1.0\n";
-  Job j = loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"tabulated\"\nndf_file = \"good.csv\"\n", "t.toml",
-                            dir.string());
+  Job j = loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"tabulated\"\nndf_file = \"good.csv\"\n",
+                            "t.toml", dir.string());
   const auto& t = std::get<TabulatedNdf>(j.statistical->ndf);
   ASSERT_EQ(t.cosTheta.size(), 3u);
   EXPECT_NEAR(t.cosTheta.back(), 1.0, 1e-15);
   auto err = [&](const std::string& file) {
     try {
-      loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"tabulated\"\nndf_file = \"" + file + "\"\n", "t.toml",
-                        dir.string());
+      loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"tabulated\"\nndf_file = \"" + file + "\"\n",
+                        "t.toml", dir.string());
     } catch (const InputError& e) {
       return std::string(e.what());
     }
@@ -171,8 +171,8 @@ TEST(Job, SceneLightSource) {
   Job sun = loadJobFromString("[spectrum]\nwavelengths_nm = [550.0]\n[scene]\nlight = \"sun\"\n", "t.toml", "");
   EXPECT_NEAR(sun.scene.coherenceLength_um, 159.7, 0.1);
   EXPECT_EQ(sun.scene.coherenceSource, "light = \"sun\"");
-  Job disk = loadJobFromString("[spectrum]\nwavelengths_nm = [500.0, 600.0]\n[scene]\nsource_angular_diameter_deg = 1.066\n",
-                               "t.toml", "");
+  Job disk = loadJobFromString(
+      "[spectrum]\nwavelengths_nm = [500.0, 600.0]\n[scene]\nsource_angular_diameter_deg = 1.066\n", "t.toml", "");
   EXPECT_NEAR(disk.scene.coherenceLength_um, 159.7 / 2, 0.1);  // twice the sun's diameter, same mean λ
   EXPECT_NE(errorOf("[scene]\nlight = \"moon\"\n").find("scene.light"), std::string::npos);
   EXPECT_NE(errorOf("[scene]\nlight = \"sun\"\ncoherence_length_um = 50.0\n").find("scene.coherence_length_um"),
@@ -191,19 +191,20 @@ TEST(Job, SceneIncidenceRange) {
   EXPECT_EQ(al.incidence.size(), 3u * 4u);
   for (const auto& d : al.incidence) EXPECT_LE(d.theta_deg, 50.0);
   EXPECT_TRUE(al.incidenceAll);
-  Job glass = loadJobFromString("[material]\nkind = \"dielectric\"\nior = 1.5\n" + dirs + "[scene]\nincidence_max_deg = 30.0\n",
-                                "t.toml", "");
+  Job glass = loadJobFromString(
+      "[material]\nkind = \"dielectric\"\nior = 1.5\n" + dirs + "[scene]\nincidence_max_deg = 30.0\n", "t.toml", "");
   ASSERT_EQ(glass.incidence.size(), 2u * 2u * 4u);  // two rings above, two inside
   for (const auto& d : glass.incidence) EXPECT_LE(std::min(d.theta_deg, 180 - d.theta_deg), 30.0);
   EXPECT_EQ(loadJobFromString(dirs, "t.toml", "").incidence.size(), 6u * 4u);
   EXPECT_NE(errorOf(dirs + "[scene]\nincidence_max_deg = 5.0\n").find("scene.incidence_max_deg"), std::string::npos);
   EXPECT_NE(errorOf(dirs + "[scene]\nincidence_max_deg = 95.0\n").find("scene.incidence_max_deg"), std::string::npos);
-  EXPECT_NE(errorOf("[directions]\nincidence = [[70.0, 0.0]]\n[scene]\nincidence_max_deg = 60.0\n").find("scene.incidence_max_deg"),
+  EXPECT_NE(errorOf("[directions]\nincidence = [[70.0, 0.0]]\n[scene]\nincidence_max_deg = 60.0\n")
+                .find("scene.incidence_max_deg"),
             std::string::npos);
   // Whole rings go, so an isotropic surface still computes one azimuth per remaining ring.
-  Job iso = loadJobFromString("[geometry]\nkind = \"statistical\"\nndf = \"ggx\"\nalpha = 0.3\n" + dirs +
-                                  "[scene]\nincidence_max_deg = 50.0\n",
-                              "t.toml", "");
+  Job iso = loadJobFromString(
+      "[geometry]\nkind = \"statistical\"\nndf = \"ggx\"\nalpha = 0.3\n" + dirs + "[scene]\nincidence_max_deg = 50.0\n",
+      "t.toml", "");
   ASSERT_TRUE(iso.symmetryReduced()) << iso.symmetryReason;
   const DirectionGrid grid(iso.gridLayout);
   EXPECT_EQ(AzimuthalSymmetry(iso, grid).representativeCount(), 3);
@@ -222,10 +223,13 @@ TEST(Job, SymmetryDetectedOrDeclared) {
   Job list = loadJobFromString(stat + "alpha = 0.3\n[directions]\nincidence = [[10.0, 0.0]]\n", "t.toml", "");
   EXPECT_FALSE(list.isotropic);
   EXPECT_NE(list.symmetryReason.find("incidence"), std::string::npos);
-  Job declared = loadJobFromString("[geometry]\nkind = \"gaussian\"\n[directions]\nn_theta = 3\nn_phi = 4\nsymmetry = \"isotropic\"\n",
-                                   "t.toml", "");
+  Job declared = loadJobFromString(
+      "[geometry]\nkind = \"gaussian\"\n[directions]\nn_theta = 3\nn_phi = 4\nsymmetry = \"isotropic\"\n", "t.toml",
+      "");
   EXPECT_TRUE(declared.isotropic);
-  EXPECT_FALSE(loadJobFromString("[geometry]\nkind = \"gaussian\"\n[directions]\nn_theta = 3\nn_phi = 4\n", "t.toml", "").isotropic);
+  EXPECT_FALSE(
+      loadJobFromString("[geometry]\nkind = \"gaussian\"\n[directions]\nn_theta = 3\nn_phi = 4\n", "t.toml", "")
+          .isotropic);
   EXPECT_NE(errorOf("[directions]\nsymmetry = \"mirror\"\n").find("directions.symmetry"), std::string::npos);
 }
 
@@ -233,22 +237,34 @@ TEST(Job, SymmetryDetectedOrDeclared) {
 // `auto` picks it for a heightfield under a narrow window on a disk grid and keeps `orders` for wide
 // windows and `area` elsewhere.
 TEST(Job, FftEstimatorConditions) {
-  const std::string gauss = "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.1\ncorrelation_um = 1.0\n";
-  const std::string narrow = "[scene]\ncoherence_length_um = 15.0\n", disk = "[directions]\ngrid = \"disk\"\nwidth = 16\nheight = 16\n";
+  const std::string gauss =
+      "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.1\ncorrelation_um = 1.0\n";
+  const std::string narrow = "[scene]\ncoherence_length_um = 15.0\n",
+                    disk = "[directions]\ngrid = \"disk\"\nwidth = 16\nheight = 16\n";
   std::string e = errorOf("[geometry]\nkind = \"hemispheres\"\n[sampling]\nwave_estimator = \"fft\"\n");
   EXPECT_NE(e.find("sampling.wave_estimator"), std::string::npos) << e;
   EXPECT_NE(e.find("heightfield"), std::string::npos) << e;
   EXPECT_EQ(errorOf(gauss + narrow + "[sampling]\nwave_estimator = \"fft\"\n"), "");
-  e = errorOf(gauss + narrow + disk + "[effects]\ncomponents = [\"coherent\", \"incoherent\", \"lost\"]\n[sampling]\nwave_estimator = \"fft\"\n");
+  e = errorOf(
+      gauss + narrow + disk +
+      "[effects]\ncomponents = [\"coherent\", \"incoherent\", \"lost\"]\n[sampling]\nwave_estimator = \"fft\"\n");
   EXPECT_NE(e.find("lost"), std::string::npos) << e;
   EXPECT_EQ(errorOf(gauss + narrow + disk + "[sampling]\nwave_estimator = \"fft\"\n"), "");
   EXPECT_EQ(waveEstimatorName(loadJobFromString(gauss + narrow + disk, "t.toml", "").resolvedWaveEstimator()), "fft");
-  EXPECT_EQ(waveEstimatorName(loadJobFromString(gauss + narrow, "t.toml", "").resolvedWaveEstimator()), "area");  // explicit on theta-phi
-  EXPECT_EQ(waveEstimatorName(loadJobFromString(gauss + narrow + disk + "[effects]\ncomponents = [\"coherent\", \"incoherent\", \"lost\"]\n", "t.toml", "")
-                .resolvedWaveEstimator()),
+  EXPECT_EQ(waveEstimatorName(loadJobFromString(gauss + narrow, "t.toml", "").resolvedWaveEstimator()),
+            "area");  // explicit on theta-phi
+  EXPECT_EQ(
+      waveEstimatorName(loadJobFromString(gauss + narrow + disk +
+                                              "[effects]\ncomponents = [\"coherent\", \"incoherent\", \"lost\"]\n",
+                                          "t.toml", "")
+                            .resolvedWaveEstimator()),
+      "area");
+  EXPECT_EQ(waveEstimatorName(loadJobFromString(gauss + disk + "[scene]\ncoherence_length_um = 100.0\n", "t.toml", "")
+                                  .resolvedWaveEstimator()),
+            "orders");
+  EXPECT_EQ(waveEstimatorName(loadJobFromString("[geometry]\nkind = \"hemispheres\"\n" + narrow + disk, "t.toml", "")
+                                  .resolvedWaveEstimator()),
             "area");
-  EXPECT_EQ(waveEstimatorName(loadJobFromString(gauss + disk + "[scene]\ncoherence_length_um = 100.0\n", "t.toml", "").resolvedWaveEstimator()), "orders");
-  EXPECT_EQ(waveEstimatorName(loadJobFromString("[geometry]\nkind = \"hemispheres\"\n" + narrow + disk, "t.toml", "").resolvedWaveEstimator()), "area");
 }
 
 // The lattice cell decides the grating-order regime: the paper's HEMISPHERES (20 µm, 4 x 4 cells
@@ -256,8 +272,9 @@ TEST(Job, FftEstimatorConditions) {
 // `exact`'s visibility table is built when the job's tiles pay for it, on request, never for
 // other estimators; a bad value names the key.
 TEST(Job, LatticeCellAndVisibilityTable) {
-  const std::string hemi = "[geometry]\nkind = \"hemispheres\"\n[scene]\ncoherence_length_um = 50.0\n"
-                           "[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n";
+  const std::string hemi =
+      "[geometry]\nkind = \"hemispheres\"\n[scene]\ncoherence_length_um = 50.0\n"
+      "[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n";
   const Job j = loadJobFromString(hemi, "t.toml", "");
   EXPECT_EQ(j.cellNx, 4);
   EXPECT_EQ(j.cellNy, 4);
@@ -266,18 +283,30 @@ TEST(Job, LatticeCellAndVisibilityTable) {
   EXPECT_EQ(j.visibilityTableResolution(), 0);  // not exact
   // exact where it costs no more than orders at the job's budget: a 4 µm flat patch (2 facets), or
   // the hemisphere cell (6 136 facets) with 2^16 points.
-  EXPECT_EQ(waveEstimatorName(loadJobFromString("[geometry]\nsize_um = [4.0, 4.0]\n[scene]\ncoherence_length_um = 50.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n", "t.toml", "")
-                .resolvedWaveEstimator()),
+  EXPECT_EQ(waveEstimatorName(loadJobFromString("[geometry]\nsize_um = [4.0, 4.0]\n[scene]\ncoherence_length_um = "
+                                                "50.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n",
+                                                "t.toml", "")
+                                  .resolvedWaveEstimator()),
             "exact");
-  EXPECT_EQ(waveEstimatorName(loadJobFromString(hemi + "[sampling]\nwave_samples_per_bin = 65536\n", "t.toml", "").resolvedWaveEstimator()), "exact");
+  EXPECT_EQ(
+      waveEstimatorName(
+          loadJobFromString(hemi + "[sampling]\nwave_samples_per_bin = 65536\n", "t.toml", "").resolvedWaveEstimator()),
+      "exact");
   const std::string all = "[directions]\nn_theta = 15\nn_phi = 30\nincidence = \"all\"\n";
-  const std::string one = "[directions]\nn_theta = 15\nn_phi = 30\nincidence = [[30.0, 0.0]]\nincidence_sampling = \"exact\"\n";
-  EXPECT_EQ(loadJobFromString(hemi + all + "[sampling]\nwave_estimator = \"exact\"\n", "t.toml", "").visibilityTableResolution(), 128);
-  EXPECT_EQ(loadJobFromString(hemi + one + "[sampling]\nwave_estimator = \"exact\"\n", "t.toml", "").visibilityTableResolution(), 0);
-  EXPECT_EQ(loadJobFromString(hemi + one + "[sampling]\nwave_estimator = \"exact\"\nvisibility_table = \"on\"\n", "t.toml", "")
+  const std::string one =
+      "[directions]\nn_theta = 15\nn_phi = 30\nincidence = [[30.0, 0.0]]\nincidence_sampling = \"exact\"\n";
+  EXPECT_EQ(loadJobFromString(hemi + all + "[sampling]\nwave_estimator = \"exact\"\n", "t.toml", "")
                 .visibilityTableResolution(),
             128);
-  EXPECT_EQ(loadJobFromString(hemi + all + "[sampling]\nwave_estimator = \"exact\"\nvisibility_table = \"off\"\n", "t.toml", "")
+  EXPECT_EQ(loadJobFromString(hemi + one + "[sampling]\nwave_estimator = \"exact\"\n", "t.toml", "")
+                .visibilityTableResolution(),
+            0);
+  EXPECT_EQ(loadJobFromString(hemi + one + "[sampling]\nwave_estimator = \"exact\"\nvisibility_table = \"on\"\n",
+                              "t.toml", "")
+                .visibilityTableResolution(),
+            128);
+  EXPECT_EQ(loadJobFromString(hemi + all + "[sampling]\nwave_estimator = \"exact\"\nvisibility_table = \"off\"\n",
+                              "t.toml", "")
                 .visibilityTableResolution(),
             0);
   const std::string e = errorOf(hemi + "[sampling]\nvisibility_table = \"maybe\"\n");
@@ -295,7 +324,8 @@ TEST(Job, SingleScatteringKeyErrorsNameTheKey) {
        {grating + "[sampling]\nsingle_scattering = \"maybe\"\n",
         grating + "[effects]\ncomponents = [\"coherent\", \"multiple\"]\n[sampling]\nsingle_scattering = \"facets\"\n",
         grating + "[effects]\ncomponents = [\"coherent\", \"lost\"]\n[sampling]\nsingle_scattering = \"facets\"\n",
-        std::string("[geometry]\nkind = \"statistical\"\nndf = \"ggx\"\nalpha = 0.3\n[sampling]\nsingle_scattering = \"facets\"\n")}) {
+        std::string("[geometry]\nkind = \"statistical\"\nndf = \"ggx\"\nalpha = 0.3\n[sampling]\nsingle_scattering = "
+                    "\"facets\"\n")}) {
     const std::string e = errorOf(bad);
     EXPECT_NE(e.find("sampling.single_scattering"), std::string::npos) << bad << "\n" << e;
   }
@@ -313,4 +343,3 @@ TEST(Job, RepeatedWavelengthAndTexelLimitNameTheKey) {
   EXPECT_NE(e.find("at most 2048"), std::string::npos) << e;
   EXPECT_EQ(errorOf("[geometry]\nkind = \"gaussian\"\nsize_um = [204.8, 10.0]\ntexel_um = 0.1\n"), "");
 }
-

@@ -21,12 +21,13 @@ using namespace mbsdf;
 namespace {
 
 Job sceneJob(const std::string& geometry, const std::string& material, uint64_t paths) {
-  return loadJobFromString("[geometry]\n" + geometry + "\n[material]\n" + material +
-                               "\n[spectrum]\nwavelengths_nm = [500.0, 650.0]\n[directions]\nn_theta = 12\nn_phi = 24\n"
-                               "incidence = [[0.0, 0.0], [35.0, 20.0], [70.0, 200.0]]\n[scene]\ncoherence_length_um = 0.0\n"
-                               "[effects]\ncomponents = [\"coherent\", \"multiple\"]\n[sampling]\npaths_per_slice = " +
-                               std::to_string(paths) + "\nseed = 3\n",
-                           "t.toml", "");
+  return loadJobFromString(
+      "[geometry]\n" + geometry + "\n[material]\n" + material +
+          "\n[spectrum]\nwavelengths_nm = [500.0, 650.0]\n[directions]\nn_theta = 12\nn_phi = 24\n"
+          "incidence = [[0.0, 0.0], [35.0, 20.0], [70.0, 200.0]]\n[scene]\ncoherence_length_um = 0.0\n"
+          "[effects]\ncomponents = [\"coherent\", \"multiple\"]\n[sampling]\npaths_per_slice = " +
+          std::to_string(paths) + "\nseed = 3\n",
+      "t.toml", "");
 }
 
 // The largest relativeError of the path-traced table over the pilot incidences, measured on
@@ -48,13 +49,15 @@ double measuredError(const Job& job) {
 // 1/√16) within a factor of 1.5 of the measured one.
 TEST(Plan, PredictedErrorMatchesTheJobsOwn) {
   const std::vector<std::pair<const char*, Job>> scenes = {
-      {"mirror hemispheres", sceneJob("kind = \"hemispheres\"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\nspacing_um = 5.0\n"
-                                      "resolution_um = 0.25",
-                                      "name = \"mirror\"", 320000)},
+      {"mirror hemispheres",
+       sceneJob("kind = \"hemispheres\"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\nspacing_um = 5.0\n"
+                "resolution_um = 0.25",
+                "name = \"mirror\"", 320000)},
       {"rough aluminium", sceneJob("kind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.5\ncorrelation_um = 1.5",
                                    "name = \"Al\"", 320000)},
-      {"glass sine grating", sceneJob("kind = \"sine-grating\"\nsize_um = [4.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.4",
-                                      "kind = \"dielectric\"\nior = 1.5", 320000)},
+      {"glass sine grating",
+       sceneJob("kind = \"sine-grating\"\nsize_um = [4.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.4",
+                "kind = \"dielectric\"\nior = 1.5", 320000)},
       {"gold V-grooves", sceneJob("kind = \"ridged\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\napex_angle_deg = 90.0",
                                   "name = \"Au\"", 320000)},
   };
@@ -71,7 +74,8 @@ TEST(Plan, PredictedErrorMatchesTheJobsOwn) {
     // The budget that buys 1 % is the job's scaled by (error / 1 %)².
     for (const auto& t : p["accuracy"]["targets"]) {
       if (std::abs(t["rel_error"].get<double>() - 0.01) > 1e-12) continue;
-      EXPECT_NEAR(double(t["paths_per_slice"].get<uint64_t>()), std::max(1000.0, 320000 * std::pow(predicted / 0.01, 2)), 1.0)
+      EXPECT_NEAR(double(t["paths_per_slice"].get<uint64_t>()),
+                  std::max(1000.0, 320000 * std::pow(predicted / 0.01, 2)), 1.0)
           << name;
     }
   }
@@ -82,7 +86,8 @@ namespace {
 // The error a table actually has: √Σ_b (Δf_b Ω⊥_b)² / Σ_b |f_ref,b| Ω⊥_b against a reference at 16× the
 // budget with another seed, largest over wavelengths. Its expectation² is the run's predicted error²
 // plus the reference's (1/16 of it), which is divided out.
-double distanceToReference(const std::vector<double>& f, const std::vector<double>& ref, int nL, const DirectionGrid& grid) {
+double distanceToReference(const std::vector<double>& f, const std::vector<double>& ref, int nL,
+                           const DirectionGrid& grid) {
   const int nB = grid.binCount();
   double worst = 0;
   for (int l = 0; l < nL; ++l) {
@@ -136,8 +141,8 @@ double checkScene(const char* name, const Job& job, bool wave) {
       measured = distanceToReference(pathTable(a), pathTable(b), a.nLambda, grid);
     }
     const double predicted = pilot["rel_error"].get<double>();
-    std::printf("%-28s theta_i %5.1f: predicted %.4f, measured %.4f\n", name, pilot["theta_deg"].get<double>(), predicted,
-                measured);
+    std::printf("%-28s theta_i %5.1f: predicted %.4f, measured %.4f\n", name, pilot["theta_deg"].get<double>(),
+                predicted, measured);
     measured2 += measured * measured;
     predicted2 += predicted * predicted;
   }
@@ -146,13 +151,14 @@ double checkScene(const char* name, const Job& job, bool wave) {
 }
 
 Job waveJob(const std::string& geometry, const std::string& estimator, int samples) {
-  return loadJobFromString("[geometry]\n" + geometry +
-                               "\n[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\n"
-                               "n_theta = 12\nn_phi = 24\nincidence = [[0.0, 0.0], [35.0, 20.0], [60.0, 200.0]]\n"
-                               "[scene]\ncoherence_length_um = 20.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n"
-                               "[sampling]\npaths_per_slice = 20000\nwave_estimator = \"" + estimator +
-                               "\"\nwave_samples_per_bin = " + std::to_string(samples) + "\nseed = 3\n",
-                           "t.toml", "");
+  return loadJobFromString(
+      "[geometry]\n" + geometry +
+          "\n[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\n"
+          "n_theta = 12\nn_phi = 24\nincidence = [[0.0, 0.0], [35.0, 20.0], [60.0, 200.0]]\n"
+          "[scene]\ncoherence_length_um = 20.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n"
+          "[sampling]\npaths_per_slice = 20000\nwave_estimator = \"" +
+          estimator + "\"\nwave_samples_per_bin = " + std::to_string(samples) + "\nseed = 3\n",
+      "t.toml", "");
 }
 
 }  // namespace
@@ -165,13 +171,15 @@ Job waveJob(const std::string& geometry, const std::string& estimator, int sampl
 // number).
 TEST(Plan, PredictedErrorMatchesALongReference) {
   const std::vector<std::pair<const char*, Job>> pathScenes = {
-      {"mirror hemispheres", sceneJob("kind = \"hemispheres\"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\nspacing_um = 5.0\n"
-                                      "resolution_um = 0.25",
-                                      "name = \"mirror\"", 80000)},
+      {"mirror hemispheres",
+       sceneJob("kind = \"hemispheres\"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\nspacing_um = 5.0\n"
+                "resolution_um = 0.25",
+                "name = \"mirror\"", 80000)},
       {"rough aluminium", sceneJob("kind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.5\ncorrelation_um = 1.5",
                                    "name = \"Al\"", 80000)},
-      {"glass sine grating (R + T)", sceneJob("kind = \"sine-grating\"\nsize_um = [4.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.4",
-                                              "kind = \"dielectric\"\nior = 1.5", 80000)},
+      {"glass sine grating (R + T)",
+       sceneJob("kind = \"sine-grating\"\nsize_um = [4.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.4",
+                "kind = \"dielectric\"\nior = 1.5", 80000)},
       {"gold V-grooves", sceneJob("kind = \"ridged\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\napex_angle_deg = 90.0",
                                   "name = \"Au\"", 80000)},
   };
@@ -181,7 +189,8 @@ TEST(Plan, PredictedErrorMatchesALongReference) {
     EXPECT_LT(ratio, 1.5) << name;
     EXPECT_GT(ratio, 1 / 1.5) << name;
   }
-  const Job wave = waveJob("kind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0", "orders", 256);
+  const Job wave =
+      waveJob("kind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0", "orders", 256);
   const double ratio = checkScene("rough Al, orders wave term", wave, true);
   std::printf("%-28s measured / predicted %.2f\n", "rough Al, orders wave term", ratio);
   EXPECT_LT(ratio, 1.5);

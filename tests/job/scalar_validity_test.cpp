@@ -21,8 +21,8 @@ Job gratingJob(double period_um, double depth_um, const std::string& wavelengths
   std::ostringstream t;
   t << "[geometry]\nkind = \"binary-grating\"\nsize_um = [" << period_um << ", 0.2]\nperiod_um = " << period_um
     << "\ndepth_um = " << depth_um << "\nduty = 0.5\n[material]\nkind = \"dielectric\"\nior = 1.5\n[spectrum]\n"
-    << "wavelengths_nm = " << wavelengths << "\n[directions]\nincidence = [[0.0, 0.0]]\n[scene]\n" << scene
-    << "\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n";
+    << "wavelengths_nm = " << wavelengths << "\n[directions]\nincidence = [[0.0, 0.0]]\n[scene]\n"
+    << scene << "\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n";
   return loadJobFromString(t.str(), "t.toml", "");
 }
 }  // namespace
@@ -69,7 +69,8 @@ TEST(ScalarValidity, WarnsWhereScalarDiffractionFails) {
 TEST(ScalarValidity, OnlyForPeriodicPatchesUnderAWindow) {
   EXPECT_FALSE(scalarValidity(gratingJob(5.0, 0.25, "[500.0]", "coherence_length_um = 0.0")).applies);
   const Job flat = loadJobFromString(
-      "[geometry]\nkind = \"flat\"\nsize_um = [10.0, 10.0]\n[material]\nname = \"Al\"\n[directions]\nincidence = [[0.0, 0.0]]\n"
+      "[geometry]\nkind = \"flat\"\nsize_um = [10.0, 10.0]\n[material]\nname = \"Al\"\n[directions]\nincidence = "
+      "[[0.0, 0.0]]\n"
       "[scene]\ncoherence_length_um = 50.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n",
       "t.toml", "");
   EXPECT_FALSE(scalarValidity(flat).applies);
@@ -94,7 +95,8 @@ TEST(ScalarValidity, MapMatchesTheValidationData) {
       }
       ASSERT_GE(worst, 0) << "no validation data for period " << map.periodOverLambda[r] << " λ, depth "
                           << map.depthOverLambda[c] << " λ";
-      EXPECT_NEAR(map.maxDelta[r][c], worst, 6e-5) << map.periodOverLambda[r] << " λ, " << map.depthOverLambda[c] << " λ";
+      EXPECT_NEAR(map.maxDelta[r][c], worst, 6e-5)
+          << map.periodOverLambda[r] << " λ, " << map.depthOverLambda[c] << " λ";
       ++matched;
     }
   EXPECT_EQ(matched, ValidityMap::kRows * ValidityMap::kCols);

@@ -21,7 +21,8 @@ TEST(Transport, FacetSumWhereNothingScattersTwiceAndItCostsLess) {
     DirectionGrid grid;
     std::unique_ptr<GeometricTransport> t;
     explicit Setup(const std::string& text)
-        : job(loadJobFromString(text, "t.toml", "")), grid(job.gridLayout),
+        : job(loadJobFromString(text, "t.toml", "")),
+          grid(job.gridLayout),
           t(std::make_unique<GeometricTransport>(job, grid, job.pathsPerSlice)) {}
   };
   auto transport = [](const std::string& text) {

@@ -66,7 +66,8 @@ void expectBinsMatch(const TileResult& r, const DirectionGrid& g, Component c,
 }
 
 // All orders (coherent + multiple, errors combined) against Chandrasekhar's Eq. 30 for albedo a.
-void expectChandrasekharEq30(const WalkCase& c, const TileResult& r, const Vec3& wi, double a, const std::string& what) {
+void expectChandrasekharEq30(const WalkCase& c, const TileResult& r, const Vec3& wi, double a,
+                             const std::string& what) {
   TileResult sum = r;
   for (int b = 0; b < r.nBins; ++b) {
     sum.at(Component::Coherent, 0, b) += r.at(Component::Multiple, 0, b);
@@ -74,20 +75,21 @@ void expectChandrasekharEq30(const WalkCase& c, const TileResult& r, const Vec3&
   }
   const double Hi = chandrasekharH(wi.z, a);
   auto H = hTable(a);
-  expectBinsMatch(sum, c.grid, Component::Coherent,
-                  [&](int b) {
-                    return c.grid.isUpper(b) ? test::binAverage(c.grid, b, [&](const Vec3& wo) {
-                      return a / (4 * kPi) * Hi * H(wo.z) / (wi.z + wo.z);
-                    }) : 0.0;
-                  },
-                  20, what);
+  expectBinsMatch(
+      sum, c.grid, Component::Coherent,
+      [&](int b) {
+        return c.grid.isUpper(b)
+                   ? test::binAverage(c.grid, b,
+                                      [&](const Vec3& wo) { return a / (4 * kPi) * Hi * H(wo.z) / (wi.z + wo.z); })
+                   : 0.0;
+      },
+      20, what);
 }
 
 // Depth 1 = F D G2 / (4 cos θi cos θo) with the height-correlated G2 (Heitz 2014 Eq. 99).
 TEST(MicroflakeWalk, SingleScatteringEqualsMicrofacetBRDF) {
-  const std::vector<std::pair<std::string, Ndf>> cases = {{"beckmann", BeckmannNdf{0.5, 0.5}},
-                                                          {"ggx", GgxNdf{0.4, 0.4}},
-                                                          {"ggxAniso", GgxNdf{0.25, 0.6}}};
+  const std::vector<std::pair<std::string, Ndf>> cases = {
+      {"beckmann", BeckmannNdf{0.5, 0.5}}, {"ggx", GgxNdf{0.4, 0.4}}, {"ggxAniso", GgxNdf{0.25, 0.6}}};
   for (auto& [name, ndf] : cases) {
     WalkCase c(ndf, test::material("Al"), ThetaPhiGrid{9, 16}, settings(400000));
     const Vec3 wi = sphericalDirection(radians(40.0), radians(10.0));
@@ -98,14 +100,15 @@ TEST(MicroflakeWalk, SingleScatteringEqualsMicrofacetBRDF) {
       const Vec3 h = normalize(wi + wo);
       return fresnelReflectance(dot(wi, h), 1.0, eta) * c.dist.D(h) * c.dist.G2(wi, wo) / (4 * wi.z * wo.z);
     };
-    expectBinsMatch(r, c.grid, Component::Coherent, [&](int b) { return test::binAverage(c.grid, b, f1); }, 20, name);
+    expectBinsMatch(
+        r, c.grid, Component::Coherent, [&](int b) { return test::binAverage(c.grid, b, f1); }, 20, name);
   }
 }
 
 TEST(MicroflakeWalk, WhiteFurnace) {
-  for (Ndf ndf : {Ndf(BeckmannNdf{0.1, 0.1}), Ndf(BeckmannNdf{0.5, 0.5}), Ndf(BeckmannNdf{1.0, 1.0}),
-                  Ndf(BeckmannNdf{2.0, 2.0}), Ndf(GgxNdf{0.1, 0.1}), Ndf(GgxNdf{0.5, 0.5}), Ndf(GgxNdf{1.0, 1.0}),
-                  Ndf(GgxNdf{2.0, 2.0})}) {
+  for (Ndf ndf :
+       {Ndf(BeckmannNdf{0.1, 0.1}), Ndf(BeckmannNdf{0.5, 0.5}), Ndf(BeckmannNdf{1.0, 1.0}), Ndf(BeckmannNdf{2.0, 2.0}),
+        Ndf(GgxNdf{0.1, 0.1}), Ndf(GgxNdf{0.5, 0.5}), Ndf(GgxNdf{1.0, 1.0}), Ndf(GgxNdf{2.0, 2.0})}) {
     WalkCase c(ndf, test::material("mirror"), ThetaPhiGrid{6, 12}, settings(100000, 10000));
     for (double th : {0.0, 60.0, 85.0}) {
       TileResult r = c.walk.run(0, 0, c.grid.binOfAngles(th, 0), sphericalDirection(radians(th), 0));
@@ -133,8 +136,8 @@ TEST(MicroflakeWalk, DiffuseFlakes) {
     WalkCase c(ndf, test::material("Au"), ThetaPhiGrid{6, 12}, s);  // the material is ignored
     for (double th : {0.0, 70.0}) {
       TileResult r = c.walk.run(0, 0, c.grid.binOfAngles(th, 0), sphericalDirection(radians(th), 0));
-      const double e = test::energy(r, c.grid, Component::Coherent, 0, true) +
-                       test::energy(r, c.grid, Component::Multiple, 0, true);
+      const double e =
+          test::energy(r, c.grid, Component::Coherent, 0, true) + test::energy(r, c.grid, Component::Multiple, 0, true);
       EXPECT_NEAR(e + r.truncated[0], 1.0, 1e-12) << c.dist.describe();
       // A conservative volume (the sphere NDF) has heavy-tailed walk lengths, P(depth > n) ~ n^(−1/2):
       // about 1 % of the paths pass 10⁴ collisions. Surface-like NDFs let paths out quickly.
@@ -231,13 +234,15 @@ TEST(MicroflakeWalk, ConstantNdfIsChandrasekharsMedium) {
   for (double th : {10.0, 70.0}) {
     const Vec3 wi = sphericalDirection(radians(th), 0);
     TileResult r = c.walk.run(0, 0, c.grid.binOf(wi), wi);
-    expectBinsMatch(r, c.grid, Component::Coherent,
-                    [&](int b) {
-                      return c.grid.isUpper(b) ? test::binAverage(c.grid, b, [&](const Vec3& wo) {
-                        return isotropicMediumSingleBRDF(wi.z, wo.z, a);
-                      }) : 0.0;
-                    },
-                    20, "Eq. 25");
+    expectBinsMatch(
+        r, c.grid, Component::Coherent,
+        [&](int b) {
+          return c.grid.isUpper(b)
+                     ? test::binAverage(c.grid, b,
+                                        [&](const Vec3& wo) { return isotropicMediumSingleBRDF(wi.z, wo.z, a); })
+                     : 0.0;
+        },
+        20, "Eq. 25");
     expectChandrasekharEq30(c, r, wi, a, "Eq. 30");
   }
 }
@@ -282,7 +287,8 @@ TEST(MicroflakeWalk, TabulatedNdfMatchesClosedForm) {
     TileResult rb = cb.walk.run(0, 0, cb.grid.binOf(wi), wi), rt = ct.walk.run(1, 0, ct.grid.binOf(wi), wi);
     for (Component c : {Component::Coherent, Component::Multiple}) {
       double eb = test::energy(rb, cb.grid, c, 0, true), et = test::energy(rt, ct.grid, c, 0, true);
-      double se = std::hypot(test::energyStdError(rb, cb.grid, c, 0, true), test::energyStdError(rt, ct.grid, c, 0, true));
+      double se =
+          std::hypot(test::energyStdError(rb, cb.grid, c, 0, true), test::energyStdError(rt, ct.grid, c, 0, true));
       EXPECT_LT(std::abs(eb - et), 3 * se + 1e-3) << componentName(c) << " θ=" << th;
     }
   }

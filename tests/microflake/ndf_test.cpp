@@ -31,11 +31,16 @@ TabulatedNdf tabulatedSphere() {
 }
 
 std::vector<std::pair<std::string, Ndf>> ndfs() {
-  return {{"tabBeckmann0.5", tabulatedBeckmann(0.5)}, {"tabSphere", tabulatedSphere()},
-          {"beckmann0.2", BeckmannNdf{0.2, 0.2}},   {"beckmann0.8", BeckmannNdf{0.8, 0.8}},
-          {"beckmannAniso", BeckmannNdf{0.3, 0.7}}, {"ggx0.2", GgxNdf{0.2, 0.2}},
-          {"ggx0.8", GgxNdf{0.8, 0.8}},             {"ggxAniso", GgxNdf{0.6, 0.25}},
-          {"vmf0", VonMisesFisherNdf{0.0}},         {"vmf3", VonMisesFisherNdf{3.0}},
+  return {{"tabBeckmann0.5", tabulatedBeckmann(0.5)},
+          {"tabSphere", tabulatedSphere()},
+          {"beckmann0.2", BeckmannNdf{0.2, 0.2}},
+          {"beckmann0.8", BeckmannNdf{0.8, 0.8}},
+          {"beckmannAniso", BeckmannNdf{0.3, 0.7}},
+          {"ggx0.2", GgxNdf{0.2, 0.2}},
+          {"ggx0.8", GgxNdf{0.8, 0.8}},
+          {"ggxAniso", GgxNdf{0.6, 0.25}},
+          {"vmf0", VonMisesFisherNdf{0.0}},
+          {"vmf3", VonMisesFisherNdf{3.0}},
           {"vmf40", VonMisesFisherNdf{40.0}}};
 }
 
@@ -49,7 +54,8 @@ std::vector<Vec3> travelDirections() {
 TEST(Ndf, ProjectedAreaIsOneEq17) {
   for (auto& [name, ndf] : ndfs()) {
     MicroflakeDistribution dist(ndf);
-    double a = test::sphereIntegral([&](const Vec3& m) { return dist.D(m) * std::max(0.0, m.z); }, dist.isHeightfield(), 384);
+    double a =
+        test::sphereIntegral([&](const Vec3& m) { return dist.D(m) * std::max(0.0, m.z); }, dist.isHeightfield(), 384);
     EXPECT_NEAR(a, 1.0, 2e-4) << name;
   }
 }
@@ -62,7 +68,8 @@ TEST(Ndf, ExtinctionMatchesQuadratureEq4) {
     for (const Vec3& d : travelDirections()) {
       double ref = test::sphereIntegral([&](const Vec3& m) { return std::max(0.0, -dot(d, m)) * dist.D(m); },
                                         dist.isHeightfield(), 160);
-      EXPECT_NEAR(dist.sigma(d), ref, 3e-4 * std::max(1.0, ref) + 1e-6) << name << " theta " << degrees(sphericalTheta(d));
+      EXPECT_NEAR(dist.sigma(d), ref, 3e-4 * std::max(1.0, ref) + 1e-6)
+          << name << " theta " << degrees(sphericalTheta(d));
       EXPECT_TRUE(std::isfinite(dist.sigma(d)));
     }
   }
@@ -95,9 +102,8 @@ TEST(Ndf, VisibleNormalSamplingMatchesEq6) {
       // Sampling costs ∝ 1/σ tries; the walk only samples after a collision, whose rate is ∝ σ, so
       // directions with a vanishing cross-section are never sampled there.
       if (sig < 1e-3) continue;
-      std::array<std::function<double(const Vec3&)>, 3> g = {[](const Vec3& m) { return m.x; },
-                                                             [](const Vec3& m) { return m.y; },
-                                                             [](const Vec3& m) { return m.z; }};
+      std::array<std::function<double(const Vec3&)>, 3> g = {
+          [](const Vec3& m) { return m.x; }, [](const Vec3& m) { return m.y; }, [](const Vec3& m) { return m.z; }};
       std::array<double, 3> s1{}, s2{};
       for (uint64_t i = 0; i < N; ++i) {
         Sampler s(7, 0, i);
@@ -112,7 +118,8 @@ TEST(Ndf, VisibleNormalSamplingMatchesEq6) {
       }
       for (int k = 0; k < 3; ++k) {
         double ref = test::sphereIntegral([&](const Vec3& m) { return g[k](m) * std::max(0.0, dot(v, m)) * dist.D(m); },
-                                          dist.isHeightfield(), 96) / sig;
+                                          dist.isHeightfield(), 96) /
+                     sig;
         double mean = s1[k] / N, se = std::sqrt(std::max(0.0, s2[k] / N - mean * mean) / N);
         EXPECT_LT(std::abs(mean - ref), 4 * se + 2e-4) << name << " theta_v " << th << " moment " << k;
       }
@@ -144,8 +151,8 @@ TEST(Ndf, SmithFunctionsBySimulationEqs20to22) {
         }
         auto check = [&](uint64_t k, double ref, const char* what) {
           double p = double(k) / N, se = std::sqrt(ref * (1 - ref) / N);
-          EXPECT_LE(std::abs(p - ref), 3 * se) << name << " " << what << " θi=" << thI << " θo=" << thO << " p=" << p
-                                               << " ref=" << ref;
+          EXPECT_LE(std::abs(p - ref), 3 * se)
+              << name << " " << what << " θi=" << thI << " θo=" << thO << " p=" << p << " ref=" << ref;
         };
         if (thI == 20.0) check(masked, 1 / (1 + Lo), "masking Eq.20");
         check(bistatic, 1 / (1 + Li + Lo), "bistatic Eq.21");

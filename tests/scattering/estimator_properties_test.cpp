@@ -153,10 +153,11 @@ TEST(EstimatorProperties, WaveEstimators) {
       WaveScenario sc(g, mat, ThetaPhiGrid{9, 18}, {0.5, 0.7}, 20.0, ws);
       for (double theta : kThetas) {
         if (conductor && theta > 90) continue;
-        const std::string what = std::string(est) + ", " + (conductor ? "Al" : "glass") + " θ " + std::to_string(int(theta));
+        const std::string what =
+            std::string(est) + ", " + (conductor ? "Al" : "glass") + " θ " + std::to_string(int(theta));
         const int bin = sc.grid.binOfAngles(theta, 10.0);
-        const WaveTileResult r = deterministic<WaveTileResult>([&] { return sc.estimator->run(5, bin, std::nullopt); },
-                                                               flatWave, what);
+        const WaveTileResult r =
+            deterministic<WaveTileResult>([&] { return sc.estimator->run(5, bin, std::nullopt); }, flatWave, what);
         expectFinite(flatWave(r), what);
         if (std::string(est) == "paper") {  // its Var/P bias puts energies above 1 (kept for comparison)
           ++checked;

@@ -97,7 +97,8 @@ TEST(HardCaseSuite, FftAtTheEdges) {
     }
   }
   const std::vector<double> lambdas = {0.2, 0.35, 0.7, 1.2, 2.0};
-  WaveScenario flat(makeFlat(10, 10, 0), conductor(1.3, 7.0), ThetaPhiGrid{30, 12}, lambdas, 100.0, waveSettings("fft"));
+  WaveScenario flat(makeFlat(10, 10, 0), conductor(1.3, 7.0), ThetaPhiGrid{30, 12}, lambdas, 100.0,
+                    waveSettings("fft"));
   for (double theta : {0.0, 60.0}) {
     WaveTileResult f = flat.run(theta, 0.0, true);
     expectFinite(f);
@@ -107,7 +108,8 @@ TEST(HardCaseSuite, FftAtTheEdges) {
   }
   const Microgeometry rough = makeGaussian(6, 6, 0.1, 1.0, 48, 48, 5);
   for (double coherence : {60.0, 9.0})
-    for (const DirectionGrid::Layout& layout : {DirectionGrid::Layout{DiskGrid{24, 24}}, DirectionGrid::Layout{ThetaPhiGrid{12, 24}}}) {
+    for (const DirectionGrid::Layout& layout :
+         {DirectionGrid::Layout{DiskGrid{24, 24}}, DirectionGrid::Layout{ThetaPhiGrid{12, 24}}}) {
       WaveScenario sc(rough, material("Al"), layout, {0.5}, coherence, waveSettings("fft"));
       WaveTileResult w = sc.run(89.9, 30.0, true);
       expectFinite(w);
@@ -141,7 +143,8 @@ TEST(HardCaseSuite, WavelengthsFrom200nmTo2umOnOnePatch) {
 
 TEST(HardCaseSuite, LargePatchLargePhases) {
   // 200 µm at λ = 0.2 µm: k·x reaches 6.3e3 rad; the flat patch must still give Fresnel.
-  WaveScenario flat(makeFlat(200, 200, 0), conductor(1.3, 7.0), ThetaPhiGrid{45, 8}, {0.2}, 0.0, waveSettings("area", 256));
+  WaveScenario flat(makeFlat(200, 200, 0), conductor(1.3, 7.0), ThetaPhiGrid{45, 8}, {0.2}, 0.0,
+                    waveSettings("area", 256));
   const double F = fresnelReflectance(std::cos(radians(60.0)), 1.0, flat.mat.ior(0.2));
   WaveTileResult w = flat.run(60.0, 0.0, true);
   expectFinite(w);
@@ -175,7 +178,8 @@ TEST(HardCaseSuite, HeightScalesFromSubNanometreTo100Micrometres) {
       // The scale-aware ray offset: the same shape scatters the same way at every scale.
       EXPECT_LT(r.truncated[0] + r.leaked[0], 1e-3) << scale;
       const double m = energy(r, sc.grid, Component::Multiple, 0, true);
-      RecordProperty("multiple_scale" + std::to_string(scale) + "_theta" + std::to_string(int(theta)), std::to_string(m));
+      RecordProperty("multiple_scale" + std::to_string(scale) + "_theta" + std::to_string(int(theta)),
+                     std::to_string(m));
       if (!firstScale.count(int(theta))) firstScale[int(theta)] = m;
       const double p = firstScale[int(theta)];
       EXPECT_NEAR(m, p, 4 * std::sqrt(2 * p * (1 - p) / s.paths)) << "scale " << scale << " theta " << theta;
@@ -253,7 +257,8 @@ TEST(HardCaseSuite, ConductorsWithVanishingKAndEtaNearOne) {
   PathTracerSettings s;
   s.paths = 10000;
   MicroflakeDistribution beck(BeckmannNdf{0.5, 0.5});
-  for (auto [eta, k] : {std::pair{1.0, 0.0}, std::pair{1.0, 1e-12}, std::pair{1.0 + 1e-9, 0.0}, std::pair{1.5, 1e-12}}) {
+  for (auto [eta, k] :
+       {std::pair{1.0, 0.0}, std::pair{1.0, 1e-12}, std::pair{1.0 + 1e-9, 0.0}, std::pair{1.5, 1e-12}}) {
     Material m = conductor(eta, k);
     const double F0 = fresnelReflectance(1.0, 1.0, Complex(eta, k));
     ASSERT_TRUE(std::isfinite(F0) && F0 >= 0 && F0 < 0.05);
@@ -263,7 +268,8 @@ TEST(HardCaseSuite, ConductorsWithVanishingKAndEtaNearOne) {
       expectFinite(r);
       EXPECT_LE(pathTotal(r, sc.grid, 0), 1.0 + 1e-12);
     }
-    WaveScenario w(makeGaussian(4, 4, 0.1, 1.0, 32, 32, 2), m, ThetaPhiGrid{12, 16}, {0.5}, 50.0, waveSettings("orders", 32));
+    WaveScenario w(makeGaussian(4, 4, 0.1, 1.0, 32, 32, 2), m, ThetaPhiGrid{12, 16}, {0.5}, 50.0,
+                   waveSettings("orders", 32));
     expectFinite(w.run(45.0, 0.0, true));
     DirectionGrid grid(ThetaPhiGrid{12, 16});
     MicroflakeSettings ms;

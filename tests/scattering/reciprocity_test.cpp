@@ -35,8 +35,10 @@ TEST(ReciprocalPairs, EachPairOnceAndBalanced) {
         EXPECT_TRUE(p.computes(i, bins[i]));
         int columns = 0;
         for (int b = 0; b < nBins; ++b) {
-          if (p.incidenceOf(b) < 0 || (b < perHemisphere) != up) EXPECT_TRUE(p.computes(i, b));
-          else columns += p.computes(i, b);
+          if (p.incidenceOf(b) < 0 || (b < perHemisphere) != up)
+            EXPECT_TRUE(p.computes(i, b));
+          else
+            columns += p.computes(i, b);
         }
         EXPECT_GE(columns, (nSide + 1) / 2) << "tile " << i;
         EXPECT_LE(columns, nSide / 2 + 1) << "tile " << i;

@@ -22,12 +22,13 @@ struct Facets {
   Scenario sc;
   FacetSingleScattering sum;
   Facets(Microgeometry g, Material m, DirectionGrid::Layout layout, std::vector<double> lambdas, uint64_t paths = 1000)
-      : sc(std::move(g), std::move(m), layout, std::move(lambdas), [&] {
-          PathTracerSettings s;
-          s.paths = paths;
-          s.seed = 7;
-          return s;
-        }()),
+      : sc(std::move(g), std::move(m), layout, std::move(lambdas),
+           [&] {
+             PathTracerSettings s;
+             s.paths = paths;
+             s.seed = 7;
+             return s;
+           }()),
         sum(sc.geometry, *sc.scene, sc.mat, sc.lambda_um, sc.grid) {}
   TileResult run(double theta_deg, double phi_deg, bool exact) const {
     const int bin = sc.grid.binOfAngles(theta_deg, phi_deg);
@@ -41,7 +42,8 @@ struct Facets {
 double errorSum(const TileResult& r, const DirectionGrid& g, int l, bool upper) {
   double e = 0;
   for (int b = 0; b < r.nBins; ++b)
-    if (g.isUpper(b) == upper) e += r.stdError[int(Component::Coherent)][size_t(l) * r.nBins + b] * g.projectedSolidAngle(b);
+    if (g.isUpper(b) == upper)
+      e += r.stdError[int(Component::Coherent)][size_t(l) * r.nBins + b] * g.projectedSolidAngle(b);
   return e;
 }
 
@@ -138,14 +140,18 @@ TEST(SingleScattering, MatchesThePathTracersDepthOneTally) {
   Material glass;
   glass.model = Dielectric{ConstantIndex{1.5, 0}};
   std::vector<Case> cases;
-  cases.push_back({"Al sine grating, 2 um period, 30 nm", makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0), material("Al"), 40, 20, false});
-  cases.push_back({"Al sine grating at grazing incidence", makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0), material("Al"), 84, 0, true});
-  cases.push_back({"glass sine grating, 2 um period, 0.3 um", makeSineGrating(2.0, 0.3, 2.0, 0.3, 64, 0), glass, 50, 0, true});
-  cases.push_back({"rough Au Gaussian heightfield", makeGaussian(10, 10, 0.3, 2.0, 24, 24, 3), material("Au"), 30, 45, true});
+  cases.push_back({"Al sine grating, 2 um period, 30 nm", makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0), material("Al"),
+                   40, 20, false});
+  cases.push_back({"Al sine grating at grazing incidence", makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0), material("Al"),
+                   84, 0, true});
+  cases.push_back(
+      {"glass sine grating, 2 um period, 0.3 um", makeSineGrating(2.0, 0.3, 2.0, 0.3, 64, 0), glass, 50, 0, true});
+  cases.push_back(
+      {"rough Au Gaussian heightfield", makeGaussian(10, 10, 0.3, 2.0, 24, 24, 3), material("Au"), 30, 45, true});
   // A mesh (not a heightfield): every pair by rays, so a collimated beam (a bin's 1280 directions
   // would take 27 s here; the transport leaves such tiles to the path tracer).
-  cases.push_back({"mirror hemispheres (collimated; a mesh: every pair by rays)", makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.5),
-                   material("mirror"), 20, 10, true, true});
+  cases.push_back({"mirror hemispheres (collimated; a mesh: every pair by rays)",
+                   makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.5), material("mirror"), 20, 10, true, true});
   for (Case& c : cases) {
     const uint64_t paths = 400000;
     Facets f(std::move(c.g), c.m, ThetaPhiGrid{8, 16}, {0.5}, paths);
@@ -171,13 +177,14 @@ TEST(SingleScattering, MatchesThePathTracersDepthOneTally) {
       sd2 += sd * sd;
     }
     EXPECT_LT(l1, std::sqrt(2 / kPi) * sdSum + 4 * std::sqrt(sd2)) << c.name;
-    std::printf("%-60s facet sum %.4f (error bound %.4f, %llu rays, %.3f s) vs paths %.4f +- %.4f (%.3f s); L1 %.4f\n", c.name,
-                energy(a, f.sc.grid, Component::Coherent, 0, true) + energy(a, f.sc.grid, Component::Coherent, 0, false),
-                errorSum(a, f.sc.grid, 0, true) + errorSum(a, f.sc.grid, 0, false), (unsigned long long)a.rays, a.seconds,
-                energy(b, f.sc.grid, Component::Coherent, 0, true) + energy(b, f.sc.grid, Component::Coherent, 0, false),
-                std::hypot(energyStdError(b, f.sc.grid, Component::Coherent, 0, true),
-                           energyStdError(b, f.sc.grid, Component::Coherent, 0, false)),
-                b.seconds, l1);
+    std::printf(
+        "%-60s facet sum %.4f (error bound %.4f, %llu rays, %.3f s) vs paths %.4f +- %.4f (%.3f s); L1 %.4f\n", c.name,
+        energy(a, f.sc.grid, Component::Coherent, 0, true) + energy(a, f.sc.grid, Component::Coherent, 0, false),
+        errorSum(a, f.sc.grid, 0, true) + errorSum(a, f.sc.grid, 0, false), (unsigned long long)a.rays, a.seconds,
+        energy(b, f.sc.grid, Component::Coherent, 0, true) + energy(b, f.sc.grid, Component::Coherent, 0, false),
+        std::hypot(energyStdError(b, f.sc.grid, Component::Coherent, 0, true),
+                   energyStdError(b, f.sc.grid, Component::Coherent, 0, false)),
+        b.seconds, l1);
   }
 }
 

@@ -73,8 +73,8 @@ TEST(TriangleFourier, UnitIntegralAgainstQuadrature) {
     for (int k = 0; k < (scale > 1000 ? 12 : 40); ++k) {  // fewer at 1e4: the reference costs ~25k panels
       double alpha = scale * (2 * rng.get1D() - 1), beta = scale * (2 * rng.get1D() - 1);
       if (k % 4 == 1) beta = alpha * (1 + 1e-9 * (2 * rng.get1D() - 1));  // α ≈ β
-      if (k % 4 == 2) beta = 1e-10 * scale * (2 * rng.get1D() - 1);      // β ≈ 0
-      if (k % 4 == 3) alpha = -beta + 1e-7 * (2 * rng.get1D() - 1);      // α ≈ −β
+      if (k % 4 == 2) beta = 1e-10 * scale * (2 * rng.get1D() - 1);       // β ≈ 0
+      if (k % 4 == 3) alpha = -beta + 1e-7 * (2 * rng.get1D() - 1);       // α ≈ −β
       const LC ref = referenceUnitFourier(alpha, beta);
       const double e = relError(triangleUnitFourier(alpha, beta), ref);
       EXPECT_LT(e, 1e-10) << "alpha " << alpha << " beta " << beta;
@@ -88,7 +88,11 @@ TEST(TriangleFourier, UnitIntegralAgainstQuadrature) {
   }
   EXPECT_NEAR(triangleUnitFourier(0, 0).real(), 0.5, 1e-16);
   RecordProperty("cases", cases);
-  RecordProperty("worst_relative_error", ([&] { char b[32]; std::snprintf(b, sizeof b, "%.3g", worst); return std::string(b); })());
+  RecordProperty("worst_relative_error", ([&] {
+                   char b[32];
+                   std::snprintf(b, sizeof b, "%.3g", worst);
+                   return std::string(b);
+                 })());
 }
 
 // Whole triangles: random ones, slivers (a vertex 1e-9 off the opposite edge) and degenerate ones

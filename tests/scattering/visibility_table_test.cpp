@@ -53,7 +53,8 @@ void expectTableKeepsExact(const Microgeometry& g, const Material& m, double the
   WaveSettings rays, table;
   rays.estimator = table.estimator = WaveEstimatorKind::Exact;
   table.visibilityTable = 128;  // the production value (at 64 one of these cases differed by 1.1e-3)
-  const WaveScenario a(g, m, ThetaPhiGrid{15, 30}, {0.6}, 60.0, rays), b(g, m, ThetaPhiGrid{15, 30}, {0.6}, 60.0, table);
+  const WaveScenario a(g, m, ThetaPhiGrid{15, 30}, {0.6}, 60.0, rays),
+      b(g, m, ThetaPhiGrid{15, 30}, {0.6}, 60.0, table);
   const WaveTileResult ra = a.run(theta, phi, true), rb = b.run(theta, phi, true);
   const WaveTileResult rb2 = b.run(theta, phi, true);  // the table is built once, by the first tile
   double d = 0, n = 0;

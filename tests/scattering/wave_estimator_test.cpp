@@ -20,8 +20,8 @@ TEST(WaveGrating, SineGratingOrdersMatchBessel) {
   WaveSettings ws;
   ws.estimator = WaveEstimatorKind::Orders;
   ws.samplesPerBin = 4096;
-  WaveScenario sc(makeSineGrating(period, 1.0, period, h, 64, 0), material("mirror"), ThetaPhiGrid{90, 72},
-                  {lambda}, 50.0, ws);
+  WaveScenario sc(makeSineGrating(period, 1.0, period, h, 64, 0), material("mirror"), ThetaPhiGrid{90, 72}, {lambda},
+                  50.0, ws);
   WaveTileResult r = sc.run(0.0, 0.0, true);
   const double k0 = 2 * kPi / lambda;
   double total = 0;
@@ -123,7 +123,8 @@ TEST(WaveUnbiased, AreaEstimatorMeanMatchesReference) {
   RecordProperty("area_mean_z2", std::to_string(z2 / tested));
   // The biased form shows a diffuse floor: its excess over the reference is positive and of the
   // size of its own Var/P estimate.
-  EXPECT_GT(paperExcess, 0.5 * paperBias) << "excess " << paperExcess << " bias estimate " << paperBias << " ref " << refSum;
+  EXPECT_GT(paperExcess, 0.5 * paperBias)
+      << "excess " << paperExcess << " bias estimate " << paperBias << " ref " << refSum;
   RecordProperty("paper_excess", std::to_string(paperExcess));
   RecordProperty("paper_var_over_P", std::to_string(paperBias));
 }
@@ -155,7 +156,10 @@ TEST(WaveConvergence, AreaVarianceFallsAsOneOverBudget) {
     double sx = 0, sy = 0, sxx = 0, sxy = 0;
     for (int n : budgets) {
       double x = std::log(double(n)), y = std::log(variance(est, n));
-      sx += x; sy += y; sxx += x * x; sxy += x * y;
+      sx += x;
+      sy += y;
+      sxx += x * x;
+      sxy += x * y;
     }
     double k = double(budgets.size());
     return (k * sxy - sx * sy) / (k * sxx - sx * sx);
@@ -219,8 +223,8 @@ TEST(WaveHardCases, FiniteEverywhere) {
     ws.samplesPerBin = 64;
     ws.pointsPerDirection = 16;
     ws.computeMasked = true;
-    WaveScenario hemi(makeDomeLattice(2, 2, 2, 2, 0.8, 0.8, 0.8, 0.1), material("Au"), DiskGrid{9, 9},
-                      {0.45, 0.65}, 0.0, ws);
+    WaveScenario hemi(makeDomeLattice(2, 2, 2, 2, 0.8, 0.8, 0.8, 0.1), material("Au"), DiskGrid{9, 9}, {0.45, 0.65},
+                      0.0, ws);
     for (double theta : {85.0, 89.5}) {
       check(hemi.run(theta, 10.0, true));
       check(hemi.run(theta, 10.0, false));
@@ -234,7 +238,8 @@ TEST(WaveHardCases, FiniteEverywhere) {
   ws.estimator = WaveEstimatorKind::Orders;
   ws.samplesPerBin = 64;
   ws.computeMasked = true;
-  for (DirectionGrid::Layout layout : {DirectionGrid::Layout(ThetaPhiGrid{6, 12}), DirectionGrid::Layout(DiskGrid{9, 9})}) {
+  for (DirectionGrid::Layout layout :
+       {DirectionGrid::Layout(ThetaPhiGrid{6, 12}), DirectionGrid::Layout(DiskGrid{9, 9})}) {
     WaveScenario orders(makeDomeLattice(2, 2, 2, 2, 0.8, 0.8, 0.8, 0.1), material("Au"), layout, {0.45}, 50.0, ws);
     for (double theta : {0.0, 89.5}) {
       check(orders.run(theta, 10.0, true));

@@ -19,7 +19,9 @@ using namespace mbsdf::test;
 // 0°, 30°, 60°, 70°; glass reflection and transmission from outside at 40°), with no sampling error.
 // (At 80° the order's Gaussian lobe, sd 0.0074 in direction cosines for δc = 50 µm, reaches past
 // the horizon and 1/128 of it is dropped as evanescent: a limit of the lobe model, not of the sum.)
-TEST(WaveExact, FlatInterfacesGiveFresnel) { expectFlatInterfacesGiveFresnel("exact"); }
+TEST(WaveExact, FlatInterfacesGiveFresnel) {
+  expectFlatInterfacesGiveFresnel("exact");
+}
 
 // A shallow sinusoidal perfect-conductor grating (period 5 µm, amplitude 0.05 µm, λ = 0.5 µm,
 // normal incidence): order efficiencies J_m²(2 k0 h) within 0.005 for |m| <= 3.
@@ -115,8 +117,10 @@ TEST(WaveExact, NoiseHeightfieldMatchesMonteCarlo) {
 TEST(WaveExact, LatticeOfCellsGivesTheCellsTable) {
   WaveSettings ws;
   ws.estimator = WaveEstimatorKind::Exact;
-  const WaveScenario one(makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, ws);
-  const WaveScenario four(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, ws);
+  const WaveScenario one(makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0,
+                         ws);
+  const WaveScenario four(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6},
+                          60.0, ws);
   const WaveTileResult a = one.run(50.0, 20.0, true), b = four.run(50.0, 20.0, true);
   const double ea = one.integral(a.fws, a.fwsErr, 0, true).first, eb = four.integral(b.fws, b.fwsErr, 0, true).first;
   EXPECT_NEAR(eb, ea, 1e-7 * ea);
@@ -146,7 +150,8 @@ TEST(WaveExact, IncidenceBinAverageMatchesDenseCollimatedMean) {
   const double lambda = 0.5;
   WaveSettings ws;
   ws.estimator = WaveEstimatorKind::Exact;
-  WaveScenario sc(makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0), material("mirror"), ThetaPhiGrid{8, 16}, {lambda}, 50.0, ws);
+  WaveScenario sc(makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0), material("mirror"), ThetaPhiGrid{8, 16}, {lambda}, 50.0,
+                  ws);
   const int nB = sc.grid.binCount();
   for (auto [theta, phi] : {std::pair{5.0, 10.0}, std::pair{39.4, 10.0}, std::pair{65.0, 100.0}}) {
     const int bin = sc.grid.binOf(sphericalDirection(radians(theta), radians(phi)));
@@ -170,6 +175,7 @@ TEST(WaveExact, IncidenceBinAverageMatchesDenseCollimatedMean) {
     EXPECT_LT(l1, reported) << "theta " << theta;
     EXPECT_LT(l1, 0.04) << "theta " << theta;
     EXPECT_GT(energy, 0.9) << "theta " << theta;
-    std::printf("theta %.1f: L1 to the collimated mean %.4f, reported %.4f, energy %.4f\n", theta, l1, reported, energy);
+    std::printf("theta %.1f: L1 to the collimated mean %.4f, reported %.4f, energy %.4f\n", theta, l1, reported,
+                energy);
   }
 }

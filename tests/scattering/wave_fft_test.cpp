@@ -50,7 +50,9 @@ TEST(HeightGrid, RecognisesHeightfieldMeshesOnly) {
 }
 
 // Flat interfaces (orders regime; the 1 µm texels are split 16 x 16 for the one-point rule).
-TEST(WaveFft, FlatInterfacesGiveFresnel) { expectFlatInterfacesGiveFresnel("fft"); }
+TEST(WaveFft, FlatInterfacesGiveFresnel) {
+  expectFlatInterfacesGiveFresnel("fft");
+}
 
 // Orders regime: `fft` against `exact` on rough heightfields, within 1 % of the scattered power
 // (Σ|Δf|Ω⊥ / Σ f Ω⊥), at normal incidence and at 60° (where the masking correction is at work),
@@ -65,8 +67,8 @@ TEST(WaveFft, MatchesExactOnHeightfields) {
   glass.model = Dielectric{ConstantIndex{1.5, 0}};
   const Microgeometry gauss = makeGaussian(5, 5, 0.12, 1.0, 40, 40, 11);
   const Microgeometry noise = makeNoise(5, 5, 0.15, 0.8, 2.0, 48, 48, 7);
-  for (const auto& [g, mat, theta] : {Case{gauss, "Au", 0.0}, Case{gauss, "Au", 60.0}, Case{noise, "Au", 30.0},
-                                      Case{gauss, "glass", 35.0}}) {
+  for (const auto& [g, mat, theta] :
+       {Case{gauss, "Au", 0.0}, Case{gauss, "Au", 60.0}, Case{noise, "Au", 30.0}, Case{gauss, "glass", 35.0}}) {
     WaveSettings fs, es;
     fs.estimator = WaveEstimatorKind::Fft;
     es.estimator = WaveEstimatorKind::Exact;
@@ -77,8 +79,8 @@ TEST(WaveFft, MatchesExactOnHeightfields) {
     const double l1 = relativeL1(f.grid, rf.fws, re.fws);
     EXPECT_LT(l1, 0.01) << g.description << " " << mat << " at " << theta << "°";
     RecordProperty("l1_" + mat + "_" + std::to_string(int(theta)), std::to_string(l1));
-    RecordProperty("seconds_" + mat + "_" + std::to_string(int(theta)), std::to_string(rf.seconds) + " fft, " +
-                                                                           std::to_string(re.seconds) + " exact");
+    RecordProperty("seconds_" + mat + "_" + std::to_string(int(theta)),
+                   std::to_string(rf.seconds) + " fft, " + std::to_string(re.seconds) + " exact");
   }
 }
 
@@ -88,7 +90,8 @@ TEST(WaveFft, MatchesExactOnHeightfields) {
 TEST(WaveFft, SpeckleRegimeFlatMirrorGivesFresnel) {
   WaveSettings ws;
   ws.estimator = WaveEstimatorKind::Fft;
-  for (const DirectionGrid::Layout& layout : {DirectionGrid::Layout{DiskGrid{64, 64}}, DirectionGrid::Layout{ThetaPhiGrid{30, 60}}})
+  for (const DirectionGrid::Layout& layout :
+       {DirectionGrid::Layout{DiskGrid{64, 64}}, DirectionGrid::Layout{ThetaPhiGrid{30, 60}}})
     for (double theta : {0.0, 40.0}) {
       WaveScenario sc(makeFlat(8, 8, 1.0), material("Au"), layout, {0.55}, 12.0, ws);
       WaveTileResult r = sc.run(theta, 0.0, true);
@@ -108,7 +111,8 @@ TEST(WaveFft, SpeckleRegimeMatchesAreaMonteCarlo) {
   fs.estimator = WaveEstimatorKind::Fft;
   as.estimator = WaveEstimatorKind::Area;
   as.samplesPerBin = 1 << 14;
-  for (const DirectionGrid::Layout& layout : {DirectionGrid::Layout{DiskGrid{20, 20}}, DirectionGrid::Layout{ThetaPhiGrid{10, 20}}}) {
+  for (const DirectionGrid::Layout& layout :
+       {DirectionGrid::Layout{DiskGrid{20, 20}}, DirectionGrid::Layout{ThetaPhiGrid{10, 20}}}) {
     WaveScenario f(g, material("Au"), layout, {0.6}, 9.0, fs), a(g, material("Au"), layout, {0.6}, 9.0, as);
     const WaveTileResult rf = f.run(20.0, 0.0, true), ra = a.run(20.0, 0.0, true);
     int tested = 0;
@@ -128,8 +132,8 @@ TEST(WaveFft, SpeckleRegimeMatchesAreaMonteCarlo) {
     const std::string k = f.grid.kind();
     RecordProperty("bins_" + k, tested);
     RecordProperty("mean_z2_" + k, std::to_string(z2 / std::max(1, tested)));
-    RecordProperty("energy_" + k, std::to_string(ef) + " fft (" + std::to_string(rf.seconds) + " s), " + std::to_string(ea) +
-                                      " area (" + std::to_string(ra.seconds) + " s)");
+    RecordProperty("energy_" + k, std::to_string(ef) + " fft (" + std::to_string(rf.seconds) + " s), " +
+                                      std::to_string(ea) + " area (" + std::to_string(ra.seconds) + " s)");
   }
 }
 
@@ -156,7 +160,8 @@ TEST(WaveFft, SpeckleRegimeFromInsideGlassTransmitsByArea) {
       EXPECT_EQ(rf.fwsErr[size_t(bin)], ra.fwsErr[size_t(bin)]) << bin;
       transmitted += rf.fws[size_t(bin)] > 0;
     } else if (ra.fwsErr[size_t(bin)] > 0 && ra.fws[size_t(bin)] > 3 * ra.fwsErr[size_t(bin)]) {
-      EXPECT_LT(std::abs(rf.fws[size_t(bin)] - ra.fws[size_t(bin)]), 4 * ra.fwsErr[size_t(bin)] + 1e-3 * ra.fws[size_t(bin)])
+      EXPECT_LT(std::abs(rf.fws[size_t(bin)] - ra.fws[size_t(bin)]),
+                4 * ra.fwsErr[size_t(bin)] + 1e-3 * ra.fws[size_t(bin)])
           << "bin " << bin << ": fft " << rf.fws[size_t(bin)] << " area " << ra.fws[size_t(bin)];
       ++reflected;
     }

@@ -20,7 +20,9 @@ using namespace mbsdf::test;
 
 namespace {
 
-double sinc(double u) { return std::abs(u) < 1e-8 ? 1.0 - u * u / 6 : std::sin(u) / u; }
+double sinc(double u) {
+  return std::abs(u) < 1e-8 ? 1.0 - u * u / 6 : std::sin(u) / u;
+}
 
 // ∫ p dω over the reflection or transmission hemisphere for a flat square aperture of side L.
 double apertureReference(double L, double lambda, double n1, Complex n2, Vec3 wi, bool transmission) {
@@ -41,13 +43,11 @@ double apertureReference(double L, double lambda, double n1, Complex n2, Vec3 wi
       // Transmission from the denser medium: the reverse path's integrand, as the estimators
       // evaluate it (wave::integrandAt).
       const bool reverse = transmission && nI > nO;
-      KirchhoffValue kv =
-          reverse ? kirchhoffIntegrand({0, 0, 0}, -m, wo, wi, k0, nO, nI,
-                                       fresnelAmplitudes(std::abs(wo.z), nO, Complex(nI, 0)), true)
-                  : kirchhoffIntegrand({0, 0, 0}, m, wi, wo, k0, nI, nO, F, transmission);
+      KirchhoffValue kv = reverse ? kirchhoffIntegrand({0, 0, 0}, -m, wo, wi, k0, nO, nI,
+                                                       fresnelAmplitudes(std::abs(wo.z), nO, Complex(nI, 0)), true)
+                                  : kirchhoffIntegrand({0, 0, 0}, m, wi, wo, k0, nI, nO, F, transmission);
       double a = L * L * sinc(kv.qx * L / 2) * sinc(kv.qy * L / 2);
-      double p = 0.5 * (std::norm(kv.s) + std::norm(kv.p)) * a * a *
-                 kirchhoffPowerScale(L * L, cosI, nI, nO);
+      double p = 0.5 * (std::norm(kv.s) + std::norm(kv.p)) * a * a * kirchhoffPowerScale(L * L, cosI, nI, nO);
       sum += p * std::sin(th) * (0.5 * kPi / nt) * (2 * kPi / np);
     }
   }
@@ -120,7 +120,8 @@ TEST_P(WaveFlat, HemisphericalIntegralMatchesFresnel) {
     // incoherent = f_ws − coherent integrates to ~0 where the aperture loses nothing.
     if (c.window) {
       double inc = 0;
-      for (bool up : {true, false}) inc += sc.integral(t.value[int(Component::Incoherent)], t.stdError[int(Component::Incoherent)], l, up).first;
+      for (bool up : {true, false})
+        inc += sc.integral(t.value[int(Component::Incoherent)], t.stdError[int(Component::Incoherent)], l, up).first;
       EXPECT_NEAR(inc, 0.0, 0.01) << c.material << " theta " << c.theta;
     }
     // Nothing is masked on a flat interface.
@@ -129,14 +130,16 @@ TEST_P(WaveFlat, HemisphericalIntegralMatchesFresnel) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Cases, WaveFlat,
-    ::testing::Values(FlatCase{"Al", 0.0, true}, FlatCase{"Al", 40.0, true}, FlatCase{"Al", 75.0, true},
-                      FlatCase{"BK7", 0.0, true}, FlatCase{"BK7", 40.0, true}, FlatCase{"BK7", 75.0, true},
-                      FlatCase{"BK7", 180.0 - 30.0, true}, FlatCase{"BK7", 180.0 - 60.0, true},
-                      FlatCase{"Al", 0.0, false}, FlatCase{"Al", 40.0, false}, FlatCase{"Al", 75.0, false},
-                      FlatCase{"BK7", 0.0, false}, FlatCase{"BK7", 40.0, false}, FlatCase{"BK7", 75.0, false},
-                      FlatCase{"BK7", 180.0 - 30.0, false}),
-    [](const auto& info) {
-      return info.param.material + "_" + std::to_string(int(info.param.theta)) + (info.param.window ? "_window" : "_aperture");
-    });
+INSTANTIATE_TEST_SUITE_P(Cases, WaveFlat,
+                         ::testing::Values(FlatCase{"Al", 0.0, true}, FlatCase{"Al", 40.0, true},
+                                           FlatCase{"Al", 75.0, true}, FlatCase{"BK7", 0.0, true},
+                                           FlatCase{"BK7", 40.0, true}, FlatCase{"BK7", 75.0, true},
+                                           FlatCase{"BK7", 180.0 - 30.0, true}, FlatCase{"BK7", 180.0 - 60.0, true},
+                                           FlatCase{"Al", 0.0, false}, FlatCase{"Al", 40.0, false},
+                                           FlatCase{"Al", 75.0, false}, FlatCase{"BK7", 0.0, false},
+                                           FlatCase{"BK7", 40.0, false}, FlatCase{"BK7", 75.0, false},
+                                           FlatCase{"BK7", 180.0 - 30.0, false}),
+                         [](const auto& info) {
+                           return info.param.material + "_" + std::to_string(int(info.param.theta)) +
+                                  (info.param.window ? "_window" : "_aperture");
+                         });

@@ -48,7 +48,8 @@ void checkTile(const WaveScenario& sc, const WaveTileResult& r, bool conductor, 
       const double op = sc.grid.projectedSolidAngle(b);
       // No bin carries more than the incident power, of either sign (the Monte Carlo estimators'
       // unbiased |Σ X|² − Σ |X|² may be negative), at 6 reported errors: ~10⁵ bins are checked.
-      EXPECT_LE(std::abs(r.fws[i]) * op, 1.0 + 6 * r.fwsErr[i] * op) << what << " λ " << sc.lambda_um[l] << " bin " << b;
+      EXPECT_LE(std::abs(r.fws[i]) * op, 1.0 + 6 * r.fwsErr[i] * op)
+          << what << " λ " << sc.lambda_um[l] << " bin " << b;
     }
     auto [R, eR] = sc.integral(r.fws, r.fwsErr, l, fromAbove);
     auto [T, eT] = sc.integral(r.fws, r.fwsErr, l, !fromAbove);
@@ -66,7 +67,8 @@ TEST(WaveHorizon, OrdersThroughTheHorizonStayFiniteAndBounded) {
   Material glass;
   glass.model = Dielectric{ConstantIndex{1.5, 0}};
   std::vector<HorizonCase> cases;
-  cases.push_back({"binary grating", makeBinaryGrating(2, 0.5, 2, 0.05, 0.5, 0.05), {"exact", "orders", "area", "paper"}});
+  cases.push_back(
+      {"binary grating", makeBinaryGrating(2, 0.5, 2, 0.05, 0.5, 0.05), {"exact", "orders", "area", "paper"}});
   cases.push_back({"dome lattice", makeDomeLattice(2, 2, 2, 2, 0.6, 0.6, 0.1, 0.1), {"exact", "orders", "area"}});
   cases.push_back({"gaussian heightfield", makeGaussian(2, 2, 0.02, 0.5, 32, 32, 5), {"fft", "exact"}});
   int tiles = 0;
@@ -102,7 +104,8 @@ TEST(WaveHorizon, BinaryGratingFromInsideGlassAtAWholeNumber) {
     WaveSettings ws;
     ws.estimator = waveEstimatorKind(est);
     ws.samplesPerBin = 1024;
-    WaveScenario sc(makeBinaryGrating(5, 1, 5, 0.25, 0.5, 0.05), glass, ThetaPhiGrid{72, 4}, {0.499, 0.5, 0.501}, 50.0, ws);
+    WaveScenario sc(makeBinaryGrating(5, 1, 5, 0.25, 0.5, 0.05), glass, ThetaPhiGrid{72, 4}, {0.499, 0.5, 0.501}, 50.0,
+                    ws);
     WaveTileResult r = sc.run(180.0, 0.0, /*exact=*/true);
     checkTile(sc, r, false, false, true, est);
     for (int l = 0; l < 3; ++l) {

@@ -62,7 +62,7 @@ void expectReciprocalOrders(const Case& c, const char* estimator, double theta_d
       if (std::abs(a) + std::abs(b) > 4) continue;
       // Order direction in the glass: tangential k matched, n sinθ_G = sinθ_i + (a, b) λ/Λ.
       const double sx = (-wi.x + a * g) / n, sy = (-wi.y + b * g) / n;
-      if (sx * sx + sy * sy >= 0.98) continue;  // evanescent or at the horizon
+      if (sx * sx + sy * sy >= 0.98) continue;                   // evanescent or at the horizon
       const Vec3 wG{sx, sy, -std::sqrt(1 - sx * sx - sy * sy)};  // travel direction in the glass
       const double radius = 0.3 * g / n;
       auto [eF, sF] = lobeEnergy(sc, forward, wG, radius);
