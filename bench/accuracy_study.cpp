@@ -260,7 +260,8 @@ int main(int argc, char** argv) {
   // much wider than the cell (δc = 60 µm: the grating-order regime, where `exact` applies): the WS
   // table of the Monte Carlo estimators against `exact`'s.
   if (want("hemisphere_cell_ws")) {
-    Microgeometry g = makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25);
+    Microgeometry g =
+        makeDomeLattice({.size_um = {5, 5}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25});
     PeriodicScene scene(g);
     Material al = named("Al");
     DirectionGrid grid(ThetaPhiGrid{15, 30});
@@ -306,7 +307,8 @@ int main(int argc, char** argv) {
   // against it. exact's own row: its distance to `orders` at 2^20 points (the noise of that table,
   // an upper bound of exact's error).
   if (want("hemispheres_paper_ws")) {
-    Microgeometry g = makeDomeLattice(20, 20, 5, 5, 2, 2, 2, 2.0 / 16);
+    Microgeometry g =
+        makeDomeLattice({.size_um = {20, 20}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 2.0 / 16});
     PeriodicScene scene(g);
     Material al = named("Al");
     DirectionGrid grid(ThetaPhiGrid{75, 300});
@@ -329,7 +331,8 @@ int main(int argc, char** argv) {
   }
   // HEMISPHERES (the paper's surface) against high-budget references.
   if (want("hemispheres_gm") || want("hemispheres_ws")) {
-    Microgeometry g = makeDomeLattice(20, 20, 5, 5, 2, 2, 2, 2.0 / 16);
+    Microgeometry g =
+        makeDomeLattice({.size_um = {20, 20}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 2.0 / 16});
     PeriodicScene scene(g);
     Material al = named("Al");
     DirectionGrid grid(ThetaPhiGrid{30, 60});

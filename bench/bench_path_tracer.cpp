@@ -33,7 +33,8 @@ using namespace mbsdf;
 namespace {
 
 struct Fixture {
-  Microgeometry geometry = makeDomeLattice(20, 20, 5, 5, 2, 2, 2, 2.0 / 16);
+  Microgeometry geometry =
+      makeDomeLattice({.size_um = {20, 20}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 2.0 / 16});
   PeriodicScene scene{geometry};
   Material mirror;
   DirectionGrid grid{ThetaPhiGrid{75, 300}};

@@ -11,6 +11,7 @@
 #include <optional>
 #include <set>
 
+#include "cluster/output_schema_of.h"
 #include "core/log.h"
 #include "core/stop.h"
 #include "geometry/embree_scene.h"
@@ -197,7 +198,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     ExitCode setupExit = ExitCode::Ok;
     try {
       checkDiskSpace(outPath, job, grid);
-      writerPtr = std::make_unique<BsdfFileWriter>(outPath, job, grid, options.resume);
+      writerPtr = std::make_unique<BsdfFileWriter>(outPath, outputSchemaOf(job), grid, options.resume);
     } catch (const InputError& e) {
       setupExit = ExitCode::BadInput, summary.error = e.what();
     } catch (const WriteError& e) {

@@ -97,7 +97,7 @@ int DirectionGrid::binOf(const Vec3& wIn) const {
   Vec3 w = normalize(wIn);
   int hemi = w.z >= 0 ? 0 : 1;
   int local = std::visit(Overloaded{[&](const ThetaPhiGrid& g) {
-                                      double theta = std::acos(std::min(1.0, std::abs(w.z)));
+                                      double theta = safeAcos(std::abs(w.z));
                                       int t = std::min(g.nTheta - 1, int(theta / (0.5 * kPi) * g.nTheta));
                                       int p = std::min(g.nPhi - 1, int(sphericalPhi(w) / (2 * kPi) * g.nPhi));
                                       return t * g.nPhi + p;
@@ -120,7 +120,7 @@ Vec3 DirectionGrid::centre(int bin) const {
                             },
                             [&](const DiskGrid&) {
                               double x = diskCentre_[2 * size_t(local)], y = diskCentre_[2 * size_t(local) + 1];
-                              return Vec3{x, y, std::sqrt(std::max(0.0, 1 - x * x - y * y))};
+                              return Vec3{x, y, safeSqrt(1 - x * x - y * y)};
                             }},
                  layout_);
   if (hemi == 1) w.z = -w.z;
@@ -136,7 +136,7 @@ DirectionSample DirectionGrid::sampleUniform(int bin, double u1, double u2) cons
                    double c0 = std::cos(t * 0.5 * kPi / g.nTheta), c1 = std::cos((t + 1) * 0.5 * kPi / g.nTheta);
                    double cosT = c0 + (c1 - c0) * u1;  // uniform in cos theta = uniform in solid angle
                    double phi = (p + u2) * 2 * kPi / g.nPhi;
-                   double sinT = std::sqrt(std::max(0.0, 1 - cosT * cosT));
+                   double sinT = safeSqrt(1 - cosT * cosT);
                    return DirectionSample{{sinT * std::cos(phi), sinT * std::sin(phi), cosT}, cosT / meanCos};
                  },
                  [&](const DiskGrid& g) {
@@ -159,7 +159,7 @@ DirectionSample DirectionGrid::sampleCosine(int bin, double u1, double u2) const
                    double s0 = std::sin(t * 0.5 * kPi / g.nTheta), s1 = std::sin((t + 1) * 0.5 * kPi / g.nTheta);
                    // density ∝ cos theta sin theta: uniform in sin^2 theta
                    double sin2 = s0 * s0 + (s1 * s1 - s0 * s0) * u1;
-                   double sinT = std::sqrt(sin2), cosT = std::sqrt(std::max(0.0, 1 - sin2));
+                   double sinT = std::sqrt(sin2), cosT = safeSqrt(1 - sin2);
                    double phi = (p + u2) * 2 * kPi / g.nPhi;
                    return DirectionSample{{sinT * std::cos(phi), sinT * std::sin(phi), cosT}, 1.0};
                  },

@@ -14,6 +14,12 @@
 
 namespace mbsdf {
 
+// An incidence of a job: the direction asked for and the sphere bin of the grid it lies in.
+struct IncidenceDirection {
+  double theta_deg = 0, phi_deg = 0;  // requested (or bin centre for "all")
+  int bin = 0;                        // sphere bin of the grid
+};
+
 struct ThetaPhiGrid {
   int nTheta = 75, nPhi = 300;
 };

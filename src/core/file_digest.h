@@ -6,6 +6,14 @@
 
 namespace mbsdf {
 
+// A file the job reads (mesh, heightfield, NDF table) and its content digest: a resumed run checks
+// that each is unchanged.
+struct InputFile {
+  std::string key;  // the job key that names it, e.g. "geometry.file"
+  std::string path;
+  std::string sha256;
+};
+
 // Throws InputError naming the file when it cannot be read.
 std::string sha256OfFile(const std::string& path);
 

@@ -2,6 +2,7 @@
 // macro normal n = +z, theta from +z, phi from +x.
 #pragma once
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <numbers>
 
@@ -65,13 +66,26 @@ inline bool refract(const Vec3& wi, const Vec3& n, double eta, Vec3* wt) {
   return true;
 }
 
+// The square root and inverse cosine of quantities that are in range in exact arithmetic (1 − cos²,
+// a unit vector's component, 1 − x² − y² of a point on the unit disk) but may round just outside it:
+// clamped, so a grazing or polar direction never gives NaN. Debug builds assert that what is
+// clamped is rounding (within 1e-9), not a wrong argument.
+inline double safeSqrt(double x) {
+  assert(x > -1e-9 && "safeSqrt: clearly negative, not rounding");
+  return std::sqrt(std::max(0.0, x));
+}
+inline double safeAcos(double x) {
+  assert(x > -1 - 1e-9 && x < 1 + 1e-9 && "safeAcos: clearly outside [-1, 1], not rounding");
+  return std::acos(std::clamp(x, -1.0, 1.0));
+}
+
 // Direction from spherical angles (radians).
 inline Vec3 sphericalDirection(double theta, double phi) {
   double s = std::sin(theta);
   return {s * std::cos(phi), s * std::sin(phi), std::cos(theta)};
 }
 inline double sphericalTheta(const Vec3& w) {
-  return std::acos(std::clamp(w.z, -1.0, 1.0));
+  return safeAcos(w.z);
 }
 inline double sphericalPhi(const Vec3& w) {
   double p = std::atan2(w.y, w.x);

@@ -206,16 +206,21 @@ Microgeometry makeGaussian(double sizeX, double sizeY, double rms, double corr, 
   return g;
 }
 
-Microgeometry makeNoise(double sizeX, double sizeY, double rms, double radius, double density, int nx, int ny,
-                        uint64_t seed) {
+Microgeometry makeNoise(const NoiseShape& shape) {
+  const double sizeX = shape.size_um[0], sizeY = shape.size_um[1], rms = shape.rms_um, radius = shape.feature_radius_um,
+               density = shape.density_per_um2;
+  const int nx = shape.texels[0], ny = shape.texels[1];
+  const uint64_t seed = shape.seed;
   Microgeometry g =
       heightfieldMesh(sparseConvolutionNoise(nx, ny, sizeX, sizeY, rms, radius, density, seed), nx, ny, sizeX, sizeY);
   g.description = "noise";
   return g;
 }
 
-Microgeometry makeDomeLattice(double sizeX, double sizeY, double spacingX, double spacingY, double rx, double ry,
-                              double rz, double resolution_um) {
+Microgeometry makeDomeLattice(const DomeLatticeShape& shape) {
+  const double sizeX = shape.size_um[0], sizeY = shape.size_um[1], spacingX = shape.spacing_um[0],
+               spacingY = shape.spacing_um[1], rx = shape.radii_um[0], ry = shape.radii_um[1], rz = shape.radii_um[2],
+               resolution_um = shape.resolution_um;
   int cx = periodsIn(sizeX, spacingX), cy = periodsIn(sizeY, spacingY);
   if (!(2 * rx < spacingX && 2 * ry < spacingY)) throw std::invalid_argument("the domes must fit inside their cells");
   Microgeometry g;
@@ -235,8 +240,10 @@ Microgeometry makeDomeLattice(double sizeX, double sizeY, double spacingX, doubl
   return g;
 }
 
-Microgeometry makeOverhang(double sizeX, double sizeY, double spacing, double stemR, double stemH, double capR,
-                           double capH, double resolution_um) {
+Microgeometry makeOverhang(const OverhangShape& shape) {
+  const double sizeX = shape.size_um[0], sizeY = shape.size_um[1], spacing = shape.spacing_um,
+               stemR = shape.stem_radius_um, stemH = shape.stem_height_um, capR = shape.cap_radius_um,
+               capH = shape.cap_height_um, resolution_um = shape.resolution_um;
   int cx = periodsIn(sizeX, spacing), cy = periodsIn(sizeY, spacing);
   if (!(capR > stemR)) throw std::invalid_argument("the cap radius must exceed the stem radius");
   if (!(2 * capR < spacing)) throw std::invalid_argument("the caps must fit inside their cells");

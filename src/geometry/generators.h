@@ -2,6 +2,7 @@
 // periodic unless said otherwise. Each generator documents its shape; parameters come from the job
 // file's [geometry] table (docs/job-reference.md).
 #pragma once
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -25,19 +26,33 @@ Microgeometry makeRidged(double sizeX, double sizeY, double period, double apexD
 
 // Heightfields on an n x n grid.
 Microgeometry makeGaussian(double sizeX, double sizeY, double rms, double corr, int nx, int ny, uint64_t seed);
-Microgeometry makeNoise(double sizeX, double sizeY, double rms, double radius, double density, int nx, int ny,
-                        uint64_t seed);
+// Sparse-convolution noise (the paper's NOISE): bumps of radius feature_radius_um scattered at
+// density_per_um2, scaled to height rms_um, sampled on texels[0] x texels[1].
+struct NoiseShape {
+  std::array<double, 2> size_um;
+  double rms_um, feature_radius_um, density_per_um2;
+  std::array<int, 2> texels;
+  uint64_t seed;
+};
+Microgeometry makeNoise(const NoiseShape& shape);
 
 // Lattice of half-ellipsoids (radii rx, ry in the plane, height rz) on the plane z = 0, one per
-// cell of size spacingX x spacingY (hemispheres: rx = ry = rz; axicon: 0.4, 0.45, 0.3 µm in the
+// cell of size spacing_um (hemispheres: rx = ry = rz; axicon: 0.4, 0.45, 0.3 µm in the
 // paper's Fig. 12). Watertight: the dome bases share their vertices with the ground.
-Microgeometry makeDomeLattice(double sizeX, double sizeY, double spacingX, double spacingY, double rx, double ry,
-                              double rz, double resolution_um);
+struct DomeLatticeShape {
+  std::array<double, 2> size_um, spacing_um;
+  std::array<double, 3> radii_um;  // rx, ry in the plane, rz the height
+  double resolution_um;
+};
+Microgeometry makeDomeLattice(const DomeLatticeShape& shape);
 
-// Mushrooms: a cylindrical stem (radius stemR, height stemH) carrying a cap with a flat underside
-// (radius capR > stemR) and a dome of height capH. The cap overhangs: not a heightfield.
-Microgeometry makeOverhang(double sizeX, double sizeY, double spacing, double stemR, double stemH, double capR,
-                           double capH, double resolution_um);
+// Mushrooms, one per square cell of side spacing_um: a cylindrical stem carrying a cap with a flat
+// underside (cap_radius_um > stem_radius_um) and a dome of height cap_height_um. The cap overhangs: not a heightfield.
+struct OverhangShape {
+  std::array<double, 2> size_um;
+  double spacing_um, stem_radius_um, stem_height_um, cap_radius_um, cap_height_um, resolution_um;
+};
+Microgeometry makeOverhang(const OverhangShape& shape);
 
 // Ground noise: displaces every vertex in z by a periodic Gaussian random field of the given rms
 // and correlation length (both µm).

@@ -130,9 +130,9 @@ std::vector<T> read1D(hid_t file, const std::string& path, hid_t type) {
 }
 
 // Every dataset that holds one row per incidence slice.
-std::vector<std::string> rowDatasets(const Job& job) {
+std::vector<std::string> rowDatasets(const OutputSchema& schema) {
   std::vector<std::string> v;
-  for (Component c : job.components.list()) {
+  for (Component c : schema.components.list()) {
     std::string n = componentName(c);
     for (const char* g : {"/bsdf/", "/bsdf_stderr/", "/stats/energy_reflected/", "/stats/energy_transmitted/",
                           "/stats/energy_reflected_stderr/", "/stats/energy_transmitted_stderr/", "/stats/rel_error/"})
@@ -143,7 +143,7 @@ std::vector<std::string> rowDatasets(const Job& job) {
         "/stats/seconds", "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/stats/paths_rel_error",
         "/stats/energy_balance", "/stats/energy_balance_stderr", "/bsdf/done"})
     v.push_back(n);
-  if (job.guarded.has(Component::Multiple))
+  if (schema.guarded.has(Component::Multiple))
     for (const char* n : {"/stats/multiple_check", "/stats/multiple_reenabled"}) v.push_back(n);
   return v;
 }
@@ -174,22 +174,22 @@ std::vector<double> readColumns(hid_t file, const std::string& path, hsize_t c0,
 
 }  // namespace
 
-double measureWriteSecondsPerSlice(const Job& job, const DirectionGrid& grid) {
+double measureWriteSecondsPerSlice(const OutputSchema& schema, const DirectionGrid& grid) {
   const std::string scratch =
       (std::filesystem::temp_directory_path() / ("microbsdf-plan-" + std::to_string(::getpid()) + ".h5")).string();
-  const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  const int nL = int(schema.lambda_nm.size()), nB = grid.binCount();
   TileResult dummy;
   dummy.nLambda = nL;
   dummy.nBins = nB;
-  for (Component c : job.components.list()) {
+  for (Component c : schema.components.list()) {
     dummy.value[int(c)].assign(size_t(nL) * nB, 0.0);
     dummy.stdError[int(c)].assign(size_t(nL) * nB, 0.0);
   }
   dummy.truncated = dummy.leaked = dummy.missed = std::vector<double>(size_t(nL), 0.0);
-  const int n = std::min<int>(3, int(job.incidence.size()));
+  const int n = std::min<int>(3, int(schema.incidence.size()));
   double seconds = 0;
   {
-    BsdfFileWriter w(scratch, job, grid);
+    BsdfFileWriter w(scratch, schema, grid);
     const auto t0 = std::chrono::steady_clock::now();
     for (int t = 0; t < n; ++t) {
       dummy.tile = dummy.incidenceIndex = t;
@@ -316,8 +316,14 @@ std::vector<double> energyStdError(const TileResult& r, Component c, int side, c
   return se;
 }
 
-BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid, bool resume)
-    : path_(path), partial_(path + ".partial"), journal_(path + ".journal"), job_(job), grid_(grid) {
+BsdfFileWriter::BsdfFileWriter(const std::string& path, OutputSchema outputSchema, const DirectionGrid& grid,
+                               bool resume)
+    : path_(path),
+      partial_(path + ".partial"),
+      journal_(path + ".journal"),
+      schema_(std::move(outputSchema)),
+      grid_(grid) {
+  const OutputSchema& schema = schema_;
   if (auto dir = std::filesystem::path(path).parent_path(); !dir.empty()) std::filesystem::create_directories(dir);
   std::set<int> journaled;
   if (resume && std::filesystem::exists(partial_) && std::filesystem::exists(journal_)) {
@@ -339,13 +345,13 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
     H5File old(H5Fopen(partial_.c_str(), H5F_ACC_RDONLY | H5F_ACC_SWMR_READ, H5P_DEFAULT),
                "open " + partial_ + " to resume");
     // Identity, not only text: the job text, every input file's content and the geometry built.
-    std::string differs = jobTextDifference(readStringAttr(old, "job_text"), job.text);
+    std::string differs = jobTextDifference(readStringAttr(old, "job_text"), schema.jobText);
     const std::string inputs = H5Aexists(old, "input_files") > 0 ? readStringAttr(old, "input_files") : "";
-    if (differs.empty()) differs = inputFilesDifference(inputs, job.inputFiles);
+    if (differs.empty()) differs = inputFilesDifference(inputs, schema.inputFiles);
     const std::string storedHash = readStringAttr(old, "geometry_hash");
-    if (differs.empty() && storedHash != job.geometry.hash())
+    if (differs.empty() && storedHash != schema.geometryHash)
       differs = "the microgeometry built from the job differs (geometry hash " + storedHash + ", now " +
-                job.geometry.hash() + ")";
+                schema.geometryHash + ")";
     if (!differs.empty())
       throw InputError("cannot resume " + partial_ + ": " + differs + ". Restore what changed, or remove " + partial_ +
                        " and " + journal_ + " (or run without --resume) to start over");
@@ -353,7 +359,7 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, const Job& job, const Di
     create(fresh);
     for (int t : journaled) {
       if (t < 0 || t >= int(done.size()) || !done[t]) continue;
-      for (const auto& d : rowDatasets(job))  // (a partial file of an older version lacks some statistics)
+      for (const auto& d : rowDatasets(schema))  // (a partial file of an older version lacks some statistics)
         if (H5Lexists(old, d.substr(0, d.rfind('/')).c_str(), H5P_DEFAULT) > 0 &&
             H5Lexists(old, d.c_str(), H5P_DEFAULT) > 0)
           writeRow(file_, d, t, readRowImpl(old, d, t), H5T_NATIVE_DOUBLE);
@@ -382,44 +388,36 @@ void BsdfFileWriter::create(const std::string& filename) {
   H5Plist fapl(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate");
   h5check(H5Pset_libver_bounds(fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST), "H5Pset_libver_bounds");
   file_ = H5File(H5Fcreate(filename.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), "create " + filename);
-  const Job& job = job_;
+  const OutputSchema& schema = schema_;
   const DirectionGrid& grid = grid_;
   hid_t f = file_.get();
   setStringAttr(f, "Conventions", "microbsdf-" + std::to_string(kSchemaVersion));
   setScalarAttr<int64_t>(f, "schema_version", H5T_NATIVE_INT64, kSchemaVersion);
   setStringAttr(f, "program_version", MICROBSDF_VERSION);
-  setStringAttr(f, "job_text", job.text);
-  setStringAttr(f, "job_file", job.file);
-  setScalarAttr<uint64_t>(f, "seed", H5T_NATIVE_UINT64, job.seed);
-  setStringAttr(f, "geometry_hash", job.geometry.hash());
-  setStringAttr(f, "input_files", inputFilesJson(job.inputFiles));
-  setStringAttr(f, "geometry_kind", job.geometryKind);
-  setStringAttr(f, "material", job.material.describe());
-  setScalarAttr<uint64_t>(f, "paths_per_slice", H5T_NATIVE_UINT64, job.pathsPerSlice);
-  setScalarAttr<int64_t>(f, "max_depth", H5T_NATIVE_INT64, job.maxDepth);
+  setStringAttr(f, "job_text", schema.jobText);
+  setStringAttr(f, "job_file", schema.jobFile);
+  setScalarAttr<uint64_t>(f, "seed", H5T_NATIVE_UINT64, schema.seed);
+  setStringAttr(f, "geometry_hash", schema.geometryHash);
+  setStringAttr(f, "input_files", inputFilesJson(schema.inputFiles));
+  setStringAttr(f, "geometry_kind", schema.geometryKind);
+  setStringAttr(f, "material", schema.material);
+  setScalarAttr<uint64_t>(f, "paths_per_slice", H5T_NATIVE_UINT64, schema.pathsPerSlice);
+  setScalarAttr<int64_t>(f, "max_depth", H5T_NATIVE_INT64, schema.maxDepth);
   setStringAttr(f, "title", "Tabulated BSDF of a surface microgeometry (microbsdf)");
-  setStringAttr(f, "incidence_sampling", job.exactIncidence ? "exact" : "bin");
-  if (!job.effectsPlan.empty()) setStringAttr(f, "effects_plan", job.effectsPlan);
-  if (job.components.has(Component::Incoherent) && !job.statistical)
-    setStringAttr(f, "wave_estimator", waveEstimatorName(job.resolvedWaveEstimator()));
-  setStringAttr(
-      f, "symmetry",
-      job.isotropic ? "isotropic: one incidence azimuth per theta ring computed, the other slices of the ring "
-                      "rotated from it (" +
-                          job.symmetryReason + ")"
-      : job.symmetryReduced()
-          ? "reduced: part of each theta ring computed, the other slices mapped from it (" + job.symmetryReason + ")"
-          : job.symmetryReason);
-  const bool halved = job.halvesWaveByReciprocity();
+  setStringAttr(f, "incidence_sampling", schema.exactIncidence ? "exact" : "bin");
+  if (!schema.effectsPlan.empty()) setStringAttr(f, "effects_plan", schema.effectsPlan);
+  if (!schema.waveEstimator.empty()) setStringAttr(f, "wave_estimator", schema.waveEstimator);
+  setStringAttr(f, "symmetry", schema.symmetry);
+  const bool halved = schema.halvesWaveByReciprocity;
   setStringAttr(f, "reciprocity",
                 halved ? "wave term computed once per pair of incidence bins on the same side; the other half of "
                          "/bsdf/incoherent is f_ws(o->i) - coherent(i->o) (docs/physics.md section 8)"
-                       : "not used: " + job.reciprocityOffReason());
+                       : "not used: " + schema.reciprocityOffReason);
 
-  const int nB = grid.binCount(), nL = int(job.lambda_nm.size()), nI = int(job.incidence.size());
+  const int nB = grid.binCount(), nL = int(schema.lambda_nm.size()), nI = int(schema.incidence.size());
   {
     H5Group g(H5Gcreate2(f, "spectrum", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /spectrum");
-    write1D(g, "wavelength_nm", H5T_NATIVE_DOUBLE, job.lambda_nm, "nm", "vacuum wavelength");
+    write1D(g, "wavelength_nm", H5T_NATIVE_DOUBLE, schema.lambda_nm, "nm", "vacuum wavelength");
   }
   {
     H5Group g(H5Gcreate2(f, "grid", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /grid");
@@ -449,7 +447,7 @@ void BsdfFileWriter::create(const std::string& filename) {
     H5Group g(H5Gcreate2(f, "incidence", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /incidence");
     std::vector<int32_t> bin;
     std::vector<double> th, ph;
-    for (auto& i : job.incidence) {
+    for (auto& i : schema.incidence) {
       bin.push_back(i.bin);
       th.push_back(i.theta_deg);
       ph.push_back(i.phi_deg);
@@ -474,7 +472,7 @@ void BsdfFileWriter::create(const std::string& filename) {
     h5check(H5DSset_scale(ib, "incidence_bin"), "H5DSset_scale");
     h5check(H5DSset_scale(gt, "exit_bin_theta_deg"), "H5DSset_scale");
     const double nan = std::numeric_limits<double>::quiet_NaN();
-    for (Component c : job.components.list()) {
+    for (Component c : schema.components.list()) {
       std::string name = componentName(c);
       for (auto [grp, what] : {std::pair<hid_t, const char*>{b, "bin-averaged BSDF component "},
                                std::pair<hid_t, const char*>{e, "standard error of BSDF component "}}) {
@@ -517,7 +515,7 @@ void BsdfFileWriter::create(const std::string& filename) {
     write1D(s, "seconds", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "s", "wall time of the tile");
     write1D(s, "sampling_stop", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
             "0: fixed budget; 1: target_rel_error reached; 2: max_paths_per_slice spent first");
-    if (job.guarded.has(Component::Multiple)) {
+    if (schema.guarded.has(Component::Multiple)) {
       write1D(s, "multiple_check", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "1",
               "multiple scattering the effects planner skipped, verified on the slice: its energy + 3 standard "
               "errors (largest over wavelengths; by a few thousand full-depth paths where single scattering came "
@@ -529,7 +527,7 @@ void BsdfFileWriter::create(const std::string& filename) {
     {
       H5Dataset d = create3D(s, "energy_balance", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
       describe(d, "1",
-               job.material.lossless()
+               schema.lossless
                    ? "reflected + transmitted + truncated + leaked + missed - 1 of the components but lost: "
                      "the model's energy error (the material absorbs nothing)"
                    : "the excess of reflected + transmitted + truncated + leaked + missed over 1 (the "
@@ -582,7 +580,7 @@ BsdfFileWriter::~BsdfFileWriter() {
 BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
   hid_t f = file_.get();
   const int i = r.incidenceIndex;
-  for (Component c : job_.components.list()) {
+  for (Component c : schema_.components.list()) {
     std::string name = componentName(c);
     if (!r.has(c)) throw std::runtime_error(std::string("tile lacks component ") + name);
     writeRow(f, "/bsdf/" + name, i, r.value[int(c)], H5T_NATIVE_DOUBLE);
@@ -597,13 +595,13 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
   writeRow(f, "/stats/rays", i, {double(r.rays)}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/seconds", i, {r.seconds}, H5T_NATIVE_DOUBLE);
   writeRow(f, "/stats/sampling_stop", i, {double(int(r.samplingStop))}, H5T_NATIVE_DOUBLE);
-  if (job_.guarded.has(Component::Multiple)) {
+  if (schema_.guarded.has(Component::Multiple)) {
     writeRow(f, "/stats/multiple_check", i, {r.multipleCheck}, H5T_NATIVE_DOUBLE);
     writeRow(f, "/stats/multiple_reenabled", i, {r.multipleReenabled ? 1.0 : 0.0}, H5T_NATIVE_DOUBLE);
   }
   {
     std::vector<Component> traced;
-    for (Component c : job_.components.list())
+    for (Component c : schema_.components.list())
       if (c != Component::Lost && c != Component::GeoMasked && !r.pathMoments[int(c)].empty()) traced.push_back(c);
     std::vector<double> se = r.pathEnergyStdError(traced, -1);
     if (traced.empty()) se.assign(size_t(r.nLambda), 0.0);
@@ -625,14 +623,14 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
 }
 
 BsdfFileWriter::EnergyBalance BsdfFileWriter::writeEnergyBalance(int i) {
-  const int nL = int(job_.lambda_nm.size());
+  const int nL = int(schema_.lambda_nm.size());
   EnergyBalance b;
   b.value.assign(size_t(nL), -1.0);
   std::vector<double> var(size_t(nL), 0.0);
   const std::vector<double> paths = readRowImpl(file_, "/stats/paths_albedo_stderr", i);
   const bool traced = readRowImpl(file_, "/stats/samples", i)[0] > 0;
   for (int l = 0; l < nL; ++l) var[size_t(l)] = paths[size_t(l)] * paths[size_t(l)];
-  for (Component c : job_.components.list()) {
+  for (Component c : schema_.components.list()) {
     if (c == Component::Lost || c == Component::GeoMasked) continue;
     const std::string n = componentName(c);
     const bool fromPaths = traced && (c == Component::Coherent || c == Component::Multiple);
@@ -651,7 +649,7 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeEnergyBalance(int i) {
   }
   b.stdError.resize(size_t(nL));
   for (int l = 0; l < nL; ++l) {
-    if (!job_.material.lossless()) b.value[size_t(l)] = std::max(0.0, b.value[size_t(l)]);
+    if (!schema_.lossless) b.value[size_t(l)] = std::max(0.0, b.value[size_t(l)]);
     b.stdError[size_t(l)] = std::sqrt(var[size_t(l)]);
   }
   writeRow(file_, "/stats/energy_balance", i, b.value, H5T_NATIVE_DOUBLE);
@@ -677,7 +675,7 @@ void BsdfFileWriter::writeSliceStats(const TileResult& r, Component c) {
 
 double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
   hid_t f = file_.get();
-  const int nI = int(job_.incidence.size()), nL = int(job_.lambda_nm.size()), nB = grid_.binCount();
+  const int nI = int(schema_.incidence.size()), nL = int(schema_.lambda_nm.size()), nB = grid_.binCount();
   if (pairs.incidenceCount() != nI) throw std::logic_error("completeReciprocal: pairs do not match the job");
   const std::vector<uint8_t> done = read1D<uint8_t>(f, "/bsdf/done", H5T_NATIVE_UINT8);
   if (std::count(done.begin(), done.end(), 0) != 0)

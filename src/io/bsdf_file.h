@@ -48,7 +48,7 @@
 
 #include "core/direction_grid.h"
 #include "io/hdf5_handle.h"
-#include "job/job.h"
+#include "io/output_schema.h"
 #include "scattering/reciprocity.h"
 #include "scattering/tile_result.h"
 
@@ -60,7 +60,7 @@ class BsdfFileWriter {
  public:
   // resume: keep the finished slices of an earlier run of the same job (see above). Throws
   // std::runtime_error if the partial file belongs to another job.
-  BsdfFileWriter(const std::string& path, const Job& job, const DirectionGrid& grid, bool resume = false);
+  BsdfFileWriter(const std::string& path, OutputSchema schema, const DirectionGrid& grid, bool resume = false);
   ~BsdfFileWriter();
   // Writes a slice (see above); returns its energy balance (writeEnergyBalance).
   struct EnergyBalance {
@@ -88,7 +88,7 @@ class BsdfFileWriter {
   // only an excess over 1 is an error (a deficit is absorption), so only that is stored.
   EnergyBalance writeEnergyBalance(int i);
   std::string path_, partial_, journal_;
-  const Job& job_;
+  const OutputSchema schema_;
   const DirectionGrid& grid_;
   H5File file_;
   std::vector<int> resumed_;
@@ -122,7 +122,7 @@ std::vector<double> energyStdError(const TileResult& r, Component c, int side, c
 // Seconds the writer spends on one slice of this job's layout (a flush and a journal fsync each),
 // measured by writing up to 3 zero slices to a scratch file in the temporary directory: `plan`'s
 // estimate of rank 0's serial writing.
-double measureWriteSecondsPerSlice(const Job& job, const DirectionGrid& grid);
+double measureWriteSecondsPerSlice(const OutputSchema& schema, const DirectionGrid& grid);
 
 class BsdfFileReader {
  public:

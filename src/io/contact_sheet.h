@@ -20,8 +20,4 @@ struct SheetRequest {
 
 RgbImage renderContactSheet(const BsdfFileReader& file, const SheetRequest& req);
 
-// Draws `text` (digits, '.', '-', '°' and the letters of G S M W C I L) with a 5 x 7 bitmap font
-// scaled by `scale`, top-left at (x, y).
-void drawText(RgbImage& img, int x, int y, const std::string& text, int scale, uint8_t grey);
-
 }  // namespace mbsdf

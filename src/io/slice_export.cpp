@@ -14,6 +14,7 @@
 
 #include "core/colour.h"
 #include "core/error.h"
+#include "io/colour_bar.h"
 #include "io/exr_image.h"
 #include "io/png_image.h"
 #include "scattering/components.h"
@@ -108,8 +109,9 @@ RgbImage sliceImage(const BsdfFileReader& file, const std::vector<double>& f, co
   // True colour needs visible wavelengths; false colour (log2 of the spectral mean) works for any.
   std::optional<SpectrumToColour> colour;
   if (req.style != "false") colour.emplace(lambda);
+  checkFalseColourRange(req);
   const std::vector<double> spec = diskSpectra(file, f, req);
-  const int bar = req.style == "false" ? std::max(8, S / 16) : 0;
+  const int bar = req.style == "false" ? colourBarHeight(S) : 0;
   RgbImage img;
   img.width = W;
   img.height = S + bar;
@@ -133,11 +135,16 @@ RgbImage sliceImage(const BsdfFileReader& file, const std::vector<double>& f, co
         put(i, j, rgb);
       }
     }
-  for (int j = S; j < S + bar; ++j)
-    for (int i = 0; i < W; ++i) put(i, j, falseColour((i + 0.5) / W));
+  if (bar > 0) drawColourBar(img, S, S, req.log2Min, req.log2Max);
   return img;
 }
 }  // namespace
+
+void checkFalseColourRange(const SliceRequest& req) {
+  if (req.style == "false" && !(req.log2Max > req.log2Min && std::isfinite(req.log2Max - req.log2Min)))
+    throw InputError(fmt::format("--log2-min {:g} and --log2-max {:g}: the false-colour scale needs min < max",
+                                 req.log2Min, req.log2Max));
+}
 
 RgbImage renderSliceImage(const BsdfFileReader& file, const SliceRequest& req, int inc) {
   return sliceImage(file, modelSlice(file, req.model, inc), req);

@@ -21,6 +21,9 @@ struct SliceRequest {
   double log2Min = -10, log2Max = 10;  // false colour: the range of log2(f) (paper Fig. 5: −10 … 10)
 };
 
+// Throws InputError naming --log2-min/--log2-max when a false-colour request has no range.
+void checkFalseColourRange(const SliceRequest& req);
+
 // Sum of the model's components that the file holds (missing ones are an error).
 std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& model, int incidence,
                                std::vector<double>* stdError = nullptr);
@@ -32,9 +35,9 @@ std::vector<std::string> availableModels(const BsdfFileReader& file);
 //  .exr: float channels "<λ>nm" per wavelength, "mean" (over λ), "R", "G", "B" (linear sRGB of the
 //        spectrum through the CIE 1931 matching functions) and "Y" (these four only when a
 //        wavelength is visible);
-//  .png: true colour (sRGB, gamma-encoded, × exposure; visible wavelengths needed) or false colour: log2 of the
-//  spectral mean
-//        on [log2Min, log2Max] with a colour bar along the bottom (the paper's Fig. 5 scale);
+//  .png: true colour (sRGB, gamma-encoded, × exposure; visible wavelengths needed) or false colour:
+//        log2 of the spectral mean on [log2Min, log2Max] with its scale along the bottom (the paper's
+//        Fig. 5 scale; colour_bar.h: ticks at decades of f, their values and the unit 1/sr);
 //  .csv: one row per exit bin: f and its standard error per wavelength, then (when a wavelength
 //        is visible) X, Y, Z and linear sRGB of the spectrum, and the standard errors of X, Y, Z
 //        (Σ_λ w_λ se_λ: an upper bound whatever the correlation between wavelengths).

@@ -64,7 +64,7 @@ std::vector<int> pilotIncidences(const Job& job) {
     double bestDistance = -1;
     for (int i = 0; i < n; ++i) {
       double nearest = 1e300;
-      for (int p : picks) nearest = std::min(nearest, std::acos(std::clamp(dot(dir(i), dir(p)), -1.0, 1.0)));
+      for (int p : picks) nearest = std::min(nearest, safeAcos(dot(dir(i), dir(p))));
       if (nearest > bestDistance) bestDistance = nearest, best = i;
     }
     if (best < 0 || std::find(picks.begin(), picks.end(), best) != picks.end()) break;
@@ -165,7 +165,7 @@ std::vector<int> resolutionCells(const DirectionGrid& grid, double resolution_de
     // is not cut into sectors), then round((90° − res/2)/res) rings of equal width w ≈ res up to
     // the horizon, each cut into sectors of about res² (ring area 2π sin θ_ring w / res²).
     const Vec3 c = grid.centre(b);
-    const double theta = std::acos(std::min(1.0, std::abs(c.z)));
+    const double theta = safeAcos(std::abs(c.z));
     const double rest = kPi / 2 - res / 2;
     const int rings = std::max(1, int(std::lround(rest / res)));
     const double w = rest / rings;
@@ -209,7 +209,7 @@ std::string fmt3(double v) {
 // `replicate` fills a second, independent set of pilots (other seeds).
 using PilotReplica = std::function<void(std::vector<TileResult>*)>;
 nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, const std::vector<TileResult>& geo,
-                                  const ComponentSet& chosen, const PilotReplica& replicate, nlohmann::json* plan) {
+                                  const ComponentSet& chosen, const PilotReplica& replicate, EffectsPlan* plan) {
   const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
   const bool shared = job.material.directionsIndependentOfLambda();
   const std::string sharing =
@@ -303,7 +303,7 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
       d["pilot_colour_l1"] = l1AtWorst;
       d["pilot_colour_upper"] = worst;
       d["wavelengths_nm"] = subLambda;
-      (*plan)["lambda_nm"] = subLambda;
+      plan->lambda_nm = subLambda;
       return d;
     }
     bestWorst = worst, worstL1 = l1AtWorst;
@@ -869,8 +869,8 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
 }
 
 // Transmission: a conductor has none; a dielectric's wave term skips the transmitted bins where the
-// renderer needs only the BRDF (plan["wave_transmission"]).
-nlohmann::json btdfDecision(const Job& job, const ComponentSet& chosen, nlohmann::json* plan) {
+// renderer needs only the BRDF (EffectsPlan::waveTransmission).
+nlohmann::json btdfDecision(const Job& job, const ComponentSet& chosen, EffectsPlan* plan) {
   if (job.material.isConductor())
     return decision("btdf", false, "a conductor transmits nothing: no BTDF (transmitted bins are zero)");
   {
@@ -886,14 +886,14 @@ nlohmann::json btdfDecision(const Job& job, const ComponentSet& chosen, nlohmann
                                "bins, which keep geometric optics (incoherent = 0 there)"
                              : "the renderer needs only the BRDF; transmission is traced with the "
                                "reflection (the paths cross the surface) and costs no wave term here");
-    (*plan)["wave_transmission"] = !skip;
+    plan->waveTransmission = !skip;
     return d;
   }
 }
 
 }  // namespace
 
-nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
+EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
   const auto t0 = Clock::now();
   const DirectionGrid grid(job.gridLayout);
   const int nB = grid.binCount();
@@ -959,11 +959,12 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
                                     pilotProgress("geometric pilot", job.incidence[size_t(p)])));
   const std::vector<TileResult>& geo = ctx.geo;
 
-  nlohmann::json plan;
-  nlohmann::json decisions = nlohmann::json::array();
+  EffectsPlan plan;
+  std::vector<EffectDecision>& decisions = plan.decisions;
+  auto push = [&](const nlohmann::json& d) { decisions.push_back(effectDecisionFromJson(d)); };
   ComponentSet chosen;
   chosen.add(Component::Coherent);
-  decisions.push_back(decision("coherent", true, "always: the geometric single scattering every model starts from"));
+  push(decision("coherent", true, "always: the geometric single scattering every model starts from"));
 
   // Multiple scattering: the geometry's bound first (singleBounceLimit_deg), then the pilots at the
   // incidences it leaves open.
@@ -975,7 +976,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       on = true;
     }
     d["on"] = on;
-    decisions.push_back(d);
+    push(d);
     if (on) chosen.add(Component::Multiple);
   }
 
@@ -997,7 +998,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       on = true;
     }
     d["on"] = on;
-    decisions.push_back(d);
+    push(d);
     if (on) chosen.add(Component::Incoherent);
   }
   // The wave estimator, from the tolerance and the measured cost (on the middle pilot incidence).
@@ -1010,18 +1011,17 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
     nlohmann::json d = waveEstimatorDecision(job, chosen, grid, *transport.scene(),
                                              pilots.empty() ? -1 : pilots[pilots.size() / 2], budgetNote);
     if (d.contains("candidates")) waveSpent += double(d["candidates"].size());  // at most one wave term each
-    plan["wave_estimator"] = d["estimator"];
-    decisions.push_back(d);
+    plan.waveEstimator = waveEstimatorKind(d["estimator"].get<std::string>());
+    push(d);
   }
 
   // Lost, transmission, wavelengths.
   {
     const bool lost = forced.has(Component::Lost);
-    decisions.push_back(
-        decision("lost", lost, lost ? "requested" : "a diagnostic, not part of any model: only on request"));
+    push(decision("lost", lost, lost ? "requested" : "a diagnostic, not part of any model: only on request"));
     if (lost) chosen.add(Component::Lost);
   }
-  decisions.push_back(btdfDecision(job, chosen, &plan));
+  push(btdfDecision(job, chosen, &plan));
   const PilotReplica replicate = [&](std::vector<TileResult>* geo2) {
     Job other = pilotJob;
     other.seed = job.seed ^ 0x9E3779B97F4A7C15ull;
@@ -1030,7 +1030,7 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
       geo2->push_back(t2.run(p, p, job.incidence[size_t(p)].bin, ctx.beam(p),
                              pilotProgress("geometric pilot replica", job.incidence[size_t(p)])));
   };
-  decisions.push_back(wavelengthDecision(job, grid, geo, chosen, replicate, &plan));
+  push(wavelengthDecision(job, grid, geo, chosen, replicate, &plan));
   if (job.scene.incidenceMax_deg < 90) {
     const int candidates = [&] {
       int n = 0;
@@ -1038,66 +1038,54 @@ nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options) {
         n += grid.projectedSolidAngle(b) > 0;
       return n;
     }();
-    decisions.push_back(decision(
+    push(decision(
         "incidence", true,
         "the renderer looks up incidences within " + fmt3(job.scene.incidenceMax_deg) +
             " deg of the normal ([scene] incidence_max_deg): " + std::to_string(job.incidence.size()) +
             (job.incidenceAll ? " of " + std::to_string(candidates) + " incidence bins" : " listed incidences")));
   }
 
-  std::vector<std::string> names;
-  for (Component c : chosen.list()) names.push_back(componentName(c));
-  plan["components"] = names;
-  plan["decisions"] = decisions;
-  plan["tolerance"] = tol;
-  plan["coherence_length_um"] = job.scene.coherenceLength_um;
-  plan["coherence_source"] = job.scene.coherenceSource;
-  if (job.scene.sourceAngularDiameter_deg > 0)
-    plan["source_angular_diameter_deg"] = job.scene.sourceAngularDiameter_deg;
-  plan["pilots"] = pilots;
-  plan["pilots_planned"] = planned;
-  plan["pilot_budget"] = {{"fraction", job.pilotBudget},
-                          {"computed_tiles", computed},
-                          {"tiles", budgetTiles},
-                          {"path_tiles_spent", double(pilots.size()) * double(paths) / double(job.pathsPerSlice)},
-                          {"wave_tiles_spent", waveSpent}};
-  plan["pilot_paths"] = paths;
-  plan["pilot_seconds"] = std::chrono::duration<double>(Clock::now() - t0).count();
+  plan.components = chosen;
+  plan.tolerance = tol;
+  plan.coherenceLength_um = job.scene.coherenceLength_um;
+  plan.coherenceSource = job.scene.coherenceSource;
+  if (job.scene.sourceAngularDiameter_deg > 0) plan.sourceAngularDiameter_deg = job.scene.sourceAngularDiameter_deg;
+  plan.pilots = pilots;
+  plan.pilotsPlanned = planned;
+  plan.pilotBudget = PilotBudgetUse{job.pilotBudget, computed, budgetTiles,
+                                    double(pilots.size()) * double(paths) / double(job.pathsPerSlice), waveSpent};
+  plan.pilotPaths = paths;
+  plan.pilotSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return plan;
 }
 
-void applyEffectsPlan(Job& job, const nlohmann::json& plan) {
-  job.components = ComponentSet{};
-  for (const auto& n : plan["components"]) job.components.add(*componentFromName(n.get<std::string>()));
+void applyEffectsPlan(Job& job, const EffectsPlan& plan) {
+  job.components = plan.components;
   // A skipped `multiple` is verified on every tile (job.h, guarded): the pilots saw a few incidences.
   job.guarded = ComponentSet{};
-  for (const auto& d : plan["decisions"])
-    if (d["effect"] == "multiple" && !d["on"].get<bool>()) {
-      job.guarded.add(Component::Multiple);
-      job.components.add(Component::Multiple);
-    }
-  job.waveTransmission = plan.value("wave_transmission", true);
-  if (plan.contains("lambda_nm")) job.lambda_nm = plan["lambda_nm"].get<std::vector<double>>();
-  if (plan.contains("wave_estimator")) job.waveEstimator = waveEstimatorKind(plan["wave_estimator"].get<std::string>());
-  job.effectsPlan = plan.dump();
+  if (const EffectDecision* m = plan.find(Effect::Multiple); m && !m->on) {
+    job.guarded.add(Component::Multiple);
+    job.components.add(Component::Multiple);
+  }
+  job.waveTransmission = plan.waveTransmission.value_or(true);
+  if (plan.lambda_nm) job.lambda_nm = *plan.lambda_nm;
+  if (plan.waveEstimator) job.waveEstimator = *plan.waveEstimator;
+  job.effectsPlan = plan.toJson().dump();
 }
 
-std::string formatEffects(const nlohmann::json& plan) {
+std::string formatEffects(const EffectsPlan& plan) {
   std::ostringstream o;
-  o << "effects (auto, tolerance " << fmt3(plan["tolerance"].get<double>()) << ", coherence length "
-    << fmt3(plan["coherence_length_um"].get<double>()) << " um from " << plan["coherence_source"].get<std::string>()
-    << "; pilots " << plan["pilots"].dump() << " in " << fmt3(plan["pilot_seconds"].get<double>()) << " s):\n";
-  if (plan.contains("pilot_budget")) {
-    const auto& b = plan["pilot_budget"];
-    o << "  pilot budget " << fmt3(b["fraction"].get<double>()) << " of " << b["computed_tiles"].dump()
-      << " computed tiles: spent " << fmt3(b["path_tiles_spent"].get<double>()) << " (paths) and "
-      << fmt3(b["wave_tiles_spent"].get<double>()) << " (wave terms) of " << fmt3(b["tiles"].get<double>())
+  o << "effects (auto, tolerance " << fmt3(plan.tolerance) << ", coherence length " << fmt3(plan.coherenceLength_um)
+    << " um from " << plan.coherenceSource << "; pilots " << nlohmann::json(plan.pilots).dump() << " in "
+    << fmt3(plan.pilotSeconds) << " s):\n";
+  if (const auto& b = plan.pilotBudget)
+    o << "  pilot budget " << fmt3(b->fraction) << " of " << b->computedTiles << " computed tiles: spent "
+      << fmt3(b->pathTilesSpent) << " (paths) and " << fmt3(b->waveTilesSpent) << " (wave terms) of " << fmt3(b->tiles)
       << " tiles' work\n";
-  }
-  for (const auto& d : plan["decisions"]) {
-    std::string e = d["effect"].get<std::string>();
+  for (const auto& d : plan.decisions) {
+    std::string e = effectName(d.effect);
     e.resize(12, ' ');
-    o << "  " << e << (d["on"].get<bool>() ? "on   " : "off  ") << d["reason"].get<std::string>() << "\n";
+    o << "  " << e << (d.on ? "on   " : "off  ") << d.reason << "\n";
   }
   return o.str();
 }

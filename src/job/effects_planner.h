@@ -31,6 +31,7 @@
 #pragma once
 #include <nlohmann/json.hpp>
 
+#include "job/effects_plan.h"
 #include "job/job.h"
 
 namespace mbsdf {
@@ -70,13 +71,12 @@ std::optional<double> steepestFacet_deg(const Job& job);
 // direction), so that its `multiple` is zero by the geometry.
 bool scattersOnce(const Job& job, const DirectionGrid& grid, int t, const std::optional<double>& limit_deg);
 
-// The decisions as JSON: {"components": [...], "decisions": [{"effect", "on", "reason", ...}],
-// "tolerance", "coherence_length_um", "coherence_source", "pilots", "pilots_planned", "pilot_budget",
-// "pilot_seconds"}.
-nlohmann::json planEffects(const Job& job, const EffectsPilotOptions& options = {});
-// Sets job.components and job.effectsPlan from a plan (the same on every rank).
-void applyEffectsPlan(Job& job, const nlohmann::json& plan);
-// One line per decision: "multiple     on   reason".
-std::string formatEffects(const nlohmann::json& plan);
+// The decisions (effects_plan.h).
+EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options = {});
+// Sets job.components, its guarded components, wavelengths, wave estimator and job.effectsPlan
+// (the plan's JSON) from a plan (the same on every rank).
+void applyEffectsPlan(Job& job, const EffectsPlan& plan);
+// One line per decision: "multiple     on   reason", after the tolerance, pilots and budget.
+std::string formatEffects(const EffectsPlan& plan);
 
 }  // namespace mbsdf

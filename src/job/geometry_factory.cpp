@@ -127,7 +127,12 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     double density = geo.positive("density", 3.0), texel = geo.positive("texel_um", feature / 16);
     if (!(density * s[0] * s[1] / (kPi * feature * feature) <= 1e7))
       geo.fail("density", "would place more than 1e7 noise impulses on the patch");
-    g = makeNoise(s[0], s[1], rms, feature, density, texels(s[0], texel), texels(s[1], texel), seed);
+    g = makeNoise({.size_um = {s[0], s[1]},
+                   .rms_um = rms,
+                   .feature_radius_um = feature,
+                   .density_per_um2 = density,
+                   .texels = {texels(s[0], texel), texels(s[1], texel)},
+                   .seed = seed});
   } else if (kind == "hemispheres") {
     auto s = size2({20.0, 20.0});
     double r = geo.positive("radius_um", 2.0);
@@ -135,7 +140,10 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     double res = geo.positive("resolution_um", r / 16);
     budget("resolution_um", 2 * std::ceil(s[0] / sp[0]) * std::ceil(s[1] / sp[1]) * rings(2 * kPi * r, res) *
                                 (rings(std::max(sp[0], sp[1]), res) + rings(0.5 * kPi * r, res)));
-    g = guard("spacing_um", [&] { return makeDomeLattice(s[0], s[1], sp[0], sp[1], r, r, r, res); });
+    g = guard("spacing_um", [&] {
+      return makeDomeLattice(
+          {.size_um = {s[0], s[1]}, .spacing_um = {sp[0], sp[1]}, .radii_um = {r, r, r}, .resolution_um = res});
+    });
   } else if (kind == "axicon") {
     auto s = size2({10.0, 10.0});
     std::vector<double> radii = geo.getDoubles("radii_um", {0.4, 0.45, 0.3});
@@ -146,8 +154,12 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     const double rmax = std::max({radii[0], radii[1], radii[2]});
     budget("resolution_um", 2 * std::ceil(s[0] / sp[0]) * std::ceil(s[1] / sp[1]) * rings(2 * kPi * rmax, res) *
                                 (rings(std::max(sp[0], sp[1]), res) + rings(0.5 * kPi * rmax, res)));
-    g = guard("spacing_um",
-              [&] { return makeDomeLattice(s[0], s[1], sp[0], sp[1], radii[0], radii[1], radii[2], res); });
+    g = guard("spacing_um", [&] {
+      return makeDomeLattice({.size_um = {s[0], s[1]},
+                              .spacing_um = {sp[0], sp[1]},
+                              .radii_um = {radii[0], radii[1], radii[2]},
+                              .resolution_um = res});
+    });
   } else if (kind == "overhang") {
     auto s = size2({20.0, 20.0});
     double sp = geo.positive("spacing_um", 5.0);
@@ -157,7 +169,15 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     budget("resolution_um",
            2 * std::ceil(s[0] / sp) * std::ceil(s[1] / sp) * rings(2 * kPi * capR, res) *
                (rings(sp, res) + rings(stemH, res) + rings(capR, res) + rings(0.5 * kPi * std::max(capR, capH), res)));
-    g = guard("cap_radius_um", [&] { return makeOverhang(s[0], s[1], sp, stemR, stemH, capR, capH, res); });
+    g = guard("cap_radius_um", [&] {
+      return makeOverhang({.size_um = {s[0], s[1]},
+                           .spacing_um = sp,
+                           .stem_radius_um = stemR,
+                           .stem_height_um = stemH,
+                           .cap_radius_um = capR,
+                           .cap_height_um = capH,
+                           .resolution_um = res});
+    });
   } else if (kind == "mesh") {
     std::string file = geo.getString("file", "");
     if (file.empty()) geo.fail("file", "a mesh geometry needs file = \"patch.obj\" or \"patch.ply\"");

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/direction_grid.h"
+#include "core/file_digest.h"
 #include "geometry/microgeometry.h"
 #include "microflake/microflake_walk.h"
 #include "optics/material.h"
@@ -15,11 +16,6 @@
 #include "scattering/wave_estimator_kind.h"
 
 namespace mbsdf {
-
-struct IncidenceDirection {
-  double theta_deg = 0, phi_deg = 0;  // requested (or bin centre for "all")
-  int bin = 0;                        // sphere bin of the grid
-};
 
 struct SceneNeeds {
   double coherenceLength_um = 50.0;
@@ -47,14 +43,6 @@ struct StatisticalSurface {
   Ndf ndf = BeckmannNdf{};
   FlakeKind flakes = FlakeKind::Specular;
   double flakeAlbedo = 1.0;
-};
-
-// A file the job reads (mesh, heightfield, NDF table) and its content digest: a resumed run checks
-// that each is unchanged.
-struct InputFile {
-  std::string key;  // the job key that names it, e.g. "geometry.file"
-  std::string path;
-  std::string sha256;
 };
 
 struct Job {

@@ -179,10 +179,10 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
   // components = "auto": the effects planner's pilots decide first (the run does the same).
   Job job = requested;
-  nlohmann::json effects;
+  std::optional<EffectsPlan> effects;
   if (job.autoComponents) {
     effects = planEffects(job);
-    applyEffectsPlan(job, effects);
+    applyEffectsPlan(job, *effects);
   }
   const int cores = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
   DirectionGrid grid(job.gridLayout);
@@ -208,7 +208,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
                    {"rotation_order", job.rotationOrder},
                    {"reason", job.symmetryReason},
                    {"tiles_computed", computedTiles}};
-  if (!effects.is_null()) p["effects"] = effects;
+  if (effects) p["effects"] = effects->toJson();
   std::vector<std::string> comps;
   for (Component c : job.components.list()) comps.push_back(componentName(c));
   p["components"] = comps;
@@ -369,15 +369,15 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   }
   p["accuracy"] = accuracyTable(job, pilots, pathRelErrors, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
                                 waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
-  p["estimate"] = {{"seconds_per_tile", tileSeconds},
-                   {"path_seconds_per_tile", pathSeconds},
-                   {"wave_seconds_per_tile", waveSeconds},
-                   {"wave_setup_seconds_per_rank", waveSetupSeconds},
-                   {"write_seconds_per_slice", writeSeconds},
-                   {"wall_seconds_on_these_cores",
-                    tileSeconds * computedTiles + waveSetupSeconds + writeSeconds * nTiles + sceneSeconds +
-                        (effects.is_null() ? 0.0 : effects["pilot_seconds"].get<double>())},
-                   {"core_hours", coreHours}};
+  p["estimate"] = {
+      {"seconds_per_tile", tileSeconds},
+      {"path_seconds_per_tile", pathSeconds},
+      {"wave_seconds_per_tile", waveSeconds},
+      {"wave_setup_seconds_per_rank", waveSetupSeconds},
+      {"write_seconds_per_slice", writeSeconds},
+      {"wall_seconds_on_these_cores", tileSeconds * computedTiles + waveSetupSeconds + writeSeconds * nTiles +
+                                          sceneSeconds + (effects ? effects->pilotSeconds : 0.0)},
+      {"core_hours", coreHours}};
   const double memoryBytes = memoryBytesPerRank(job, waveBytes);
   p["output_bytes_uncompressed"] = outputBytesUncompressed(job);
   p["memory_bytes_per_rank"] = memoryBytes;
@@ -469,8 +469,8 @@ std::string formatPlan(const nlohmann::json& p) {
     << (p.contains("wave_estimator") ? " (wave estimator " + p["wave_estimator"].get<std::string>() + ")" : "") << "\n"
     << "grid:           " << p["grid"]["kind"].get<std::string>() << ", " << p["grid"]["bins"] << " bins; "
     << p["wavelengths"] << " wavelengths\n"
-    << (p.contains("effects") ? formatEffects(p["effects"]) : std::string()) << "tiles:          " << p["tiles"]
-    << " (one per incidence direction, all wavelengths)"
+    << (p.contains("effects") ? formatEffects(EffectsPlan::fromJson(p["effects"])) : std::string())
+    << "tiles:          " << p["tiles"] << " (one per incidence direction, all wavelengths)"
     << (p["symmetry"]["reduced"].get<bool>()
             ? "; " + p["symmetry"]["tiles_computed"].dump() + " computed, the rest rotated (" +
                   p["symmetry"]["reason"].get<std::string>() + ")"

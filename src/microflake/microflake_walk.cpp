@@ -99,7 +99,7 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
       const double r = std::sqrt(u1), phi = 2 * kPi * u2;
       const Vec3 a = std::abs(m->x) > 0.9 ? Vec3{0, 1, 0} : Vec3{1, 0, 0};
       const Vec3 t = normalize(cross(a, *m)), b = cross(*m, t);
-      d = normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + *m * std::sqrt(std::max(0.0, 1 - u1)));
+      d = normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + *m * safeSqrt(1 - u1));
     } else if (conductor) {
       if (!perfect)
         for (size_t k = 0; k < nl; ++k) wp[k] *= fresnelReflectance(cosM, n1, ior_[lambdas[k]]);

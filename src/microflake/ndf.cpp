@@ -95,12 +95,12 @@ MicroflakeDistribution::MicroflakeDistribution(Ndf ndf) : ndf_(ndf) {
                           sigmaTable_.resize(kVmfTableSize);
                           for (int i = 0; i < kVmfTableSize; ++i) {
                             const double mu = -1.0 + 2.0 * i / (kVmfTableSize - 1);
-                            const double s = std::sqrt(std::max(0.0, 1 - mu * mu));
+                            const double s = safeSqrt(1 - mu * mu);
                             double sum = 0;
                             for (int p = 0; p < panels; ++p)
                               for (size_t j = 0; j < gl.x.size(); ++j) {
                                 const double u = gl.x[j] + double(p) / panels;
-                                const double x = k * s * std::sqrt(std::max(0.0, 1 - u * u));
+                                const double x = k * s * safeSqrt(1 - u * u);
                                 sum += gl.w[j] * u * std::exp(k * (-u * mu - 1) + x) * besselI0Scaled(x);
                               }
                             sigmaTable_[i] = vmfNorm_ * 2 * kPi * sum;
@@ -118,12 +118,11 @@ MicroflakeDistribution::MicroflakeDistribution(Ndf ndf) : ndf_(ndf) {
                           QuadratureRule gu = gaussLegendre(8, 0.0, 1.0 / 32), gp = gaussLegendre(8, 0.0, kPi / 8);
                           sigmaTable_.resize(kVmfTableSize);
                           for (int i = 0; i < kVmfTableSize; ++i) {
-                            const double mu = -1.0 + 2.0 * i / (kVmfTableSize - 1),
-                                         sd = std::sqrt(std::max(0.0, 1 - mu * mu));
+                            const double mu = -1.0 + 2.0 * i / (kVmfTableSize - 1), sd = safeSqrt(1 - mu * mu);
                             double sum = 0;
                             for (int p = 0; p < 32; ++p)
                               for (size_t j = 0; j < gu.x.size(); ++j) {
-                                const double u = gu.x[j] + double(p) / 32, r = std::sqrt(std::max(0.0, 1 - u * u));
+                                const double u = gu.x[j] + double(p) / 32, r = safeSqrt(1 - u * u);
                                 double inner = 0;
                                 for (int q = 0; q < 8; ++q)
                                   for (size_t k = 0; k < gp.x.size(); ++k)
@@ -285,14 +284,13 @@ std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler
                      const double rr = std::sqrt(u1), phi = 2 * kPi * u2;
                      Vec3 t, b;
                      frame(v, &t, &b);
-                     return normalize(t * (rr * std::cos(phi)) + b * (rr * std::sin(phi)) +
-                                      v * std::sqrt(std::max(0.0, 1 - u1)));
+                     return normalize(t * (rr * std::cos(phi)) + b * (rr * std::sin(phi)) + v * safeSqrt(1 - u1));
                    }
                    // Propose from the vMF density on the sphere (exact inversion of m_z), accept with ⟨v,m⟩.
                    for (int tries = 0; tries < kMaxRejections; ++tries) {
                      const double u1 = s.get1D(), u2 = s.get1D(), u3 = s.get1D();
                      const double mz = std::clamp(1 + std::log1p(-u1 * -std::expm1(-2 * n.kappa)) / n.kappa, -1.0, 1.0);
-                     const double sr = std::sqrt(std::max(0.0, 1 - mz * mz)), phi = 2 * kPi * u2;
+                     const double sr = safeSqrt(1 - mz * mz), phi = 2 * kPi * u2;
                      const Vec3 m{sr * std::cos(phi), sr * std::sin(phi), mz};
                      const double c = dot(v, m);
                      if (c > 0 && u3 < c) return m;
@@ -317,7 +315,7 @@ std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler
                        x = (std::sqrt(std::max(0.0, disc)) - da) / (db - da);
                      }
                      const double mz = std::clamp(a + w * std::clamp(x, 0.0, 1.0), -1.0, 1.0);
-                     const double sr = std::sqrt(std::max(0.0, 1 - mz * mz)), phi = 2 * kPi * u3;
+                     const double sr = safeSqrt(1 - mz * mz), phi = 2 * kPi * u3;
                      const Vec3 m{sr * std::cos(phi), sr * std::sin(phi), mz};
                      const double c = dot(v, m);
                      if (c > 0 && u4 < c) return m;

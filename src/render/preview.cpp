@@ -7,7 +7,7 @@
 
 #include "core/colour.h"
 #include "geometry/embree_scene.h"
-#include "io/contact_sheet.h"
+#include "io/bitmap_text.h"
 #include "io/slice_export.h"
 #include "scattering/components.h"
 

@@ -17,6 +17,7 @@
 #include "core/stop.h"
 #include "core/quadrature.h"
 #include "core/rng.h"
+#include "scattering/exact_amplitude.h"
 #include "scattering/heightfield_spectrum.h"
 #include "scattering/triangle_fourier.h"
 #include "scattering/visibility_table.h"
@@ -163,144 +164,6 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
     }
 }
 
-// Shadowing of the first-level points of every facet towards ωi (bit k: point k is lit; 0 for a
-// facet facing away), computed once per incidence direction and shared by every order and
-// wavelength: the shared visibility table (visibility_table.h) for the rays that do not depend on ωo.
-// Only the facets of `cell` (one cell of a patch that repeats it) are visited; `table` (may be
-// null) answers where it can.
-std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
-                                         const SlopeBound& slope, const Vec3& wi, bool fromAbove, uint64_t* rays) {
-  const Microgeometry& g = ctx.geometry;
-  std::vector<uint8_t> lit(g.triangles.size(), 0);
-  const bool clear = slope.clear(wi);  // above a heightfield's steepest slope: every facing point is lit
-  std::atomic<uint64_t> count{0};
-  tbb::parallel_for(size_t(0), cell.facets.size(), [&](size_t f) {
-    const size_t t = cell.facets[f];
-    const Vec3 n = g.triangleNormal(t);
-    if (dot(n, n) == 0) return;
-    const Vec3 m = fromAbove ? normalize(n) : -normalize(n);
-    if (dot(m, wi) <= 0) return;
-    if (clear) {
-      lit[t] = 0xF;
-      return;
-    }
-    const auto& tri = g.triangles[t];
-    const auto pts = firstLevelPoints(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]]);
-    uint8_t bits = 0;
-    for (int k = 0; k < 4; ++k) {
-      const std::optional<bool> known = table ? table->escapes(uint32_t(t), k, m, wi, fromAbove) : std::nullopt;
-      if (!known) ++count;
-      if (known ? *known : wave::escapes(ctx.scene, pts[size_t(k)], m, wi, unsigned(t), fromAbove))
-        bits |= uint8_t(1 << k);
-    }
-    lit[t] = bits;
-  });
-  *rays += count.load();
-  return lit;
-}
-
-// Shadowing towards ωi of the points below the first level of every facet of the cell (the
-// centroid and inset points of its sub-elements down to kMaxDepth: 16 + 64 + 256), found on first
-// use by any order and kept for the others of the same incidence direction: 0 unknown, 1 lit, 2
-// shadowed. Orders run in parallel; two threads may cast the same ray and store the same answer.
-constexpr int kMaxDepth = 3;
-constexpr int kSubPoints = 16 + 64 + 256;
-constexpr int kSubOffset[kMaxDepth + 1] = {0, 0, 16, 80};
-struct ShadowCache {
-  explicit ShadowCache(size_t facets) : state(facets * kSubPoints) {}
-  std::vector<std::atomic<uint8_t>> state;
-};
-
-// Ĥ_G = Σ_T V_T g_T ∫_T e^{i q·x} dA for one order (header): H[0..1] = visible s, p; H[2..3] = masked
-// s, p (only with `masked`). Facets are visited in index order: the sum is deterministic. `lit`:
-// firstLevelShadowing for this ωi (deeper points cast their own shadow rays). The order lies on
-// the reciprocal lattice of `cell`, so the patch's sum is nx ny times the cell's (lattice_cell.h).
-void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
-                    const SlopeBound& slope, const Order& ord, const Vec3& wi, bool fromAbove, const wave::Media& media,
-                    bool masked, const std::vector<uint8_t>& lit, ShadowCache& shadow, Complex* H, uint64_t* rays) {
-  const Microgeometry& g = ctx.geometry;
-  const int l = ord.lambda;
-  const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
-  const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
-  const Vec3 q = wi * (-nI * k0) - ord.wo * (nO * k0);  // k1 − k2, as in kirchhoffIntegrand
-  Complex Hc[4] = {0, 0, 0, 0};
-  // On a heightfield, directions above its steepest slope need no ray (SlopeBound): the light
-  // reaches every facing point, and an order leaving on its own side is seen from every point of a
-  // facet that faces it.
-  const bool litClear = slope.clear(wi);
-  const bool exitClear = ((ord.wo.z > 0) == (fromAbove != ord.transmission)) && slope.clear(ord.wo);
-  for (size_t slot = 0; slot < cell.facets.size(); ++slot) {
-    const uint32_t t = cell.facets[slot];
-    const auto& tri = g.triangles[t];
-    const Vec3 n = g.triangleNormal(t);
-    if (dot(n, n) == 0) continue;  // degenerate: no area
-    const Vec3 m = fromAbove ? normalize(n) : -normalize(n);
-    const double cosLocal = dot(m, wi);
-    if (cosLocal <= 0 || lit[t] == 0) continue;  // back-facing to the light, or shadowed at every first-level point
-    const double mo = dot(m, ord.wo);
-    if (ord.transmission ? mo >= 0 : mo <= 0) continue;  // back-facing to the order direction
-    // g (s, p) of the facet: the integrand without its phase.
-    const KirchhoffValue g0 =
-        wave::integrandAt(media, l, Vec3{0, 0, 0}, m, wi, ord.wo, k0, fromAbove, ord.transmission);
-    // 0 shadowed, 1 visible, 2 masked, for a point of facet t; `firstLevel` >= 0: the point is the
-    // facet's first-level point of that index, whose shadowing is known (`lit`) and whose masking
-    // the shared table may answer (the facet faces ω_G here, so visibleExit's answer is escapes');
-    // otherwise `sub` indexes its shadowing in the cache.
-    auto state = [&](const Vec3& x, int firstLevel, size_t sub) {
-      if (firstLevel < 0 && !litClear) {
-        std::atomic<uint8_t>& known = shadow.state[slot * kSubPoints + sub];
-        uint8_t st = known.load(std::memory_order_relaxed);
-        if (st == 0) {
-          st = wave::escapes(ctx.scene, x, m, wi, unsigned(t), fromAbove) ? 1 : 2;
-          // Counted by the thread that stores it (a ray two threads raced to cast counts once).
-          uint8_t unknown = 0;
-          if (known.compare_exchange_strong(unknown, st, std::memory_order_relaxed)) ++*rays;
-        }
-        if (st == 2) return 0;
-      } else if (firstLevel >= 0 && !((lit[t] >> firstLevel) & 1))
-        return 0;
-      if (exitClear) return 1;
-      if (table && firstLevel >= 0)
-        if (const auto e = ord.transmission ? table->escapes(t, firstLevel, -m, ord.wo, !fromAbove)
-                                            : table->escapes(t, firstLevel, m, ord.wo, fromAbove))
-          return *e ? 1 : 2;
-      const ExitVisibility v =
-          wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(t), fromAbove, ord.transmission, rays);
-      return v == ExitVisibility::Visible ? 1 : 2;
-    };
-    auto add = [&](const Vec3& a, const Vec3& b, const Vec3& c, int st) {
-      if (st == 0 || (st == 2 && !masked)) return;
-      const Complex f = triangleFourier(a, b, c, q);
-      Hc[st == 1 ? 0 : 2] += g0.s * f;
-      Hc[st == 1 ? 1 : 3] += g0.p * f;
-    };
-    // Visibility by the centroid and three points inset towards the vertices; split where they
-    // disagree.
-    // `path`: the sub-element's index among the 4^depth of its depth.
-    std::function<void(const Vec3&, const Vec3&, const Vec3&, int, size_t)> element =
-        [&](const Vec3& a, const Vec3& b, const Vec3& c, int depth, size_t path) {
-          const auto pts = firstLevelPoints(a, b, c);
-          auto st = [&](int k) {
-            return state(pts[size_t(k)], depth == 0 ? k : -1, size_t(kSubOffset[depth]) + path * 4 + size_t(k));
-          };
-          const int s0 = st(0);
-          bool agree = true;
-          for (int k = 1; k < 4; ++k) agree = agree && st(k) == s0;
-          if (agree || depth == kMaxDepth) {
-            add(a, b, c, s0);
-            return;
-          }
-          const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
-          element(a, ab, ca, depth + 1, path * 4);
-          element(ab, b, bc, depth + 1, path * 4 + 1);
-          element(ca, bc, c, depth + 1, path * 4 + 2);
-          element(ab, bc, ca, depth + 1, path * 4 + 3);
-        };
-    element(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0, 0);
-  }
-  for (int i = 0; i < 4; ++i) H[i] += double(cell.copies()) * Hc[i];
-}
-
 // fft (header): Ĥ_G of every order from the heightfield's FFT tables, one group of orders per
 // wavelength and side; then the sparse masking correction below the steepest slope.
 void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectrum, const std::vector<Order>& orders,
@@ -445,7 +308,8 @@ double OrdersWaveEstimator::memoryBytes() const {
           ? VisibilityTable::bytesFor(cell_.facets.size(), ctx_.settings.visibilityTable, !ctx_.material.isConductor())
           : 0.0;
   // The shadow cache of the split pieces' points (one byte each, per incidence direction).
-  const double shadow = amplitudes_ == OrderAmplitudes::Exact ? double(cell_.facets.size()) * kSubPoints : 0.0;
+  const double shadow =
+      amplitudes_ == OrderAmplitudes::Exact ? double(cell_.facets.size()) * wave::kExactSubPoints : 0.0;
   return (spectrum_ ? spectrum_->memoryBytes() : 0.0) + table + shadow;
 }
 
@@ -748,15 +612,16 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
     if (anyFacetSum) {
       uint64_t shadowRays = 0;
       const VisibilityTable* table = visibilityTable();
-      const std::vector<uint8_t> lit = firstLevelShadowing(ctx_, cell_, table, slope_, wi, fromAbove, &shadowRays);
+      const std::vector<uint8_t> lit =
+          wave::firstLevelShadowing(ctx_, cell_, table, slope_, wi, fromAbove, &shadowRays);
       rays += shadowRays;
       std::vector<uint64_t> orderRays(nO, 0);
-      ShadowCache shadow(cell_.facets.size());
+      wave::ShadowCache shadow(cell_.facets.size());
       tbb::parallel_for(size_t(0), nO, [&](size_t o) {
         if (stopRequested() || !facetSum(o)) return;
         for (int c = 0; c < 4; ++c) H[4 * o + c] = 0;
-        exactAmplitude(ctx_, cell_, table, slope_, orders[o], wi, fromAbove, media, masked, lit, shadow, &H[4 * o],
-                       &orderRays[o]);
+        wave::exactAmplitude(ctx_, cell_, table, slope_, {orders[o].lambda, orders[o].wo, orders[o].transmission}, wi,
+                             fromAbove, media, masked, lit, shadow, &H[4 * o], &orderRays[o]);
       });
       for (uint64_t v : orderRays) rays += v;
     } else if (!deterministic) {

@@ -17,7 +17,7 @@
 // (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)), with a delete-a-group jackknife standard error. Points and shadow rays
 // are shared by all orders and wavelengths; each (point, order direction) needs one masking ray.
 //
-// `exact`: the same lobes, but Ĥ_G summed over the facets
+// `exact` (its facet sum in exact_amplitude.h): the same lobes, but Ĥ_G summed over the facets
 // with the phase integrated in closed form (triangle_fourier.h): over a flat facet g is constant,
 // so Ĥ_G = Σ_T V_T g_T ∫_T e^{i q·x} dA. Visibility (shadowing towards ωi, masking towards ω_G) is
 // tested at the centroid and three inset points of each facet; a facet whose points disagree is

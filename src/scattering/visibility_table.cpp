@@ -66,7 +66,7 @@ bool VisibilityTable::cornerInside(int i, int j) const {
 
 Vec3 VisibilityTable::corner(int i, int j, bool up) const {
   const double x = -1 + 2.0 * i / M_, y = -1 + 2.0 * j / M_;
-  const double z = std::sqrt(std::max(0.0, 1 - x * x - y * y));
+  const double z = safeSqrt(1 - x * x - y * y);
   return {x, y, up ? z : -z};
 }
 

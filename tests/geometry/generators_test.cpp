@@ -47,7 +47,8 @@ size_t inconsistentEdges(const Microgeometry& g) {
 
 TEST(Generators, DomeLatticeIsWatertightWithHemisphereArea) {
   const double r = 2.0;
-  Microgeometry g = makeDomeLattice(20, 20, 5, 5, r, r, r, 0.05);
+  Microgeometry g =
+      makeDomeLattice({.size_um = {20, 20}, .spacing_um = {5, 5}, .radii_um = {r, r, r}, .resolution_um = 0.05});
   EXPECT_EQ(interiorBoundaryEdges(g), 0u);
   EXPECT_EQ(inconsistentEdges(g), 0u);
   // 16 cells: ground 25 − π r² plus dome 2π r² each.
@@ -68,7 +69,13 @@ TEST(Generators, DomeLatticeIsWatertightWithHemisphereArea) {
 }
 
 TEST(Generators, OverhangIsWatertightAndOverhangs) {
-  Microgeometry g = makeOverhang(10, 10, 5, 0.8, 1.5, 2.0, 1.0, 0.1);
+  Microgeometry g = makeOverhang({.size_um = {10, 10},
+                                  .spacing_um = 5,
+                                  .stem_radius_um = 0.8,
+                                  .stem_height_um = 1.5,
+                                  .cap_radius_um = 2.0,
+                                  .cap_height_um = 1.0,
+                                  .resolution_um = 0.1});
   EXPECT_EQ(interiorBoundaryEdges(g), 0u);
   EXPECT_EQ(inconsistentEdges(g), 0u);
   size_t down = 0;

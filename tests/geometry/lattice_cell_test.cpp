@@ -20,7 +20,8 @@ double areaOf(const Microgeometry& g, const std::vector<uint32_t>& facets) {
 // The paper's HEMISPHERES: 4 x 4 domes in a 20 µm patch repeat a 5 µm cell; a rectangular lattice
 // (20 x 10 µm, spacing 5 x 2.5 µm) likewise, per axis.
 TEST(LatticeCell, DomeLatticesRepeatTheirSpacing) {
-  const Microgeometry g = makeDomeLattice(20, 20, 5, 5, 2, 2, 2, 2.0 / 8);
+  const Microgeometry g =
+      makeDomeLattice({.size_um = {20, 20}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 2.0 / 8});
   const LatticeCell c = latticeCellOf(g);
   EXPECT_EQ(c.nx, 4);
   EXPECT_EQ(c.ny, 4);
@@ -28,7 +29,8 @@ TEST(LatticeCell, DomeLatticesRepeatTheirSpacing) {
   EXPECT_DOUBLE_EQ(c.sizeY, 5.0);
   ASSERT_EQ(c.facets.size() * 16, g.triangles.size());
   EXPECT_NEAR(areaOf(g, c.facets), g.surfaceArea() / 16, 1e-9 * g.surfaceArea());
-  const LatticeCell r = latticeCellOf(makeDomeLattice(20, 10, 5, 2.5, 1, 1, 1, 0.25));
+  const LatticeCell r = latticeCellOf(
+      makeDomeLattice({.size_um = {20, 10}, .spacing_um = {5, 2.5}, .radii_um = {1, 1, 1}, .resolution_um = 0.25}));
   EXPECT_EQ(r.nx, 4);
   EXPECT_EQ(r.ny, 4);
   EXPECT_DOUBLE_EQ(r.sizeY, 2.5);
@@ -48,14 +50,19 @@ TEST(LatticeCell, NoCellWhereThePatchDoesNotRepeat) {
   const LatticeCell c = latticeCellOf(gauss);
   EXPECT_EQ(c.copies(), 1);
   EXPECT_EQ(c.facets.size(), gauss.triangles.size());
-  Microgeometry open = makeDomeLattice(20, 20, 5, 5, 2, 2, 2, 0.25);
+  Microgeometry open =
+      makeDomeLattice({.size_um = {20, 20}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25});
   open.periodic = false;
   EXPECT_EQ(latticeCellOf(open).copies(), 1);
-  Microgeometry broken = makeDomeLattice(20, 20, 5, 5, 2, 2, 2, 0.25);
+  Microgeometry broken =
+      makeDomeLattice({.size_um = {20, 20}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25});
   size_t top = 0;
   for (size_t v = 0; v < broken.vertices.size(); ++v)
     if (broken.vertices[v].z > broken.vertices[top].z) top = v;
   broken.vertices[top].z -= 2e-3;
   EXPECT_EQ(latticeCellOf(broken).copies(), 1);
-  EXPECT_EQ(latticeCellOf(makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25)).copies(), 1);
+  EXPECT_EQ(latticeCellOf(makeDomeLattice(
+                              {.size_um = {5, 5}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25}))
+                .copies(),
+            1);
 }

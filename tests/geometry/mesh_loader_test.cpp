@@ -33,7 +33,8 @@ std::string errorOf(const std::string& path) {
 }  // namespace
 
 TEST(MeshLoader, PlyRoundTripBinary) {
-  Microgeometry g = makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.3);
+  Microgeometry g =
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3});
   std::string p = tmp("dome.ply");
   writePly(g, p);
   Microgeometry h = loadMesh(p, 1.0);

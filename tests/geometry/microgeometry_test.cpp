@@ -21,7 +21,15 @@ Microgeometry square(bool both) {
 
 TEST(SurfaceClosure, GeneratedPatchesAreClosed) {
   for (const Microgeometry& g :
-       {makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.3), makeOverhang(10, 10, 5, 0.8, 1.5, 2, 1, 0.4), square(true)}) {
+       {makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3}),
+        makeOverhang({.size_um = {10, 10},
+        .spacing_um = 5,
+        .stem_radius_um = 0.8,
+        .stem_height_um = 1.5,
+        .cap_radius_um = 2,
+        .cap_height_um = 1,
+        .resolution_um = 0.4}),
+        square(true)}) {
     const SurfaceClosure c = surfaceClosureOf(g);
     EXPECT_TRUE(c.closed()) << c.describe();
     EXPECT_EQ(c.openEdges, 0u);
@@ -40,7 +48,8 @@ TEST(SurfaceClosure, AHoleIsFoundAndMeasured) {
   finite.periodic = false;
   EXPECT_EQ(surfaceClosureOf(finite).openEdges, 4u);
   // One triangle removed from a dome lattice: three open edges, its projected area uncovered.
-  Microgeometry dome = makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.3);
+  Microgeometry dome =
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3});
   const size_t t = dome.triangles.size() / 3;
   const double lost = 0.5 * dome.triangleNormal(t).z / (dome.sizeX * dome.sizeY);
   dome.triangles.erase(dome.triangles.begin() + long(t));

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "cluster/output_schema_of.h"
+
 #include <cmath>
 #include <filesystem>
 
@@ -45,7 +47,7 @@ TEST(BsdfFile, RoundTripStatisticsAndNaNFill) {
   std::string path = (std::filesystem::temp_directory_path() / "microbsdf_schema_test.h5").string();
   std::filesystem::remove(path);
   {
-    BsdfFileWriter w(path, job, g);
+    BsdfFileWriter w(path, outputSchemaOf(job), g);
     w.writeTile(tile(job, g, 1, 0.25));
     w.finish();
   }
@@ -72,13 +74,13 @@ TEST(BsdfFile, ResumeKeepsJournaledSlices) {
   std::string path = (std::filesystem::temp_directory_path() / "microbsdf_resume_test.h5").string();
   for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(path + ext);
   {
-    BsdfFileWriter w(path, job, g);
+    BsdfFileWriter w(path, outputSchemaOf(job), g);
     w.writeTile(tile(job, g, 0, 0.5));
     // destroyed without finish(): a stopped run
   }
   ASSERT_TRUE(std::filesystem::exists(path + ".partial"));
   {
-    BsdfFileWriter w(path, job, g, /*resume=*/true);
+    BsdfFileWriter w(path, outputSchemaOf(job), g, /*resume=*/true);
     ASSERT_EQ(w.resumedTiles(), std::vector<int>{0});
     w.writeTile(tile(job, g, 1, 0.25));
     w.finish();
@@ -90,11 +92,11 @@ TEST(BsdfFile, ResumeKeepsJournaledSlices) {
   EXPECT_FALSE(std::filesystem::exists(path + ".journal"));
   // A different job must not resume from this partial file.
   {
-    BsdfFileWriter w(path, job, g);
+    BsdfFileWriter w(path, outputSchemaOf(job), g);
     w.writeTile(tile(job, g, 0, 0.5));
   }
   Job other = loadJobFromString(job.text + "\n[output]\npath = \"x.h5\"\n", "t.toml", "");
-  EXPECT_THROW(BsdfFileWriter(path, other, g, true), std::runtime_error);
+  EXPECT_THROW(BsdfFileWriter(path, outputSchemaOf(other), g, true), std::runtime_error);
 }
 
 // Resume checks identity: what differs is named, and the partial file is left as it was.
@@ -104,12 +106,12 @@ TEST(BsdfFile, ResumeRefusalSaysWhatDiffers) {
   std::string path = (std::filesystem::temp_directory_path() / "microbsdf_resume_identity.h5").string();
   for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(path + ext);
   {
-    BsdfFileWriter w(path, job, g);
+    BsdfFileWriter w(path, outputSchemaOf(job), g);
     w.writeTile(tile(job, g, 0, 0.5));
   }
   auto refusal = [&](const Job& j) -> std::string {
     try {
-      BsdfFileWriter w(path, j, g, true);
+      BsdfFileWriter w(path, outputSchemaOf(j), g, true);
     } catch (const InputError& e) {
       return e.what();
     }
@@ -128,7 +130,7 @@ TEST(BsdfFile, ResumeRefusalSaysWhatDiffers) {
   e = refusal(moved);
   EXPECT_NE(e.find("geometry hash"), std::string::npos) << e;
   // Nothing changed: it resumes.
-  BsdfFileWriter w(path, job, g, true);
+  BsdfFileWriter w(path, outputSchemaOf(job), g, true);
   EXPECT_EQ(w.resumedTiles(), std::vector<int>{0});
 }
 
@@ -145,7 +147,7 @@ TEST(BsdfFile, EnergyBalanceByMaterial) {
     DirectionGrid g(job.gridLayout);
     const std::string path = (std::filesystem::temp_directory_path() / "microbsdf_balance_test.h5").string();
     for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(path + ext);
-    BsdfFileWriter w(path, job, g);
+    BsdfFileWriter w(path, outputSchemaOf(job), g);
     TileResult r = tile(job, g, 0, 0.9);  // 0.9 of the power leaves: 0.1 is missing
     r.missed = {0.02, 0.02};              // of which 0.02 fell through a hole
     const auto b = w.writeTile(r);

@@ -4,9 +4,15 @@
 
 #include <gtest/gtest.h>
 
+#include "cluster/output_schema_of.h"
+
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include "geometry/generators.h"
+#include "core/error.h"
+#include "io/colour_bar.h"
 #include "io/exr_image.h"
 #include "io/png_image.h"
 #include "scattering/path_tracer.h"
@@ -27,7 +33,7 @@ std::string writeMirrorFile() {
   s.paths = 2000;
   PathTracer tracer(scene, job.material, job.lambda_um(), grid, s);
   std::string path = (std::filesystem::temp_directory_path() / "microbsdf_slice_test.h5").string();
-  BsdfFileWriter w(path, job, grid);
+  BsdfFileWriter w(path, outputSchemaOf(job), grid);
   w.writeTile(tracer.run(0, 0, job.incidence[0].bin, sphericalDirection(radians(30.0), 0.0)));
   w.finish();
   return path;
@@ -71,7 +77,7 @@ TEST(SliceExport, ImagesHaveSizeChannelsAndTheSpecularPixel) {
     exportSlice(f, req, png);
     RgbImage img = readPng(png);
     EXPECT_EQ(img.width, 128);
-    EXPECT_EQ(img.height, std::string(style) == "false" ? 128 + 8 : 128);  // colour bar below the disk
+    EXPECT_EQ(img.height, std::string(style) == "false" ? 128 + colourBarHeight(128) : 128);  // scale below the disk
     // The specular pixel is the brightest (sum of channels) in the disk part.
     int best = 0, bx = 0, by = 0;
     for (int y = 0; y < 128; ++y)
@@ -86,6 +92,41 @@ TEST(SliceExport, ImagesHaveSizeChannelsAndTheSpecularPixel) {
     EXPECT_NEAR(bx, 32, 3) << style;
     EXPECT_NEAR(by, 64, 3) << style;
   }
+}
+
+// The false-colour scale: a tick under each decade of f (f = 1 at log2 f = 0, the middle of
+// [−10, 10]; f = 10 at 3.32/20 of the width further right), none between, numbers under the ticks.
+TEST(SliceExport, ColourBarTicksSitAtDecadesWithTheirValues) {
+  for (int size : {128, 256, 512}) {
+    RgbImage img;
+    img.width = 2 * size;
+    img.height = colourBarHeight(size);
+    img.rgb.assign(size_t(img.width) * img.height * 3, 7);
+    drawColourBar(img, 0, size, -10, 10);
+    const int s = std::max(1, size / 128), tickRow = std::max(8, size / 16) + 1;
+    auto grey = [&](int x, int y) { return img.rgb[(size_t(y) * img.width + x) * 3]; };
+    auto xOf = [&](double log2f) { return int(std::lround((log2f + 10) / 20 * img.width)); };
+    EXPECT_EQ(grey(xOf(0), tickRow), 235) << size;
+    EXPECT_EQ(grey(xOf(std::log2(10.0)), tickRow), 235) << size;
+    EXPECT_EQ(grey(xOf(std::log2(0.1)), tickRow), 235) << size;
+    EXPECT_EQ(grey(xOf(1.6), tickRow), 0) << size;  // between 1 and 10: no tick
+    int ink = 0;                                    // the numbers and the unit below the ticks
+    for (int y = tickRow + 3 * s; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) ink += grey(x, y) > 100;
+    EXPECT_GT(ink, 50 * s * s) << size;
+    // The ramp is unchanged: falseColour from left to right.
+    EXPECT_EQ(img.rgb[0], uint8_t(std::lround(std::clamp(falseColour(0.5 / img.width)[0], 0.0, 1.0) * 255)));
+  }
+}
+
+TEST(SliceExport, FalseColourNeedsARange) {
+  // A slice of any file: the range is checked before the file's values are read.
+  SliceRequest req;
+  req.style = "false";
+  req.log2Min = req.log2Max = 3;
+  EXPECT_THROW(checkFalseColourRange(req), InputError);
+  req.log2Max = 4;
+  EXPECT_NO_THROW(checkFalseColourRange(req));
 }
 
 TEST(SliceExport, FalseColourScaleIsMonotoneAndSrgbEncodes) {

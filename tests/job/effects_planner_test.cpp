@@ -50,17 +50,16 @@ TEST(EffectsPlanner, DiffractionJudgedAtTheRenderersResolution) {
         "tolerance = 0.05\nangular_resolution_deg = " +
             std::to_string(res_deg) + "\n[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n",
         "t.toml", "");
-    const nlohmann::json p = planEffects(job);
-    for (const auto& d : p["decisions"])
-      if (d["effect"] == "incoherent") return d;
-    return nlohmann::json{};
+    const EffectsPlan p = planEffects(job);
+    EXPECT_EQ(p.components.has(Component::Incoherent), p.find(Effect::Incoherent)->on);
+    return *p.find(Effect::Incoherent);
   };
-  const nlohmann::json fine = plan(0), coarse = plan(30);
-  EXPECT_TRUE(fine["on"].get<bool>()) << fine.dump();
-  EXPECT_GT(fine["pilot_lower"].get<double>(), 1.0);
-  EXPECT_FALSE(coarse["on"].get<bool>()) << coarse.dump();
-  EXPECT_LT(coarse["pilot_upper"].get<double>(), 0.05);
-  EXPECT_NE(coarse["reason"].get<std::string>().find("pooled to the renderer's 30 deg"), std::string::npos);
+  const EffectDecision fine = plan(0), coarse = plan(30);
+  EXPECT_TRUE(fine.on) << fine.reason;
+  EXPECT_GT(fine.evidence["pilot_lower"].get<double>(), 1.0);
+  EXPECT_FALSE(coarse.on) << coarse.reason;
+  EXPECT_LT(coarse.evidence["pilot_upper"].get<double>(), 0.05);
+  EXPECT_NE(coarse.reason.find("pooled to the renderer's 30 deg"), std::string::npos);
 }
 
 // [sampling] wave_estimator = "auto" under components = "auto": the planner keeps the static pick
@@ -80,13 +79,11 @@ TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
       "wave_samples_per_bin = 1024\nseed = 5\n";
   const Job job = loadJobFromString(text, "t.toml", "");
   ASSERT_EQ(job.resolvedWaveEstimator(), WaveEstimatorKind::Area);
-  const nlohmann::json p = planEffects(job);
-  nlohmann::json d;
-  for (const auto& x : p["decisions"])
-    if (x["effect"] == "estimator") d = x;
-  ASSERT_FALSE(d.is_null()) << p.dump();
+  const EffectsPlan p = planEffects(job);
+  ASSERT_NE(p.find(Effect::Estimator), nullptr) << p.toJson().dump();
+  const nlohmann::json d = p.find(Effect::Estimator)->evidence;
   EXPECT_EQ(d["estimator"], "fft") << d.dump();
-  EXPECT_EQ(p["wave_estimator"], "fft");
+  EXPECT_EQ(p.waveEstimator, WaveEstimatorKind::Fft);
   double fftError = -1, areaError = -1;
   for (const auto& c : d["candidates"])
     (c["estimator"] == "fft" ? fftError : areaError) = c["predicted_error"].get<double>();
@@ -119,14 +116,13 @@ TEST(EffectsPlanner, WaveEstimatorFromTheTolerance) {
       "incidence = [[20.0, 0.0]]\n[scene]\ncoherence_length_um = 50.0\ntolerance = 0.02\n[sampling]\n"
       "paths_per_slice = 20000\nwave_samples_per_bin = 1024\n",
       "g.toml", "");
-  const nlohmann::json pg = planEffects(grating);
-  for (const auto& x : pg["decisions"])
-    if (x["effect"] == "estimator") {
-      EXPECT_EQ(x["estimator"], "exact");
-      EXPECT_FALSE(x.contains("candidates"));
-      EXPECT_NE(x["reason"].get<std::string>().find("deterministic; no estimator pilot"), std::string::npos)
-          << x.dump();
-    }
+  const EffectsPlan pg = planEffects(grating);
+  ASSERT_NE(pg.find(Effect::Estimator), nullptr) << pg.toJson().dump();
+  const EffectDecision& x = *pg.find(Effect::Estimator);
+  EXPECT_EQ(x.evidence["estimator"], "exact");
+  EXPECT_EQ(pg.waveEstimator, WaveEstimatorKind::Exact);
+  EXPECT_FALSE(x.evidence.contains("candidates"));
+  EXPECT_NE(x.reason.find("deterministic; no estimator pilot"), std::string::npos) << x.reason;
 }
 
 // Pilots are the job's own beams: a binary mirror grating (grooves along y) lit exactly along its
@@ -145,14 +141,11 @@ TEST(EffectsPlanner, PilotsFollowTheJobsExactDirections) {
             "\"\n[scene]\ncoherence_length_um = 0.0\n"
             "[effects]\npilot_budget = 10.0\n[sampling]\npaths_per_slice = 20000\n",
         "t.toml", "");
-    const nlohmann::json p = planEffects(job);
-    for (const auto& d : p["decisions"])
-      if (d["effect"] == "multiple") return d;
-    return nlohmann::json{};
+    return *planEffects(job).find(Effect::Multiple);
   };
-  const nlohmann::json exact = multiple("exact"), averaged = multiple("bin");
-  EXPECT_FALSE(exact["on"].get<bool>()) << exact.dump();
-  EXPECT_TRUE(averaged["on"].get<bool>()) << averaged.dump();
+  const EffectDecision exact = multiple("exact"), averaged = multiple("bin");
+  EXPECT_FALSE(exact.on) << exact.reason;
+  EXPECT_TRUE(averaged.on) << averaged.reason;
 }
 
 namespace {
@@ -277,14 +270,64 @@ TEST(EffectsPlanner, PilotBudgetBoundsThePilots) {
             "\n[sampling]\npaths_per_slice = 50000\n"
             "wave_samples_per_bin = 256\nseed = 5\n",
         "t.toml", "");
-    const nlohmann::json p = planEffects(job);
-    const auto& spent = p["pilot_budget"];
-    EXPECT_LE(spent["path_tiles_spent"].get<double>(), budget * 3 + 1e-9) << spent.dump();
-    EXPECT_LE(spent["wave_tiles_spent"].get<double>(), budget * 3 + 1e-9) << spent.dump();
-    for (const auto& d : p["decisions"])
-      if (d["effect"] == "incoherent" && budget == 0.5) {
-        EXPECT_TRUE(d["on"].get<bool>());
-        EXPECT_NE(d["reason"].get<std::string>().find("pilot budget"), std::string::npos) << d.dump();
-      }
+    const EffectsPlan p = planEffects(job);
+    ASSERT_TRUE(p.pilotBudget);
+    EXPECT_EQ(p.pilotBudget->fraction, budget);
+    EXPECT_EQ(p.pilotBudget->computedTiles, 3);
+    EXPECT_LE(p.pilotBudget->pathTilesSpent, budget * 3 + 1e-9) << p.toJson().dump();
+    EXPECT_LE(p.pilotBudget->waveTilesSpent, budget * 3 + 1e-9) << p.toJson().dump();
+    EXPECT_LE(p.pilots.size(), p.pilotsPlanned.size());
+    if (budget == 0.5) {
+      const EffectDecision& d = *p.find(Effect::Incoherent);
+      EXPECT_TRUE(d.on);
+      EXPECT_TRUE(p.components.has(Component::Incoherent));
+      EXPECT_NE(d.reason.find("pilot budget"), std::string::npos) << d.reason;
+    }
   }
+}
+
+// The plan's JSON form (what the file records and every rank receives) reads back to the same plan,
+// field by field, and a malformed one is refused naming what is wrong.
+TEST(EffectsPlan, JsonRoundTrip) {
+  EffectsPlan p;
+  p.components.add(Component::Coherent);
+  p.components.add(Component::Incoherent);
+  p.decisions.push_back({Effect::Multiple, false, "below the tolerance", {{"pilot_energy", 0.001}}});
+  p.decisions.push_back({Effect::Wavelengths, true, "colour", {}});
+  p.tolerance = 0.02;
+  p.coherenceLength_um = 50;
+  p.coherenceSource = "coherence_length_um";
+  p.pilots = {3, 0};
+  p.pilotsPlanned = {3, 0, 7};
+  p.pilotBudget = PilotBudgetUse{0.5, 9, 4.5, 1.2, 2.0};
+  p.pilotPaths = 20000;
+  p.pilotSeconds = 1.5;
+  p.waveTransmission = false;
+  p.lambda_nm = std::vector<double>{450, 550, 650};
+  p.waveEstimator = WaveEstimatorKind::Exact;
+  const EffectsPlan q = EffectsPlan::fromJson(nlohmann::json::parse(p.toJson().dump()));
+  EXPECT_EQ(q.components.list(), p.components.list());
+  ASSERT_EQ(q.decisions.size(), 2u);
+  EXPECT_EQ(q.decisions[0].effect, Effect::Multiple);
+  EXPECT_FALSE(q.decisions[0].on);
+  EXPECT_EQ(q.decisions[0].reason, "below the tolerance");
+  EXPECT_EQ(q.decisions[0].evidence["pilot_energy"].get<double>(), 0.001);
+  EXPECT_EQ(q.find(Effect::Wavelengths), &q.decisions[1]);
+  EXPECT_EQ(q.find(Effect::Btdf), nullptr);
+  EXPECT_EQ(q.pilots, p.pilots);
+  EXPECT_EQ(q.pilotsPlanned, p.pilotsPlanned);
+  ASSERT_TRUE(q.pilotBudget);
+  EXPECT_EQ(q.pilotBudget->computedTiles, 9);
+  EXPECT_EQ(q.pilotBudget->waveTilesSpent, 2.0);
+  EXPECT_EQ(q.waveTransmission, false);
+  EXPECT_EQ(q.lambda_nm, p.lambda_nm);
+  EXPECT_EQ(q.waveEstimator, WaveEstimatorKind::Exact);
+  EXPECT_EQ(q.toJson(), p.toJson());
+
+  nlohmann::json bad = p.toJson();
+  bad["decisions"][0]["effect"] = "shimmer";
+  EXPECT_THROW(EffectsPlan::fromJson(bad), std::invalid_argument);
+  bad = p.toJson();
+  bad.erase("tolerance");
+  EXPECT_THROW(EffectsPlan::fromJson(bad), std::invalid_argument);
 }

@@ -13,9 +13,11 @@ TEST(Symmetry, RotationAndMirrorOfPatches) {
     EXPECT_EQ(s.mirror, mirror) << what;
   };
   // A square lattice of hemispheres: 4-fold and mirror.
-  expect(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25), 4, true, "hemispheres");
+  expect(makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25}), 4,
+         true, "hemispheres");
   // The same lattice with elliptic domes (rx != ry): 2-fold and mirror.
-  expect(makeDomeLattice(10, 10, 5, 5, 2, 1.5, 1.5, 0.25), 2, true, "elliptic domes");
+  expect(makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 1.5, 1.5}, .resolution_um = 0.25}),
+         2, true, "elliptic domes");
   // A random heightfield: none.
   expect(makeGaussian(10, 10, 0.3, 1.0, 64, 64, 3), 1, false, "gaussian");
   // A rectangular flat patch of two triangles: 2-fold (not 4: not square); the mirror maps its
@@ -25,7 +27,8 @@ TEST(Symmetry, RotationAndMirrorOfPatches) {
   expect(makeSineGrating(5, 1, 5, 0.1, 32, 0), 1, true, "sine grating");
   // A 4-fold lattice whose facets are shifted by half a period (out of the centred cell) is still
   // 4-fold: facets are compared modulo the period.
-  Microgeometry shifted = makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25);
+  Microgeometry shifted =
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25});
   for (auto& v : shifted.vertices) v.x += 2.5, v.y += 2.5;
   EXPECT_EQ(patchSymmetryOf(shifted).rotationOrder, 4);
   // A long thin grating (500 × 1 µm, 100 periods, 20 rows): centroids are matched within 1e-6 of

@@ -30,8 +30,16 @@ TEST(WhiteFurnace, MirrorFacetsReflectEverything) {
   };
   // gaussian: rms height 0.5 µm, correlation 1 µm: rms gradient 2h/ℓ = 1 (per-axis slope 0.71).
   std::vector<Case> cases;
-  cases.push_back({"hemispheres", makeDomeLattice(20, 20, 5, 5, 2, 2, 2, 2.0 / 16)});
-  cases.push_back({"overhang", makeOverhang(20, 20, 5, 0.8, 1.5, 2.0, 1.0, 2.0 / 16)});
+  cases.push_back(
+      {"hemispheres",
+       makeDomeLattice({.size_um = {20, 20}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 2.0 / 16})});
+  cases.push_back({"overhang", makeOverhang({.size_um = {20, 20},
+                                             .spacing_um = 5,
+                                             .stem_radius_um = 0.8,
+                                             .stem_height_um = 1.5,
+                                             .cap_radius_um = 2.0,
+                                             .cap_height_um = 1.0,
+                                             .resolution_um = 2.0 / 16})});
   cases.push_back({"gaussian", makeGaussian(20, 20, 0.5, 1.0, 160, 160, 3)});
   for (auto& c : cases) {
     Scenario sc(c.g, material("mirror"), ThetaPhiGrid{30, 60}, {0.55}, s);
@@ -90,8 +98,14 @@ TEST(Reciprocity, RoughConductorBinPairs) {
 TEST(Determinism, ThreadCountDoesNotChangeResults) {
   PathTracerSettings s;
   s.paths = 30000;
-  Scenario sc(makeOverhang(10, 10, 5, 0.8, 1.5, 2.0, 1.0, 2.0 / 12), material("Au"), ThetaPhiGrid{15, 30},
-              {0.45, 0.55, 0.65}, s);
+  Scenario sc(makeOverhang({.size_um = {10, 10},
+                            .spacing_um = 5,
+                            .stem_radius_um = 0.8,
+                            .stem_height_um = 1.5,
+                            .cap_radius_um = 2.0,
+                            .cap_height_um = 1.0,
+                            .resolution_um = 2.0 / 12}),
+              material("Au"), ThetaPhiGrid{15, 30}, {0.45, 0.55, 0.65}, s);
   TileResult a, b;
   {
     tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
@@ -115,7 +129,8 @@ TEST(Determinism, ThreadCountDoesNotChangeResults) {
 TEST(Determinism, ReplayMatchesBatch) {
   PathTracerSettings s;
   s.paths = 1;
-  Scenario sc(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.2), material("mirror"), ThetaPhiGrid{15, 30}, {0.55}, s);
+  Scenario sc(makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.2}),
+              material("mirror"), ThetaPhiGrid{15, 30}, {0.55}, s);
   int bin = sc.grid.binOfAngles(30, 0);
   TileResult r = sc.tracer->run(7, 0, bin);
   auto rec = sc.tracer->replay(7, bin, 0);

@@ -49,7 +49,8 @@ TEST(HardCases, DegenerateAndSliverTrianglesAreHarmless) {
 TEST(HardCases, FinitePatchCountsEveryPath) {
   PathTracerSettings s;
   s.paths = 20000;
-  Microgeometry g = makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25);
+  Microgeometry g =
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25});
   g.periodic = false;
   Scenario sc(g, material("mirror"), ThetaPhiGrid{18, 36}, {0.55}, s);
   for (double theta : {0.0, 60.0}) {

@@ -150,8 +150,10 @@ TEST(SingleScattering, MatchesThePathTracersDepthOneTally) {
       {"rough Au Gaussian heightfield", makeGaussian(10, 10, 0.3, 2.0, 24, 24, 3), material("Au"), 30, 45, true});
   // A mesh (not a heightfield): every pair by rays, so a collimated beam (a bin's 1280 directions
   // would take 27 s here; the transport leaves such tiles to the path tracer).
-  cases.push_back({"mirror hemispheres (collimated; a mesh: every pair by rays)",
-                   makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.5), material("mirror"), 20, 10, true, true});
+  cases.push_back(
+      {"mirror hemispheres (collimated; a mesh: every pair by rays)",
+       makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.5}),
+       material("mirror"), 20, 10, true, true});
   for (Case& c : cases) {
     const uint64_t paths = 400000;
     Facets f(std::move(c.g), c.m, ThetaPhiGrid{8, 16}, {0.5}, paths);

@@ -18,7 +18,8 @@ using namespace mbsdf::test;
 // Random first-level points of a hemisphere cell and random directions of both hemispheres (glass:
 // the lower table too): every answer the table gives equals the ray's, and it answers most queries.
 TEST(VisibilityTable, AnswersAsTheRayDoes) {
-  const Microgeometry g = makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.5);
+  const Microgeometry g =
+      makeDomeLattice({.size_um = {5, 5}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.5});
   const PeriodicScene scene(g);
   const LatticeCell cell = latticeCellOf(g);
   const VisibilityTable table(g, scene, cell, 64, true);
@@ -79,7 +80,18 @@ void expectTableKeepsExact(const Microgeometry& g, const Material& m, double the
 TEST(VisibilityTable, ExactTablesMatchCastingEveryRay) {
   Material glass;
   glass.model = Dielectric{ConstantIndex{1.5, 0}};
-  expectTableKeepsExact(makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.5), material("mirror"), 50.0, 20.0);
-  expectTableKeepsExact(makeOverhang(5, 5, 5, 0.6, 1.0, 1.8, 0.6, 0.5), material("mirror"), 40.0, 10.0);
-  expectTableKeepsExact(makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.5), glass, 30.0, 0.0);
+  expectTableKeepsExact(
+      makeDomeLattice({.size_um = {5, 5}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.5}),
+      material("mirror"), 50.0, 20.0);
+  expectTableKeepsExact(makeOverhang({.size_um = {5, 5},
+                                      .spacing_um = 5,
+                                      .stem_radius_um = 0.6,
+                                      .stem_height_um = 1.0,
+                                      .cap_radius_um = 1.8,
+                                      .cap_height_um = 0.6,
+                                      .resolution_um = 0.5}),
+                        material("mirror"), 40.0, 10.0);
+  expectTableKeepsExact(
+      makeDomeLattice({.size_um = {5, 5}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.5}), glass,
+      30.0, 0.0);
 }

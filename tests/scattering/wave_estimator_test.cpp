@@ -132,7 +132,8 @@ TEST(WaveUnbiased, AreaEstimatorMeanMatchesReference) {
 // Convergence on `hemispheres` at θi = 55°: the variance of the area estimator falls as
 // budget^(−1 ± 0.15); the paper estimator's measured rate is recorded beside it.
 TEST(WaveConvergence, AreaVarianceFallsAsOneOverBudget) {
-  Microgeometry g = makeDomeLattice(2, 2, 2, 2, 0.8, 0.8, 0.8, 0.1);
+  Microgeometry g =
+      makeDomeLattice({.size_um = {2, 2}, .spacing_um = {2, 2}, .radii_um = {0.8, 0.8, 0.8}, .resolution_um = 0.1});
   DirectionGrid::Layout layout = ThetaPhiGrid{4, 8};
   auto variance = [&](const std::string& est, int samples) {
     WaveSettings ws;
@@ -182,7 +183,8 @@ TEST(WaveConvergence, AreaVarianceFallsAsOneOverBudget) {
 // at 0.25 µm: 0.022, 0.019, 0.024 at 0°, 10°, 20°, then 0.05–0.08 to 80°. Asserted within 5 % to
 // 20°, and within 0.25 beyond.
 TEST(WaveClosure, GmMatchesWmPlusLost) {
-  Microgeometry g = makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 2.0 / 16);
+  Microgeometry g =
+      makeDomeLattice({.size_um = {5, 5}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 2.0 / 16});
   DirectionGrid::Layout layout = ThetaPhiGrid{9, 18};
   WaveSettings ws;
   ws.estimator = WaveEstimatorKind::Exact;
@@ -223,8 +225,9 @@ TEST(WaveHardCases, FiniteEverywhere) {
     ws.samplesPerBin = 64;
     ws.pointsPerDirection = 16;
     ws.computeMasked = true;
-    WaveScenario hemi(makeDomeLattice(2, 2, 2, 2, 0.8, 0.8, 0.8, 0.1), material("Au"), DiskGrid{9, 9}, {0.45, 0.65},
-                      0.0, ws);
+    WaveScenario hemi(
+        makeDomeLattice({.size_um = {2, 2}, .spacing_um = {2, 2}, .radii_um = {0.8, 0.8, 0.8}, .resolution_um = 0.1}),
+        material("Au"), DiskGrid{9, 9}, {0.45, 0.65}, 0.0, ws);
     for (double theta : {85.0, 89.5}) {
       check(hemi.run(theta, 10.0, true));
       check(hemi.run(theta, 10.0, false));
@@ -240,7 +243,9 @@ TEST(WaveHardCases, FiniteEverywhere) {
   ws.computeMasked = true;
   for (DirectionGrid::Layout layout :
        {DirectionGrid::Layout(ThetaPhiGrid{6, 12}), DirectionGrid::Layout(DiskGrid{9, 9})}) {
-    WaveScenario orders(makeDomeLattice(2, 2, 2, 2, 0.8, 0.8, 0.8, 0.1), material("Au"), layout, {0.45}, 50.0, ws);
+    WaveScenario orders(
+        makeDomeLattice({.size_um = {2, 2}, .spacing_um = {2, 2}, .radii_um = {0.8, 0.8, 0.8}, .resolution_um = 0.1}),
+        material("Au"), layout, {0.45}, 50.0, ws);
     for (double theta : {0.0, 89.5}) {
       check(orders.run(theta, 10.0, true));
       check(orders.run(theta, 10.0, false));

@@ -86,7 +86,8 @@ void expectExactMatchesMonteCarlo(const Microgeometry& g, const std::string& ref
 // and inset points disagree), compared with the `orders` Monte Carlo estimator at 2^17 samples and
 // with the `area` estimator (no order model at all) at 2^15.
 TEST(WaveExact, ShadowingHemispheresMatchMonteCarlo) {
-  const Microgeometry g = makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25);
+  const Microgeometry g =
+      makeDomeLattice({.size_um = {5, 5}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25});
   expectExactMatchesMonteCarlo(g, "orders", 1 << 17, 50.0, 20.0);
   expectExactMatchesMonteCarlo(g, "area", 1 << 15, 50.0, 20.0);
 }
@@ -96,7 +97,13 @@ TEST(WaveExact, ShadowingHemispheresMatchMonteCarlo) {
 // 2^17 samples (251 bins, mean z² 1.42, energy 0.7171 vs 0.7183) and the `area` estimator at 2^15
 // (the 18 bins it resolves; energy 0.757: its heavy tail near the specular order, see below).
 TEST(WaveExact, OverhangMatchesMonteCarlo) {
-  const Microgeometry g = makeOverhang(5, 5, 5, 0.6, 1.0, 1.8, 0.6, 0.25);
+  const Microgeometry g = makeOverhang({.size_um = {5, 5},
+                                        .spacing_um = 5,
+                                        .stem_radius_um = 0.6,
+                                        .stem_height_um = 1.0,
+                                        .cap_radius_um = 1.8,
+                                        .cap_height_um = 0.6,
+                                        .resolution_um = 0.25});
   expectExactMatchesMonteCarlo(g, "orders", 1 << 17, 40.0, 10.0);
   expectExactMatchesMonteCarlo(g, "area", 1 << 15, 40.0, 10.0);
 }
@@ -107,7 +114,13 @@ TEST(WaveExact, OverhangMatchesMonteCarlo) {
 // narrow lobe is heavy-tailed — 1.34 ± 0.32 against 2.71 at 2^15 samples, z = 4.2, while the other
 // 58 bins agree with mean z² 1.25.)
 TEST(WaveExact, NoiseHeightfieldMatchesMonteCarlo) {
-  expectExactMatchesMonteCarlo(makeNoise(5, 5, 0.15, 0.8, 2.0, 48, 48, 7), "orders", 1 << 17, 30.0, 0.0);
+  expectExactMatchesMonteCarlo(makeNoise({.size_um = {5, 5},
+                                          .rms_um = 0.15,
+                                          .feature_radius_um = 0.8,
+                                          .density_per_um2 = 2.0,
+                                          .texels = {48, 48},
+                                          .seed = 7}),
+                               "orders", 1 << 17, 30.0, 0.0);
 }
 
 // A patch of nx x ny copies of a cell (geometry/lattice_cell.h) has order amplitudes only on the
@@ -117,10 +130,12 @@ TEST(WaveExact, NoiseHeightfieldMatchesMonteCarlo) {
 TEST(WaveExact, LatticeOfCellsGivesTheCellsTable) {
   WaveSettings ws;
   ws.estimator = WaveEstimatorKind::Exact;
-  const WaveScenario one(makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0,
-                         ws);
-  const WaveScenario four(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25), material("Al"), ThetaPhiGrid{12, 24}, {0.6},
-                          60.0, ws);
+  const WaveScenario one(
+      makeDomeLattice({.size_um = {5, 5}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25}),
+      material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, ws);
+  const WaveScenario four(
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25}),
+      material("Al"), ThetaPhiGrid{12, 24}, {0.6}, 60.0, ws);
   const WaveTileResult a = one.run(50.0, 20.0, true), b = four.run(50.0, 20.0, true);
   const double ea = one.integral(a.fws, a.fwsErr, 0, true).first, eb = four.integral(b.fws, b.fwsErr, 0, true).first;
   EXPECT_NEAR(eb, ea, 1e-7 * ea);
@@ -135,7 +150,9 @@ TEST(WaveExact, LatticeOfCellsGivesTheCellsTable) {
 // `area` (the windowed integral by Monte Carlo, no order model) at 2^17 within 4 SE (2^15 resolves
 // only 5 bins on this patch).
 TEST(WaveExact, CellLobesUnderAWindowNarrowerThanThePatchMatchArea) {
-  expectExactMatchesMonteCarlo(makeDomeLattice(10, 10, 5, 5, 2, 2, 2, 0.25), "area", 1 << 17, 40.0, 20.0, 30.0);
+  expectExactMatchesMonteCarlo(
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25}),
+      "area", 1 << 17, 40.0, 20.0, 30.0);
 }
 
 // exact over an incidence bin (the job's tabulated BSDF): the order powers from the 2 × 2 (and 1 × 1)

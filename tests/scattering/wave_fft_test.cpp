@@ -40,7 +40,8 @@ TEST(HeightGrid, RecognisesHeightfieldMeshesOnly) {
   EXPECT_EQ(hg->h, h);
   EXPECT_TRUE(heightGridOf(makeFlat(4, 4, 1.0)));
   EXPECT_TRUE(heightGridOf(makeGaussian(4, 4, 0.1, 1.0, 16, 16, 3)));
-  EXPECT_FALSE(heightGridOf(makeDomeLattice(5, 5, 5, 5, 2, 2, 2, 0.5)));
+  EXPECT_FALSE(heightGridOf(
+      makeDomeLattice({.size_um = {5, 5}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.5})));
   Microgeometry swapped = g;
   std::swap(swapped.triangles[0], swapped.triangles[2]);
   EXPECT_FALSE(heightGridOf(swapped));
@@ -66,7 +67,12 @@ TEST(WaveFft, MatchesExactOnHeightfields) {
   Material glass;
   glass.model = Dielectric{ConstantIndex{1.5, 0}};
   const Microgeometry gauss = makeGaussian(5, 5, 0.12, 1.0, 40, 40, 11);
-  const Microgeometry noise = makeNoise(5, 5, 0.15, 0.8, 2.0, 48, 48, 7);
+  const Microgeometry noise = makeNoise({.size_um = {5, 5},
+                                         .rms_um = 0.15,
+                                         .feature_radius_um = 0.8,
+                                         .density_per_um2 = 2.0,
+                                         .texels = {48, 48},
+                                         .seed = 7});
   for (const auto& [g, mat, theta] :
        {Case{gauss, "Au", 0.0}, Case{gauss, "Au", 60.0}, Case{noise, "Au", 30.0}, Case{gauss, "glass", 35.0}}) {
     WaveSettings fs, es;

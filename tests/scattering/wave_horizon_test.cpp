@@ -69,7 +69,10 @@ TEST(WaveHorizon, OrdersThroughTheHorizonStayFiniteAndBounded) {
   std::vector<HorizonCase> cases;
   cases.push_back(
       {"binary grating", makeBinaryGrating(2, 0.5, 2, 0.05, 0.5, 0.05), {"exact", "orders", "area", "paper"}});
-  cases.push_back({"dome lattice", makeDomeLattice(2, 2, 2, 2, 0.6, 0.6, 0.1, 0.1), {"exact", "orders", "area"}});
+  cases.push_back(
+      {"dome lattice",
+       makeDomeLattice({.size_um = {2, 2}, .spacing_um = {2, 2}, .radii_um = {0.6, 0.6, 0.1}, .resolution_um = 0.1}),
+       {"exact", "orders", "area"}});
   cases.push_back({"gaussian heightfield", makeGaussian(2, 2, 0.02, 0.5, 32, 32, 5), {"fft", "exact"}});
   int tiles = 0;
   for (const HorizonCase& c : cases)

@@ -94,7 +94,9 @@ TEST(WaveTransmissionReciprocity, OrdersAreReciprocalBetweenTheSides) {
   const std::vector<Case> cases = {
       {"binary grating", makeBinaryGrating(2, 0.25, 2, 0.5, 0.5, 0.05), 2, false},
       {"sine grating", makeSineGrating(2, 0.25, 2, 0.3, 64, 0), 2, false},
-      {"hemisphere lattice", makeDomeLattice(2, 2, 2, 2, 0.8, 0.8, 0.8, 0.1), 2, true},
+      {"hemisphere lattice",
+       makeDomeLattice({.size_um = {2, 2}, .spacing_um = {2, 2}, .radii_um = {0.8, 0.8, 0.8}, .resolution_um = 0.1}), 2,
+       true},
   };
   for (const Case& c : cases)
     for (double theta : {0.0, 25.0}) expectReciprocalOrders(c, "exact", theta, 20.0);

@@ -1,0 +1,43 @@
+#include "cluster/output_schema_of.h"
+
+namespace mbsdf {
+namespace {
+
+std::string symmetryDescription(const Job& job) {
+  if (job.isotropic)
+    return "isotropic: one incidence azimuth per theta ring computed, the other slices of the ring rotated from it (" +
+           job.symmetryReason + ")";
+  if (job.symmetryReduced())
+    return "reduced: part of each theta ring computed, the other slices mapped from it (" + job.symmetryReason + ")";
+  return job.symmetryReason;
+}
+
+}  // namespace
+
+OutputSchema outputSchemaOf(const Job& job) {
+  OutputSchema s;
+  s.jobText = job.text;
+  s.jobFile = job.file;
+  s.inputFiles = job.inputFiles;
+  s.geometryKind = job.geometryKind;
+  s.geometryHash = job.geometry.hash();
+  s.material = job.material.describe();
+  s.seed = job.seed;
+  s.pathsPerSlice = job.pathsPerSlice;
+  s.maxDepth = job.maxDepth;
+  s.exactIncidence = job.exactIncidence;
+  s.effectsPlan = job.effectsPlan;
+  if (job.components.has(Component::Incoherent) && !job.statistical)
+    s.waveEstimator = waveEstimatorName(job.resolvedWaveEstimator());
+  s.symmetry = symmetryDescription(job);
+  s.halvesWaveByReciprocity = job.halvesWaveByReciprocity();
+  if (!s.halvesWaveByReciprocity) s.reciprocityOffReason = job.reciprocityOffReason();
+  s.lossless = job.material.lossless();
+  s.lambda_nm = job.lambda_nm;
+  s.incidence = job.incidence;
+  s.components = job.components;
+  s.guarded = job.guarded;
+  return s;
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,50 @@
+// `microbsdf check JOB.toml`: validates a job file and prints what it describes, with the memory
+// per rank and the output size it will need.
+#include <spdlog/fmt/fmt.h>
+
+#include <iostream>
+
+#include "cmd/command.h"
+#include "core/direction_grid.h"
+#include "core/error.h"
+#include "job/job.h"
+#include "job/plan.h"
+#include "microflake/ndf.h"
+
+namespace mbsdf {
+namespace {
+
+int checkJob(const std::string& jobPath) {
+  Job job = loadJob(jobPath);
+  DirectionGrid grid(job.gridLayout);
+  std::cout << jobPath << ": ok\n  geometry " << job.geometryKind << ", "
+            << (job.statistical
+                    ? MicroflakeDistribution(job.statistical->ndf).describe()
+                    : std::to_string(job.geometry.triangles.size()) + " triangles, " +
+                          std::to_string(job.geometry.sizeX) + " x " + std::to_string(job.geometry.sizeY) + " µm")
+            << (job.statistical ? "" : "\n  surface " + job.closure.describe()) << "\n  material "
+            << job.material.describe() << "\n  " << job.lambda_nm.size() << " wavelengths, grid " << grid.kind()
+            << " with " << grid.binCount() << " bins, " << job.incidence.size() << " incidence directions\n"
+            << "  memory about " << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9)
+            << " GB per rank before the "
+            << "wave estimator's own (`plan` measures it), output up to "
+            << fmt::format("{:.3g}", outputBytesUncompressed(job) / 1e9) << " GB\n";
+  if (const double avail = availableMemoryBytes(); avail > 0 && memoryBytesPerRank(job, 0) > avail)
+    throw InputError(jobPath + ": the job needs about " + fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9) +
+                     " GB per rank but this machine has " + fmt::format("{:.3g}", avail / 1e9) +
+                     " GB available ([directions] bins, [spectrum] wavelengths)");
+  return 0;
+}
+
+}  // namespace
+
+Command addCheckCommand(CLI::App& app) {
+  auto jobPath = std::make_shared<std::string>();
+  Command c;
+  c.app = app.add_subcommand("check", "validate a job file and print what it describes");
+  c.app->add_option("job", *jobPath, "job file (TOML)")->required();
+  c.run = [jobPath] { return checkJob(*jobPath); };
+  return c;
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,45 @@
+// `microbsdf plan JOB.toml [--json plan.json]`: what a job will compute and cost — tiles, the
+// effects planner's decisions, core-hours, memory, output size and the error each budget buys —
+// from short pilots (job/plan.h).
+#include <iostream>
+
+#include "cluster/output_schema_of.h"
+#include "cmd/command.h"
+#include "core/log.h"
+#include "core/stop.h"
+#include "io/bsdf_file.h"
+#include "job/job.h"
+#include "job/plan.h"
+
+namespace mbsdf {
+
+Command addPlanCommand(CLI::App& app) {
+  struct Options {
+    std::string jobPath, json;
+    int threads = 0;
+  };
+  auto o = std::make_shared<Options>();
+  Command c;
+  c.app = app.add_subcommand("plan",
+                             "what a job will compute and cost (tiles, core-hours, output size), from a short pilot");
+  c.app->add_option("job", o->jobPath, "job file (TOML)")->required();
+  c.app->add_option("--json", o->json, "also write the plan as JSON to this file");
+  addThreadsOption(c.app, o->threads, "threads for the pilot (default: all cores)");
+  c.run = [o] {
+    installStopHandlers();
+    setupLogging(0, "", "", false);
+    Job job = loadJob(o->jobPath);
+    PlanOptions po;
+    po.threads = o->threads;
+    po.writeSecondsPerSlice = [](const Job& j, const DirectionGrid& g) {
+      return measureWriteSecondsPerSlice(outputSchemaOf(j), g);
+    };
+    nlohmann::json p = planJob(job, po);
+    std::cout << formatPlan(p);
+    if (!o->json.empty()) writeJsonFile(o->json, p, 2);
+    return 0;
+  };
+  return c;
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,39 @@
+// What an output file holds, as its writer needs it: the provenance it records, its axes
+// (wavelengths, incidences; the grid is passed beside it) and which component datasets it has. The
+// writer knows nothing of job files: cluster/output_schema_of.h builds this from a job.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/direction_grid.h"
+#include "core/file_digest.h"
+#include "scattering/components.h"
+
+namespace mbsdf {
+
+struct OutputSchema {
+  // Provenance, and the identity a resumed run must match.
+  std::string jobText, jobFile;
+  std::vector<InputFile> inputFiles;
+  std::string geometryKind, geometryHash;
+  std::string material;  // its description
+  uint64_t seed = 0, pathsPerSlice = 0;
+  int64_t maxDepth = 0;
+  bool exactIncidence = false;  // incidence_sampling = "exact" (else bin-averaged)
+  std::string effectsPlan;      // the effects planner's decisions (JSON); empty unless components = "auto"
+  std::string waveEstimator;    // the wave estimator's name; empty without a wave term
+  std::string symmetry;         // how the symmetry reduction computed the slices, in words
+  // Reciprocity: the wave term computed once per pair of incidence bins (the other half filled by
+  // BsdfFileWriter::completeReciprocal), or why not.
+  bool halvesWaveByReciprocity = false;
+  std::string reciprocityOffReason;
+  bool lossless = false;  // the material absorbs nothing: every energy deficit is the model's error
+  // Axes and datasets.
+  std::vector<double> lambda_nm;
+  std::vector<IncidenceDirection> incidence;
+  ComponentSet components;
+  ComponentSet guarded;  // skipped by the effects planner and verified per slice
+};
+
+}  // namespace mbsdf
