@@ -108,6 +108,335 @@ void serveAsWorker(const std::function<TileResult(int)>& computeTile, RunSummary
   MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
 }
 
+// The run's header in the log (rank 0): the wave estimator, reciprocity, the job, geometric optics.
+void logJobHeader(const Job& job, const DirectionGrid& grid, const TileComputer& tiles, int ranks) {
+  const WaveEstimator* wave = tiles.wave();
+  if (wave) {
+    const std::string notes = wave->notes();
+    spdlog::info("scalar diffraction: {} estimator, {}, coherence length {} µm{}", wave->name(),
+                 notes.empty() ? std::to_string(job.waveSamplesPerBin) + " samples per bin" : notes,
+                 job.scene.coherenceLength_um,
+                 job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
+    // Reciprocity (docs/physics.md §8): each pair of incidence bins gets the wave term once.
+    const std::optional<ReciprocalPairs>& pairs = tiles.pairs();
+    spdlog::info("reciprocity: {}", pairs ? fmt::format("the wave term is computed for {:.1f}% of the same-side bin "
+                                                        "pairs, the rest mirrored when every slice is done",
+                                                        100 * pairs->computedFraction())
+                                          : "not used (" + job.reciprocityOffReason() + ")");
+  }
+  const GeometricTransport& transport = tiles.transport();
+  spdlog::info("job {}: {} ({}), {}, {} wavelengths, grid {} ({} bins), {} slices on {} ranks, {} paths per slice",
+               job.file, job.geometryKind,
+               job.statistical ? transport.describe()
+                               : fmt::format("{} triangles, {:.3g} x {:.3g} µm{}, {}", job.geometry.triangles.size(),
+                                             job.geometry.sizeX, job.geometry.sizeY,
+                                             job.geometry.periodic ? ", periodic" : "", job.closure.describe()),
+               job.material.describe(), job.lambda_nm.size(), grid.kind(), grid.binCount(), job.incidence.size(), ranks,
+               job.pathsPerSlice);
+  if (transport.mayUseFacetSum()) spdlog::info("geometric optics: {}", transport.describe());
+}
+
+// One rank's tiles, computed and timed; the callback between inner loops may abandon a tile (stop)
+// or serve the workers (rank 0).
+struct TimedTiles {
+  const Job& job;
+  const TileComputer& tiles;
+  double tileSeconds = 0, pathSeconds = 0, waveSeconds = 0;
+  int done = 0;
+
+  TileResult compute(int t, const std::function<void()>& between) {
+    ProgressReporter pathProgress("tile " + std::to_string(t), job.pathsPerSlice, 30.0, false);
+    auto cb = [&](uint64_t n) {
+      pathProgress.update(n);
+      throwIfStopped();
+      if (between) between();
+    };
+    double paths = 0, waveTerm = 0;
+    TileResult r = tiles.compute(t, cb, &paths, &waveTerm);
+    pathSeconds += paths;
+    waveSeconds += waveTerm;
+    tileSeconds += r.seconds;
+    ++done;
+    return r;
+  }
+};
+
+// Rank 0 when the writer could not be set up: every worker has asked for a tile; each is answered
+// "none" and the run ends on every rank with rank 0's exit code.
+void refuseWorkers(const MpiSession& mpi, ExitCode exit) {
+  for (int w = 1; w < mpi.size(); ++w) {
+    int request = 0, none = -1;
+    MPI_Status st;
+    MPI_Recv(&request, 1, MPI_INT, MPI_ANY_SOURCE, kTagRequest, MPI_COMM_WORLD, &st);
+    MPI_Send(&none, 1, MPI_INT, st.MPI_SOURCE, kTagAssign, MPI_COMM_WORLD);
+  }
+  int status = kRankOk, worst = 0, outcome = exitCode(exit);
+  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  double times[2] = {0, 0}, total[2];
+  MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  MPI_Bcast(&outcome, 1, MPI_INT, 0, MPI_COMM_WORLD);
+}
+
+// Rank 0's side of a run: the queue of tiles still missing, its own tiles, the workers served
+// between them (dynamic scheduling: a worker gets the next tile when it returns one), and the
+// writer. Tiles are written as they arrive; a failed write, a signal or --max-hours stops the
+// handing out, and the tiles in flight are collected before the file is finished or closed.
+class TileServer {
+ public:
+  TileServer(const Job& job, const DirectionGrid& grid, const MpiSession& mpi, const RunOptions& options,
+             const std::string& outPath, BsdfFileWriter& writer, TimedTiles& own, RunSummary& summary,
+             Clock::time_point t0)
+      : job_(job),
+        grid_(grid),
+        options_(options),
+        outPath_(outPath),
+        writer_(writer),
+        own_(own),
+        summary_(summary),
+        t0_(t0),
+        finished_(writer.resumedTiles().begin(), writer.resumedTiles().end()),
+        progress_("slices written", uint64_t(job.incidence.size())),  // symmetry copies count
+        activeWorkers_(mpi.size() - 1) {
+    const int nTiles = int(job.incidence.size());
+    summary_.resumed = int(finished_.size());
+    written_ = int(finished_.size());
+    if (summary_.resumed)
+      spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary_.resumed, nTiles, outPath);
+    // Symmetry (symmetry.h): one tile per ring (or per n-th of a ring) of a symmetric surface;
+    // queued if any slice of its ring is missing (a kill may fall between a ring's slices).
+    if (job.symmetryReduced()) symmetry_.emplace(job, grid);
+    for (int t = 0; t < nTiles; ++t) {
+      if (symmetry_ && symmetry_->representative(t) != t) continue;
+      bool missing = !finished_.count(t);
+      if (symmetry_)
+        for (int m : symmetry_->members(t)) missing = missing || !finished_.count(m);
+      if (missing) queue_.push_back(t);
+    }
+    if (symmetry_)
+      spdlog::info("symmetry: {}; {} tiles for {} slices", job.symmetryReason, symmetry_->representativeCount(),
+                   nTiles);
+    // Most expensive first: grazing incidence bounces and wraps more.
+    auto cost = [&](int t) { return 1.0 / (std::abs(std::cos(radians(job.incidence[size_t(t)].theta_deg))) + 0.05); };
+    std::stable_sort(queue_.begin(), queue_.end(), [&](int a, int b) { return cost(a) > cost(b); });
+  }
+
+  // Computes and serves until every tile is written or the run stops.
+  void run() {
+    auto serveAll = [&] {
+      while (serveOne(false)) {
+      }
+    };
+    while (true) {
+      serveAll();
+      const int t = takeTile();
+      if (t < 0) break;
+      try {
+        const TileResult r = own_.compute(t, serveAll);
+        summary_.paths += r.samples;
+        ++summary_.computed;
+        writeResult(r);
+      } catch (const StopRequested&) {
+        spdlog::info("stop requested: tile {} abandoned ({})", t, stopAnswerNote());
+        lostTiles_ = true;
+        noteStop("signal received");
+      }
+    }
+    while (activeWorkers_ > 0) serveOne(true);
+  }
+
+  // After run(): the ranks agree on write failures, the reciprocity fill, the summary; the file is
+  // finished (complete) or closed (resumable); summary_ says how the run ended.
+  void complete(const std::optional<ReciprocalPairs>& pairs);
+
+ private:
+  void noteStop(const char* why) {
+    if (!stopAssigning_) spdlog::warn("{}: stopping cleanly after the tiles in flight", why);
+    stopAssigning_ = true;
+  }
+  // --max-hours: stop when the next tile would not finish in time (with a 1.5x margin).
+  bool outOfTime() const {
+    if (options_.maxHours <= 0) return false;
+    const double mean = own_.done ? own_.tileSeconds / own_.done : 0.0;
+    return since(t0_) + 1.5 * mean > options_.maxHours * 3600.0;
+  }
+  int takeTile() {
+    if (stopRequested()) noteStop("signal received");
+    if (writeFailure_.empty() && !logWriteFailure().empty()) {
+      writeFailure_ = "log write failed: " + logWriteFailure();
+      noteStop("the log could not be written");
+    }
+    if (!stopAssigning_ && outOfTime()) noteStop("--max-hours reached");
+    if (stopAssigning_ || next_ >= queue_.size()) return -1;
+    return queue_[next_++];
+  }
+  void noteEnergyBalance(const TileResult& r, const BsdfFileWriter::EnergyBalance& b);
+  void writeOne(const TileResult& r);
+  void writeResult(const TileResult& r);
+  bool serveOne(bool blocking);
+
+  const Job& job_;
+  const DirectionGrid& grid_;
+  const RunOptions& options_;
+  const std::string& outPath_;
+  BsdfFileWriter& writer_;
+  TimedTiles& own_;
+  RunSummary& summary_;
+  const Clock::time_point t0_;
+  std::set<int> finished_;
+  std::optional<AzimuthalSymmetry> symmetry_;
+  std::vector<int> queue_;
+  size_t next_ = 0;
+  bool stopAssigning_ = false, lostTiles_ = false;
+  ProgressReporter progress_;
+  int written_ = 0, activeWorkers_ = 0;
+  // A failed write stops the run: no more tiles are handed out and results still in flight are
+  // dropped (the journal lists only slices whose data reached the disk).
+  std::string writeFailure_;
+  int unbalanced_ = 0;
+  double worstBalance_ = 0;
+  std::map<std::string, double> energySum_;  // Σ over the slices written now of each component's Σ f Ω⊥
+};
+
+// The energy balance of each slice (BsdfFileWriter::writeEnergyBalance): beyond [scene] tolerance
+// and its standard error it is the model's error (scalar theory on deep or steep structures), and
+// the log says so; `info` shows it for every slice.
+void TileServer::noteEnergyBalance(const TileResult& r, const BsdfFileWriter::EnergyBalance& b) {
+  for (size_t l = 0; l < b.value.size(); ++l) {
+    if (!(std::abs(b.value[l]) > job_.scene.tolerance + 4 * b.stdError[l])) continue;
+    if (unbalanced_++ < 10)
+      spdlog::warn(
+          "slice {} (theta_i {:.3g} deg, {} nm): energy balance {:+.4f} ± {:.4f} (reflected + transmitted + "
+          "lost paths − 1{}), beyond the tolerance {}: the model's own error there",
+          r.incidenceIndex, job_.incidence[size_t(r.incidenceIndex)].theta_deg, job_.lambda_nm[l], b.value[l],
+          b.stdError[l], job_.material.lossless() ? "" : ", counted only above 1: the material absorbs",
+          job_.scene.tolerance);
+    if (std::abs(b.value[l]) > std::abs(worstBalance_)) worstBalance_ = b.value[l];
+    break;
+  }
+}
+
+void TileServer::writeOne(const TileResult& r) {
+  if (finished_.count(r.incidenceIndex) || !writeFailure_.empty()) return;
+  try {
+    noteEnergyBalance(r, writer_.writeTile(r));
+  } catch (const WriteError& e) {
+    writeFailure_ = e.what();
+    noteStop("the output could not be written");
+    return;
+  }
+  finished_.insert(r.incidenceIndex);
+  ++written_;
+  progress_.update(uint64_t(written_));
+}
+
+// A tile's slice, and the slices symmetry maps it to.
+void TileServer::writeResult(const TileResult& r) {
+  writeOne(r);
+  if (symmetry_)
+    for (int m : symmetry_->members(r.incidenceIndex))
+      if (m != r.incidenceIndex) writeOne(symmetry_->mappedSlice(r, m, job_.incidence[size_t(m)].bin));
+  for (Component c : job_.components.list()) {
+    if (own_.tiles.pairs() && c == Component::Incoherent) continue;  // complete only after the reciprocity fill
+    double e = 0;
+    for (int l = 0; l < r.nLambda; ++l)
+      for (int b = 0; b < r.nBins; ++b) e += r.at(c, l, b) * grid_.projectedSolidAngle(b) / r.nLambda;
+    energySum_[componentName(c)] += e;
+  }
+}
+
+// Handles one message from a worker (a result or a stop) and answers with its next tile (-1: none);
+// returns false if none was waiting (non-blocking).
+bool TileServer::serveOne(bool blocking) {
+  MPI_Status st;
+  int flag = 0;
+  if (blocking) {
+    MPI_Probe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &st);
+    flag = 1;
+  } else {
+    MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &st);
+  }
+  if (!flag) return false;
+  if (st.MPI_TAG == kTagResult) {
+    int count = 0;
+    MPI_Get_count(&st, MPI_DOUBLE, &count);
+    std::vector<double> buf(static_cast<size_t>(count));
+    MPI_Recv(buf.data(), count, MPI_DOUBLE, st.MPI_SOURCE, kTagResult, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    const TileResult r = TileResult::deserialize(buf);
+    summary_.paths += r.samples;
+    ++summary_.computed;
+    writeResult(r);
+  } else {
+    int v = 0;
+    MPI_Recv(&v, 1, MPI_INT, st.MPI_SOURCE, st.MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    if (st.MPI_TAG == kTagStopped) {
+      lostTiles_ = true;
+      noteStop("a rank was stopped");
+    }
+  }
+  const int t = takeTile();
+  MPI_Send(&t, 1, MPI_INT, st.MPI_SOURCE, kTagAssign, MPI_COMM_WORLD);
+  if (t < 0) --activeWorkers_;
+  return true;
+}
+
+void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
+  int status = writeFailure_.empty() ? kRankOk : kRankWriteFailed, worst = 0;
+  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  if (worst == kRankWriteFailed && writeFailure_.empty())
+    writeFailure_ = "another rank could not write its log file (see its stderr)";
+  double times[2] = {own_.pathSeconds, own_.waveSeconds}, total[2] = {0, 0};
+  MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  const bool incomplete = written_ < int(job_.incidence.size());
+  std::optional<double> filledIncoherent;  // mean over all slices, after the reciprocity fill
+  try {
+    if (!incomplete && writeFailure_.empty() && pairs) {
+      auto tf = Clock::now();
+      filledIncoherent = writer_.completeReciprocal(*pairs);
+      spdlog::info("reciprocity: filled the mirrored half of {} slices in {:.2f} s", int(job_.incidence.size()),
+                   since(tf));
+    }
+  } catch (const WriteError& e) {
+    writeFailure_ = e.what();
+  }
+  {
+    std::string energies;
+    for (auto& [c, e] : energySum_)
+      energies += fmt::format("{}{} {:.4f}", energies.empty() ? "" : ", ", c, e / std::max(1, summary_.computed));
+    if (filledIncoherent)
+      energies += fmt::format(", incoherent {:.4f} (all slices, after the fill)", *filledIncoherent);
+    spdlog::info(
+        "summary: {} tiles computed now, {} slices resumed; {:.1f} s wall; tile time summed over ranks: "
+        "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
+        summary_.computed, summary_.resumed, since(t0_), total[0], total[1], summary_.paths, energies);
+  }
+  if (unbalanced_)
+    spdlog::warn(
+        "energy balance beyond the tolerance {} in {} slice(s) computed now (the worst {:+.4f}); `microbsdf info` "
+        "lists it per slice",
+        job_.scene.tolerance, unbalanced_, worstBalance_);
+  // Finish (close, fsync, rename) or close; a failure of either is a write failure, which leaves the
+  // partial file and its journal (every slice in the journal is on disk) and any old output as they were.
+  try {
+    if (writeFailure_.empty() && !incomplete)
+      writer_.finish();
+    else
+      writer_.close();
+  } catch (const WriteError& e) {
+    if (writeFailure_.empty()) writeFailure_ = e.what();
+  }
+  if (!writeFailure_.empty()) {
+    summary_.exit = ExitCode::WriteFailed;
+    summary_.error = fmt::format(
+        "{}. {}/{} slices are safe in {}.partial (listed in its journal); free space or fix the "
+        "file system, then run the same command with --resume. {} was not changed",
+        writeFailure_, written_, int(job_.incidence.size()), outPath_, outPath_);
+  } else if (incomplete) {
+    summary_.stoppedEarly = true;
+    spdlog::warn("stopped early: {}/{} slices complete in {}.partial{}; run the same command with --resume to finish",
+                 written_, int(job_.incidence.size()), outPath_, lostTiles_ ? " (tiles in flight were abandoned)" : "");
+  }
+}
+
 }  // namespace
 
 RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& options) {
@@ -119,68 +448,20 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   DirectionGrid grid(job.gridLayout);
   // What a tile is (job/tile_computer.h); this file only hands tiles out and writes them.
   const TileComputer tiles(job, grid);
-  const GeometricTransport& transport = tiles.transport();
-  const WaveEstimator* wave = tiles.wave();
-  if (wave && mpi.rank() == 0) {
-    const std::string notes = wave->notes();
-    spdlog::info("scalar diffraction: {} estimator, {}, coherence length {} µm{}", wave->name(),
-                 notes.empty() ? std::to_string(job.waveSamplesPerBin) + " samples per bin" : notes,
-                 job.scene.coherenceLength_um,
-                 job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
-  }
-
-  if (std::string shortfall = memoryShortfall(job, wave); mpi.anyRank(!shortfall.empty())) {
+  if (std::string shortfall = memoryShortfall(job, tiles.wave()); mpi.anyRank(!shortfall.empty())) {
     RunSummary refused;
     refused.exit = ExitCode::BadInput;
     refused.error = shortfall.empty() ? "another rank's node has too little memory for the job" : shortfall;
     return refused;
   }
+  if (mpi.rank() == 0) logJobHeader(job, grid, tiles, mpi.size());
 
-  const int nTiles = int(job.incidence.size());
-  // Reciprocity (docs/physics.md §8): each pair of incidence bins gets the wave term once.
-  const std::optional<ReciprocalPairs>& pairs = tiles.pairs();
-  if (wave && mpi.rank() == 0)
-    spdlog::info("reciprocity: {}", pairs ? fmt::format("the wave term is computed for {:.1f}% of the same-side bin "
-                                                        "pairs, the rest mirrored when every slice is done",
-                                                        100 * pairs->computedFraction())
-                                          : "not used (" + job.reciprocityOffReason() + ")");
-  if (mpi.rank() == 0)
-    spdlog::info("job {}: {} ({}), {}, {} wavelengths, grid {} ({} bins), {} slices on {} ranks, {} paths per slice",
-                 job.file, job.geometryKind,
-                 job.statistical ? transport.describe()
-                                 : fmt::format("{} triangles, {:.3g} x {:.3g} µm{}, {}", job.geometry.triangles.size(),
-                                               job.geometry.sizeX, job.geometry.sizeY,
-                                               job.geometry.periodic ? ", periodic" : "", job.closure.describe()),
-                 job.material.describe(), job.lambda_nm.size(), grid.kind(), grid.binCount(), nTiles, mpi.size(),
-                 job.pathsPerSlice);
-
-  if (mpi.rank() == 0 && transport.mayUseFacetSum()) spdlog::info("geometric optics: {}", transport.describe());
-
-  // One tile: path tracing, then the wave estimator; the callback may abandon it (stop).
-  double tileSecondsSum = 0, pathSecondsSum = 0, waveSecondsSum = 0;
-  int tilesDone = 0;
-  auto computeTile = [&](int t, const std::function<void()>& between) {
-    ProgressReporter pathProgress("tile " + std::to_string(t), job.pathsPerSlice, 30.0, false);
-    auto cb = [&](uint64_t done) {
-      pathProgress.update(done);
-      throwIfStopped();
-      if (between) between();
-    };
-    double pathSeconds = 0, waveSeconds = 0;
-    TileResult r = tiles.compute(t, cb, &pathSeconds, &waveSeconds);
-    pathSecondsSum += pathSeconds;
-    waveSecondsSum += waveSeconds;
-    tileSecondsSum += r.seconds;
-    ++tilesDone;
-    return r;
-  };
-
+  TimedTiles own{job, tiles};
   RunSummary summary;
-  summary.tiles = nTiles;
-
+  summary.tiles = int(job.incidence.size());
   if (mpi.rank() != 0) {
-    serveAsWorker([&](int t) { return computeTile(t, {}); }, summary);
-    double times[2] = {pathSecondsSum, waveSecondsSum};
+    serveAsWorker([&](int t) { return own.compute(t, {}); }, summary);
+    double times[2] = {own.pathSeconds, own.waveSeconds};
     MPI_Reduce(times, nullptr, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     int outcome = 0;  // rank 0's ExitCode, once it has finished or closed the file
     MPI_Bcast(&outcome, 1, MPI_INT, 0, MPI_COMM_WORLD);
@@ -190,244 +471,25 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     return summary;
   }
 
-  // Rank 0: writer, queue, serving the workers between its own batches. The writer is created
-  // before any tile is handed out; if it cannot be (a resume that does not match, an unwritable
-  // file), the workers are told there is nothing to do and every rank returns the same error.
-  std::unique_ptr<BsdfFileWriter> writerPtr;
-  {
-    ExitCode setupExit = ExitCode::Ok;
-    try {
-      checkDiskSpace(outPath, job, grid);
-      writerPtr = std::make_unique<BsdfFileWriter>(outPath, outputSchemaOf(job), grid, options.resume);
-    } catch (const InputError& e) {
-      setupExit = ExitCode::BadInput, summary.error = e.what();
-    } catch (const WriteError& e) {
-      setupExit = ExitCode::WriteFailed, summary.error = e.what();
-    }
-    if (setupExit != ExitCode::Ok) {
-      // Every worker has asked for a tile: answer each with "none", then end like a stopped run.
-      for (int w = 1; w < mpi.size(); ++w) {
-        int request = 0, none = -1;
-        MPI_Status st;
-        MPI_Recv(&request, 1, MPI_INT, MPI_ANY_SOURCE, kTagRequest, MPI_COMM_WORLD, &st);
-        MPI_Send(&none, 1, MPI_INT, st.MPI_SOURCE, kTagAssign, MPI_COMM_WORLD);
-      }
-      int status = kRankOk, worst = 0, outcome = exitCode(setupExit);
-      MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-      double times[2] = {0, 0}, total[2];
-      MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
-      MPI_Bcast(&outcome, 1, MPI_INT, 0, MPI_COMM_WORLD);
-      summary.exit = setupExit;
-      return summary;
-    }
-  }
-  BsdfFileWriter& writer = *writerPtr;
-  std::set<int> finished(writer.resumedTiles().begin(), writer.resumedTiles().end());
-  summary.resumed = int(finished.size());
-  if (summary.resumed)
-    spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary.resumed, nTiles, outPath);
-  // Symmetry (symmetry.h): one tile per ring (or per n-th of a ring) of a symmetric surface; queued if any slice of its
-  // ring is missing (a kill may fall between a ring's slices).
-  std::optional<AzimuthalSymmetry> symmetry;
-  if (job.symmetryReduced()) symmetry.emplace(job, grid);
-  std::vector<int> queue;
-  for (int t = 0; t < nTiles; ++t) {
-    if (symmetry && symmetry->representative(t) != t) continue;
-    bool missing = !finished.count(t);
-    if (symmetry)
-      for (int m : symmetry->members(t)) missing = missing || !finished.count(m);
-    if (missing) queue.push_back(t);
-  }
-  if (symmetry)
-    spdlog::info("symmetry: {}; {} tiles for {} slices", job.symmetryReason, symmetry->representativeCount(), nTiles);
-  // Most expensive first: grazing incidence bounces and wraps more.
-  auto cost = [&](int t) { return 1.0 / (std::abs(std::cos(radians(job.incidence[size_t(t)].theta_deg))) + 0.05); };
-  std::stable_sort(queue.begin(), queue.end(), [&](int a, int b) { return cost(a) > cost(b); });
-  size_t next = 0;
-  bool stopAssigning = false;
-  ProgressReporter progress("slices written", uint64_t(nTiles));  // symmetry copies count: a tile may write several
-  int written = int(finished.size());
-  // The energy balance of each slice (BsdfFileWriter::writeEnergyBalance): beyond [scene] tolerance
-  // and its standard error it is the model's error (scalar theory on deep or steep structures), and
-  // the log says so; `info` shows it for every slice.
-  int unbalanced = 0;
-  double worstBalance = 0;
-  auto noteEnergyBalance = [&](const TileResult& r, const BsdfFileWriter::EnergyBalance& b) {
-    for (size_t l = 0; l < b.value.size(); ++l) {
-      if (!(std::abs(b.value[l]) > job.scene.tolerance + 4 * b.stdError[l])) continue;
-      if (unbalanced++ < 10)
-        spdlog::warn(
-            "slice {} (theta_i {:.3g} deg, {} nm): energy balance {:+.4f} ± {:.4f} (reflected + transmitted + "
-            "lost paths − 1{}), beyond the tolerance {}: the model's own error there",
-            r.incidenceIndex, job.incidence[size_t(r.incidenceIndex)].theta_deg, job.lambda_nm[l], b.value[l],
-            b.stdError[l], job.material.lossless() ? "" : ", counted only above 1: the material absorbs",
-            job.scene.tolerance);
-      if (std::abs(b.value[l]) > std::abs(worstBalance)) worstBalance = b.value[l];
-      break;
-    }
-  };
-  // A failed write stops the run: no more tiles are handed out and results still in flight are
-  // dropped (the journal lists only slices whose data reached the disk).
-  std::string writeFailure;
-  auto noteStop = [&](const char* why) {
-    if (!stopAssigning) spdlog::warn("{}: stopping cleanly after the tiles in flight", why);
-    stopAssigning = true;
-  };
-  // --max-hours: stop when the next tile would not finish in time (with a 1.5x margin).
-  auto outOfTime = [&]() {
-    if (options.maxHours <= 0) return false;
-    double mean = tilesDone ? tileSecondsSum / tilesDone : 0.0;
-    return since(t0) + 1.5 * mean > options.maxHours * 3600.0;
-  };
-  auto takeTile = [&]() -> int {
-    if (stopRequested()) noteStop("signal received");
-    if (writeFailure.empty() && !logWriteFailure().empty()) {
-      writeFailure = "log write failed: " + logWriteFailure();
-      noteStop("the log could not be written");
-    }
-    if (!stopAssigning && outOfTime()) noteStop("--max-hours reached");
-    if (stopAssigning || next >= queue.size()) return -1;
-    return queue[next++];
-  };
-  // Mean over the slices written now of each component's Σ f Ω⊥ (averaged over wavelengths).
-  std::map<std::string, double> energySum;
-  auto writeOne = [&](const TileResult& r) {
-    if (finished.count(r.incidenceIndex) || !writeFailure.empty()) return;
-    try {
-      noteEnergyBalance(r, writer.writeTile(r));
-    } catch (const WriteError& e) {
-      writeFailure = e.what();
-      noteStop("the output could not be written");
-      return;
-    }
-    finished.insert(r.incidenceIndex);
-    ++written;
-    progress.update(uint64_t(written));
-  };
-  auto writeResult = [&](const TileResult& r) {
-    writeOne(r);
-    if (symmetry)
-      for (int m : symmetry->members(r.incidenceIndex))
-        if (m != r.incidenceIndex) writeOne(symmetry->mappedSlice(r, m, job.incidence[size_t(m)].bin));
-    for (Component c : job.components.list()) {
-      if (pairs && c == Component::Incoherent) continue;  // complete only after the reciprocity fill
-      double e = 0;
-      for (int l = 0; l < r.nLambda; ++l)
-        for (int b = 0; b < r.nBins; ++b) e += r.at(c, l, b) * grid.projectedSolidAngle(b) / r.nLambda;
-      energySum[componentName(c)] += e;
-    }
-  };
-  int activeWorkers = mpi.size() - 1;
-  bool lostTiles = false;
-  // Handles one message from a worker; returns false if none was waiting (non-blocking).
-  auto serveOne = [&](bool blocking) {
-    MPI_Status st;
-    int flag = 0;
-    if (blocking) {
-      MPI_Probe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &st);
-      flag = 1;
-    } else {
-      MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &st);
-    }
-    if (!flag) return false;
-    if (st.MPI_TAG == kTagResult) {
-      int count = 0;
-      MPI_Get_count(&st, MPI_DOUBLE, &count);
-      std::vector<double> buf(static_cast<size_t>(count));
-      MPI_Recv(buf.data(), count, MPI_DOUBLE, st.MPI_SOURCE, kTagResult, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-      TileResult r = TileResult::deserialize(buf);
-      summary.paths += r.samples;
-      ++summary.computed;
-      writeResult(r);
-    } else {
-      int v = 0;
-      MPI_Recv(&v, 1, MPI_INT, st.MPI_SOURCE, st.MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-      if (st.MPI_TAG == kTagStopped) {
-        lostTiles = true;
-        noteStop("a rank was stopped");
-      }
-    }
-    int t = takeTile();
-    MPI_Send(&t, 1, MPI_INT, st.MPI_SOURCE, kTagAssign, MPI_COMM_WORLD);
-    if (t < 0) --activeWorkers;
-    return true;
-  };
-  auto serveAll = [&]() {
-    while (serveOne(false)) {
-    }
-  };
-
-  while (true) {
-    serveAll();
-    int t = takeTile();
-    if (t < 0) break;
-    try {
-      TileResult r = computeTile(t, serveAll);
-      summary.paths += r.samples;
-      ++summary.computed;
-      writeResult(r);
-    } catch (const StopRequested&) {
-      spdlog::info("stop requested: tile {} abandoned ({})", t, stopAnswerNote());
-      lostTiles = true;
-      noteStop("signal received");
-    }
-  }
-  while (activeWorkers > 0) serveOne(true);
-
-  int status = writeFailure.empty() ? kRankOk : kRankWriteFailed, worst = 0;
-  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
-  if (worst == kRankWriteFailed && writeFailure.empty())
-    writeFailure = "another rank could not write its log file (see its stderr)";
-  double times[2] = {pathSecondsSum, waveSecondsSum}, total[2] = {0, 0};
-  MPI_Reduce(times, total, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
-  const bool incomplete = written < nTiles;
-  std::optional<double> filledIncoherent;  // mean over all slices, after the reciprocity fill
+  // Rank 0. The writer is created before any tile is handed out; if it cannot be (a resume that
+  // does not match, an unwritable file), the workers are told there is nothing to do and every rank
+  // returns the same error.
+  std::unique_ptr<BsdfFileWriter> writer;
   try {
-    if (!incomplete && writeFailure.empty() && pairs) {
-      auto tf = Clock::now();
-      filledIncoherent = writer.completeReciprocal(*pairs);
-      spdlog::info("reciprocity: filled the mirrored half of {} slices in {:.2f} s", nTiles, since(tf));
-    }
+    checkDiskSpace(outPath, job, grid);
+    writer = std::make_unique<BsdfFileWriter>(outPath, outputSchemaOf(job), grid, options.resume);
+  } catch (const InputError& e) {
+    summary.exit = ExitCode::BadInput, summary.error = e.what();
   } catch (const WriteError& e) {
-    writeFailure = e.what();
+    summary.exit = ExitCode::WriteFailed, summary.error = e.what();
   }
-  {
-    std::string energies;
-    for (auto& [c, e] : energySum)
-      energies += fmt::format("{}{} {:.4f}", energies.empty() ? "" : ", ", c, e / std::max(1, summary.computed));
-    if (filledIncoherent)
-      energies += fmt::format(", incoherent {:.4f} (all slices, after the fill)", *filledIncoherent);
-    spdlog::info(
-        "summary: {} tiles computed now, {} slices resumed; {:.1f} s wall; tile time summed over ranks: "
-        "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
-        summary.computed, summary.resumed, since(t0), total[0], total[1], summary.paths, energies);
+  if (!writer) {
+    refuseWorkers(mpi, summary.exit);
+    return summary;
   }
-  if (unbalanced)
-    spdlog::warn(
-        "energy balance beyond the tolerance {} in {} slice(s) computed now (the worst {:+.4f}); `microbsdf info` "
-        "lists it per slice",
-        job.scene.tolerance, unbalanced, worstBalance);
-  // Finish (close, fsync, rename) or close; a failure of either is a write failure, which leaves the
-  // partial file and its journal (every slice in the journal is on disk) and any old output as they were.
-  try {
-    if (writeFailure.empty() && !incomplete)
-      writer.finish();
-    else
-      writer.close();
-  } catch (const WriteError& e) {
-    if (writeFailure.empty()) writeFailure = e.what();
-  }
-  if (!writeFailure.empty()) {
-    summary.exit = ExitCode::WriteFailed;
-    summary.error = fmt::format(
-        "{}. {}/{} slices are safe in {}.partial (listed in its journal); free space or fix the "
-        "file system, then run the same command with --resume. {} was not changed",
-        writeFailure, written, nTiles, outPath, outPath);
-  } else if (incomplete) {
-    summary.stoppedEarly = true;
-    spdlog::warn("stopped early: {}/{} slices complete in {}.partial{}; run the same command with --resume to finish",
-                 written, nTiles, outPath, lostTiles ? " (tiles in flight were abandoned)" : "");
-  }
+  TileServer server(job, grid, mpi, options, outPath, *writer, own, summary, t0);
+  server.run();
+  server.complete(tiles.pairs());
   int outcome = exitCode(summary.exit == ExitCode::Ok && summary.stoppedEarly ? ExitCode::Stopped : summary.exit);
   MPI_Bcast(&outcome, 1, MPI_INT, 0, MPI_COMM_WORLD);
   summary.seconds = since(t0);

@@ -165,27 +165,8 @@ StatisticalSurface parseStatistical(const ParamDict& geo, const std::string& bas
   return st;
 }
 
-}  // namespace
-
-Job loadJobFromString(const std::string& text, const std::string& sourceName, const std::string& baseDir) {
-  ParamDict root = ParamDict::parseString(text, sourceName);
-  Job job;
-  job.file = sourceName;
-  job.text = text;
-
-  ParamDict mat = root.table("material");
-  job.material = parseMaterial(mat, &job.materialName);
-
-  ParamDict spec = root.table("spectrum");
-  job.lambda_nm = parseWavelengths(spec);
-  auto [lo, hi] = job.material.validRange_nm();
-  for (double l : job.lambda_nm)
-    if (l < lo || l > hi)
-      spec.fail("wavelengths_nm", "wavelength " + std::to_string(l) + " nm is outside the table of material " +
-                                      job.material.describe() + " (" + std::to_string(lo) + "–" + std::to_string(hi) +
-                                      " nm)");
-
-  ParamDict dirs = root.table("directions");
+// [directions]: the grid, the incidences and how they are sampled.
+void parseDirections(const ParamDict& dirs, Job& job) {
   std::string gridKind = dirs.getString("grid", "theta-phi");
   // Bins per hemisphere at most 2.5e7 (the paper's resolution is 22,500): beyond that the tables do
   // not fit in memory, and the products would overflow (found by fuzz_job).
@@ -235,11 +216,11 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   std::string incSampling = dirs.getString("incidence_sampling", "bin");
   if (incSampling != "bin" && incSampling != "exact") dirs.fail("incidence_sampling", "must be \"bin\" or \"exact\"");
   job.exactIncidence = incSampling == "exact";
-  const std::string symmetry = dirs.getString("symmetry", "auto");
-  if (symmetry != "auto" && symmetry != "none" && symmetry != "isotropic")
-    dirs.fail("symmetry", "must be \"auto\", \"none\" or \"isotropic\"");
+}
 
-  ParamDict scene = root.table("scene");
+// [scene]: what the renderer needs (coherence, BRDF/BTDF, tolerance, resolution, colour, the
+// incidences it looks up).
+void parseScene(const ParamDict& scene, Job& job) {
   job.scene.coherenceLength_um = scene.nonNegative("coherence_length_um", 50.0);
   if (scene.has("light") || scene.has("source_angular_diameter_deg")) {
     // A disk source -> coherence length at the mean wavelength (van Cittert–Zernike, coherence_window.h).
@@ -291,8 +272,10 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
                                               " lies beyond it (remove one or the other)");
     }
   }
+}
 
-  ParamDict eff = root.table("effects");
+// [effects]: the components asked for ("auto": the effects planner decides), reciprocity, the pilot budget.
+void parseEffects(const ParamDict& eff, Job& job) {
   job.requestedComponents = eff.getStrings("components", {"auto"});
   for (const auto& c : job.requestedComponents) {
     if (c == "auto") {
@@ -312,8 +295,10 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
 
   job.reciprocity = eff.getBool("reciprocity", true);
   job.pilotBudget = eff.positive("pilot_budget", 0.5);
+}
 
-  ParamDict samp = root.table("sampling");
+// [sampling]: budgets, seeds and estimators.
+void parseSampling(const ParamDict& samp, Job& job) {
   job.pathsPerSlice = uint64_t(samp.positiveInt("paths_per_slice", 1000000));
   job.targetRelError = samp.nonNegative("target_rel_error", 0.0);
   if (!(job.targetRelError < 1)) samp.fail("target_rel_error", "must be a fraction in (0, 1), or 0 for a fixed budget");
@@ -353,13 +338,11 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.visibilityTable = table == "on"    ? Job::VisibilityTableMode::On
                         : table == "off" ? Job::VisibilityTableMode::Off
                                          : Job::VisibilityTableMode::Auto;
+}
 
-  ParamDict out = root.table("output");
-  job.outputPath = out.getString("path", "out.h5");
-  if (job.outputPath.empty()) out.fail("path", "must not be empty");
-  job.previews = out.getBool("previews", false);
-
-  ParamDict geo = root.table("geometry");
+// [geometry]: a statistical surface (its NDF) or explicit microgeometry, and the input files it reads.
+void parseGeometry(const ParamDict& geo, const ParamDict& eff, const std::string& baseDir,
+                   const std::string& sourceName, Job& job) {
   if (geo.getString("kind", "flat") == "statistical") {
     job.geometryKind = "statistical";
     job.statistical = parseStatistical(geo, baseDir);
@@ -395,6 +378,10 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
       job.inputFiles.push_back({"geometry.file", path, sha256OfFile(path)});
     }
   }
+}
+
+// single_scattering = "facets" needs a closed periodic patch and no paths to trace.
+void checkSingleScattering(const ParamDict& samp, const Job& job) {
   if (job.singleScattering == Job::SingleScatteringMode::Facets) {
     const bool autoComponents = std::find(job.requestedComponents.begin(), job.requestedComponents.end(), "auto") !=
                                 job.requestedComponents.end();
@@ -405,7 +392,10 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     if (!autoComponents && (job.components.has(Component::Multiple) || job.components.has(Component::Lost)))
       samp.fail("single_scattering", "\"facets\" computes single scattering only: multiple and lost need paths");
   }
+}
 
+// [directions] symmetry: declared or detected, and why it is (not) used.
+void decideSymmetry(const ParamDict& dirs, const std::string& symmetry, Job& job) {
   // Azimuthal symmetry (symmetry.h): declared, or detected for a statistical surface whose NDF is
   // isotropic; it needs a theta-phi grid and incidence = "all" to have rings to reduce.
   {
@@ -456,7 +446,10 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
     } else
       job.symmetryReason = symmetry == "none" ? "none ([directions] symmetry = \"none\")" : "none declared or detected";
   }
+}
 
+// The lattice cell a windowed wave term uses, and whether a named wave estimator applies.
+void checkWaveTerm(const ParamDict& samp, Job& job) {
   // The lattice cell, where a windowed wave term could use it (it maps every facet a few times).
   if (!job.statistical && job.geometry.periodic && job.scene.coherenceLength_um > 0 &&
       (job.needsWave() || job.autoComponents)) {
@@ -476,6 +469,52 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
                       job.components.has(Component::Lost));
     if (!why.empty()) samp.fail("wave_estimator", "\"fft\" " + why);
   }
+}
+
+}  // namespace
+
+Job loadJobFromString(const std::string& text, const std::string& sourceName, const std::string& baseDir) {
+  ParamDict root = ParamDict::parseString(text, sourceName);
+  Job job;
+  job.file = sourceName;
+  job.text = text;
+
+  ParamDict mat = root.table("material");
+  job.material = parseMaterial(mat, &job.materialName);
+
+  ParamDict spec = root.table("spectrum");
+  job.lambda_nm = parseWavelengths(spec);
+  auto [lo, hi] = job.material.validRange_nm();
+  for (double l : job.lambda_nm)
+    if (l < lo || l > hi)
+      spec.fail("wavelengths_nm", "wavelength " + std::to_string(l) + " nm is outside the table of material " +
+                                      job.material.describe() + " (" + std::to_string(lo) + "–" + std::to_string(hi) +
+                                      " nm)");
+
+  // The sections in the order their checks depend on each other (the incidences need the material;
+  // the scene, the wavelengths and incidences; the geometry's checks, the components).
+  ParamDict dirs = root.table("directions");
+  parseDirections(dirs, job);
+  const std::string symmetry = dirs.getString("symmetry", "auto");
+  if (symmetry != "auto" && symmetry != "none" && symmetry != "isotropic")
+    dirs.fail("symmetry", "must be \"auto\", \"none\" or \"isotropic\"");
+  ParamDict scene = root.table("scene");
+  parseScene(scene, job);
+  ParamDict eff = root.table("effects");
+  parseEffects(eff, job);
+  ParamDict samp = root.table("sampling");
+  parseSampling(samp, job);
+
+  ParamDict out = root.table("output");
+  job.outputPath = out.getString("path", "out.h5");
+  if (job.outputPath.empty()) out.fail("path", "must not be empty");
+  job.previews = out.getBool("previews", false);
+
+  ParamDict geo = root.table("geometry");
+  parseGeometry(geo, eff, baseDir, sourceName, job);
+  checkSingleScattering(samp, job);
+  decideSymmetry(dirs, symmetry, job);
+  checkWaveTerm(samp, job);
 
   root.reportUnused();
   return job;
