@@ -384,13 +384,8 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, OutputSchema outputSchem
   renameChecked(journal_ + ".new", journal_);
 }
 
-void BsdfFileWriter::create(const std::string& filename) {
-  H5Plist fapl(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate");
-  h5check(H5Pset_libver_bounds(fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST), "H5Pset_libver_bounds");
-  file_ = H5File(H5Fcreate(filename.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), "create " + filename);
-  const OutputSchema& schema = schema_;
-  const DirectionGrid& grid = grid_;
-  hid_t f = file_.get();
+// The root attributes: provenance, the identity a resume checks, how the run computed the slices.
+static void writeProvenance(hid_t f, const OutputSchema& schema) {
   setStringAttr(f, "Conventions", "microbsdf-" + std::to_string(kSchemaVersion));
   setScalarAttr<int64_t>(f, "schema_version", H5T_NATIVE_INT64, kSchemaVersion);
   setStringAttr(f, "program_version", MICROBSDF_VERSION);
@@ -413,8 +408,11 @@ void BsdfFileWriter::create(const std::string& filename) {
                 halved ? "wave term computed once per pair of incidence bins on the same side; the other half of "
                          "/bsdf/incoherent is f_ws(o->i) - coherent(i->o) (docs/physics.md section 8)"
                        : "not used: " + schema.reciprocityOffReason);
+}
 
-  const int nB = grid.binCount(), nL = int(schema.lambda_nm.size()), nI = int(schema.incidence.size());
+// The axes: /spectrum, /grid (bins with their solid angles) and /incidence.
+static void writeAxes(hid_t f, const OutputSchema& schema, const DirectionGrid& grid) {
+  const int nB = grid.binCount();
   {
     H5Group g(H5Gcreate2(f, "spectrum", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /spectrum");
     write1D(g, "wavelength_nm", H5T_NATIVE_DOUBLE, schema.lambda_nm, "nm", "vacuum wavelength");
@@ -456,6 +454,12 @@ void BsdfFileWriter::create(const std::string& filename) {
     write1D(g, "theta_deg", H5T_NATIVE_DOUBLE, th, "degree", "requested incidence polar angle");
     write1D(g, "phi_deg", H5T_NATIVE_DOUBLE, ph, "degree", "requested incidence azimuth");
   }
+}
+
+// /bsdf, /bsdf_stderr and /stats, every slice not yet written (NaN, done = 0).
+static void createTables(hid_t f, const OutputSchema& schema, const DirectionGrid& grid) {
+  const int nB = grid.binCount(), nL = int(schema.lambda_nm.size()), nI = int(schema.incidence.size());
+  const bool halved = schema.halvesWaveByReciprocity;
   {
     H5Group b(H5Gcreate2(f, "bsdf", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf");
     H5Group e(H5Gcreate2(f, "bsdf_stderr", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf_stderr");
@@ -551,6 +555,16 @@ void BsdfFileWriter::create(const std::string& filename) {
       describe(d, "1", std::string("fraction of incident power ") + n);
     }
   }
+}
+
+void BsdfFileWriter::create(const std::string& filename) {
+  H5Plist fapl(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate");
+  h5check(H5Pset_libver_bounds(fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST), "H5Pset_libver_bounds");
+  file_ = H5File(H5Fcreate(filename.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), "create " + filename);
+  const hid_t f = file_.get();
+  writeProvenance(f, schema_);
+  writeAxes(f, schema_, grid_);
+  createTables(f, schema_, grid_);
   // From here on only dataset writes: the file stays readable if the writer dies.
   h5check(H5Fstart_swmr_write(f), "H5Fstart_swmr_write");
 }

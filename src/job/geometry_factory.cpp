@@ -10,6 +10,7 @@
 #include "geometry/mesh_loader.h"
 
 #include <cmath>
+#include <map>
 
 namespace mbsdf {
 
@@ -22,73 +23,67 @@ std::string resolvePath(const std::string& base, const std::string& file) {
 namespace {
 
 double gMaxGeneratedTriangles = 1e7;
-}  // namespace
+// The [geometry] table of a job, read kind by kind; every check fails naming the key.
+struct GeometryReader {
+  const ParamDict& geo;
+  const std::string& baseDir;
+  uint64_t seed;
+  double groundRms_um, groundCorr;
+  double maxTriangles = maxGeneratedTriangles();
 
-double maxGeneratedTriangles() {
-  return gMaxGeneratedTriangles;
-}
-void setMaxGeneratedTriangles(double n) {
-  gMaxGeneratedTriangles = n;
-}
-
-Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut) {
-  const std::string kind = geo.getString("kind", "flat");
-  *kindOut = kind;
-  const uint64_t seed = uint64_t(geo.getInt("seed", 1));
-  const bool periodic = geo.getBool("periodic", true);
-  const double groundRms_um = geo.nonNegative("ground_noise_rms_nm", 0.0) * 1e-3;
-  const double groundCorr = groundRms_um > 0 ? geo.positive("ground_noise_correlation_um", 0.2) : 0.2;
-
-  auto size2 = [&](const std::vector<double>& def) {
+  std::vector<double> size2(const std::vector<double>& def) const {
     std::vector<double> s = geo.getDoubles("size_um", def);
     if (s.size() == 1) s.push_back(s[0]);
     if (s.size() != 2) geo.fail("size_um", "expected [x, y] in micrometres");
     if (!(s[0] > 0 && s[1] > 0)) geo.fail("size_um", "the patch size must be positive");
     return s;
-  };
-  auto pair2 = [&](const std::string& key, double def) {
+  }
+  std::vector<double> pair2(const std::string& key, double def) const {
     std::vector<double> s = geo.getDoubles(key, {def, def});
     if (s.size() == 1) s.push_back(s[0]);
     if (s.size() != 2 || !(s[0] > 0 && s[1] > 0)) geo.fail(key, "expected one or two positive numbers");
     return s;
-  };
+  }
   // Texels per side of a generated heightfield: at most 2048 (the cell limit), an error naming the
   // key rather than a silently coarser texel.
-  auto texels = [&](double size, double texel) {
+  int texels(double size, double texel) const {
     if (std::ceil(size / texel) > 2048)
       geo.fail("texel_um", fmt::format("{} µm / {} µm = {} texels per side; at most 2048 (use a larger texel_um or a "
                                        "smaller size_um)",
                                        size, texel, std::ceil(size / texel)));
     return gridSizeFor(size, texel);
-  };
+  }
   // Generators throw std::invalid_argument for inconsistent shapes; report them against the key
   // most likely responsible.
-  auto guard = [&](const std::string& key, auto&& fn) -> Microgeometry {
+  template <typename Fn>
+  Microgeometry guard(const std::string& key, Fn&& fn) const {
     try {
       return fn();
     } catch (const std::invalid_argument& e) {
       geo.fail(key, e.what());
     }
-  };
-
+  }
   // Impossible sizes fail here, before anything is allocated (found by fuzz_job: a tiny
   // resolution_um made a hemispheres patch of billions of triangles).
-  const double maxTriangles = maxGeneratedTriangles();
-  auto budget = [&](const std::string& key, double triangles) {
+  void budget(const std::string& key, double triangles) const {
     if (!(triangles <= maxTriangles))
       geo.fail(key, fmt::format("would generate about {:.3g} triangles (limit {:.3g}); use a coarser resolution or "
                                 "a smaller patch",
                                 triangles, maxTriangles));
-  };
-  auto rings = [](double length, double res) { return std::max(2.0, std::ceil(length / res)); };
-  Microgeometry g;
-  if (kind == "flat") {
+  }
+  static double rings(double length, double res) { return std::max(2.0, std::ceil(length / res)); }
+
+  Microgeometry flat() const {
+    Microgeometry g;
     auto s = size2({20.0, 20.0});
     double res = geo.getDouble("resolution_um", groundRms_um > 0 ? groundCorr / 2 : 0.0);
     if (res < 0) geo.fail("resolution_um", "must be >= 0");
     if (res > 0) budget("resolution_um", 2 * rings(s[0], res) * rings(s[1], res));
     g = makeFlat(s[0], s[1], res);
-  } else if (kind == "sine-grating") {
+    return g;
+  }
+  Microgeometry sineGrating() const {
+    Microgeometry g;
     auto s = size2({20.0, 20.0});
     double period = geo.positive("period_um", 5.0), amp = geo.nonNegative("amplitude_um", 0.05);
     int64_t spp = geo.positiveInt("samples_per_period", 64);
@@ -96,7 +91,10 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     if (res < 0) geo.fail("resolution_um", "must be >= 0");
     budget("samples_per_period", 2.0 * double(spp) * std::ceil(s[0] / period) * (res > 0 ? rings(s[1], res) : 1));
     g = guard("period_um", [&] { return makeSineGrating(s[0], s[1], period, amp, spp, res); });
-  } else if (kind == "binary-grating") {
+    return g;
+  }
+  Microgeometry binaryGrating() const {
+    Microgeometry g;
     auto s = size2({20.0, 20.0});
     double period = geo.positive("period_um", 2.0), depth = geo.positive("depth_um", 0.1);
     double duty = geo.getDouble("duty", 0.5);
@@ -106,7 +104,10 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     budget("period_um",
            10.0 * std::ceil(s[0] / period) * (res > 0 ? rings(s[1], res) * rings(period + 2 * depth, res) : 1));
     g = guard("period_um", [&] { return makeBinaryGrating(s[0], s[1], period, depth, duty, res); });
-  } else if (kind == "ridged") {
+    return g;
+  }
+  Microgeometry ridged() const {
+    Microgeometry g;
     auto s = size2({20.0, 20.0});
     double period = geo.positive("period_um", 2.0);
     double apex = geo.getDouble("apex_angle_deg", 90.0);
@@ -116,12 +117,18 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     budget("period_um", 4.0 * std::ceil(s[0] / period) *
                             (res > 0 ? rings(s[1], res) * rings(period / std::sin(radians(apex / 2)), res) : 1));
     g = guard("period_um", [&] { return makeRidged(s[0], s[1], period, apex, res); });
-  } else if (kind == "gaussian") {
+    return g;
+  }
+  Microgeometry gaussian() const {
+    Microgeometry g;
     auto s = size2({20.0, 20.0});
     double rms = geo.positive("rms_um", 0.1), corr = geo.positive("correlation_um", 1.0);
     double texel = geo.positive("texel_um", corr / 8);
     g = makeGaussian(s[0], s[1], rms, corr, texels(s[0], texel), texels(s[1], texel), seed);
-  } else if (kind == "noise") {
+    return g;
+  }
+  Microgeometry noise() const {
+    Microgeometry g;
     auto s = size2({20.0, 20.0});
     double rms = geo.positive("rms_um", 0.132), feature = geo.positive("feature_um", 5.0);
     double density = geo.positive("density", 3.0), texel = geo.positive("texel_um", feature / 16);
@@ -133,7 +140,10 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
                    .density_per_um2 = density,
                    .texels = {texels(s[0], texel), texels(s[1], texel)},
                    .seed = seed});
-  } else if (kind == "hemispheres") {
+    return g;
+  }
+  Microgeometry hemispheres() const {
+    Microgeometry g;
     auto s = size2({20.0, 20.0});
     double r = geo.positive("radius_um", 2.0);
     auto sp = pair2("spacing_um", 5.0);
@@ -144,7 +154,10 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
       return makeDomeLattice(
           {.size_um = {s[0], s[1]}, .spacing_um = {sp[0], sp[1]}, .radii_um = {r, r, r}, .resolution_um = res});
     });
-  } else if (kind == "axicon") {
+    return g;
+  }
+  Microgeometry axicon() const {
+    Microgeometry g;
     auto s = size2({10.0, 10.0});
     std::vector<double> radii = geo.getDoubles("radii_um", {0.4, 0.45, 0.3});
     if (radii.size() != 3 || !(radii[0] > 0 && radii[1] > 0 && radii[2] > 0))
@@ -160,7 +173,10 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
                               .radii_um = {radii[0], radii[1], radii[2]},
                               .resolution_um = res});
     });
-  } else if (kind == "overhang") {
+    return g;
+  }
+  Microgeometry overhang() const {
+    Microgeometry g;
     auto s = size2({20.0, 20.0});
     double sp = geo.positive("spacing_um", 5.0);
     double stemR = geo.positive("stem_radius_um", 0.8), stemH = geo.positive("stem_height_um", 1.5);
@@ -178,7 +194,10 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
                            .cap_height_um = capH,
                            .resolution_um = res});
     });
-  } else if (kind == "mesh") {
+    return g;
+  }
+  Microgeometry mesh() const {
+    Microgeometry g;
     std::string file = geo.getString("file", "");
     if (file.empty()) geo.fail("file", "a mesh geometry needs file = \"patch.obj\" or \"patch.ply\"");
     double scale = unitToMicrometres(geo.getString("units", "um"), geo.where("units"));
@@ -201,7 +220,10 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     g.sizeX = s[0];
     g.sizeY = s[1];
     g.description = "mesh " + file;
-  } else if (kind == "heightfield") {
+    return g;
+  }
+  Microgeometry heightfield() const {
+    Microgeometry g;
     std::string file = geo.getString("file", "");
     if (file.empty()) geo.fail("file", "a heightfield geometry needs file = \"height.exr\"");
     if (!geo.has("texel_um")) geo.fail("texel_um", "a heightfield needs its texel size in micrometres");
@@ -212,11 +234,47 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
     for (double& z : heights) z *= scale;
     g = heightfieldMesh(heights, w, h, texel * w, texel * h);
     g.description = "heightfield " + file;
-  } else {
+    return g;
+  }
+};
+
+}  // namespace
+
+double maxGeneratedTriangles() {
+  return gMaxGeneratedTriangles;
+}
+void setMaxGeneratedTriangles(double n) {
+  gMaxGeneratedTriangles = n;
+}
+
+Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut) {
+  const std::string kind = geo.getString("kind", "flat");
+  *kindOut = kind;
+  const uint64_t seed = uint64_t(geo.getInt("seed", 1));
+  const bool periodic = geo.getBool("periodic", true);
+  const double groundRms_um = geo.nonNegative("ground_noise_rms_nm", 0.0) * 1e-3;
+  const double groundCorr = groundRms_um > 0 ? geo.positive("ground_noise_correlation_um", 0.2) : 0.2;
+  const GeometryReader reader{geo, baseDir, seed, groundRms_um, groundCorr};
+  using Kind = Microgeometry (GeometryReader::*)() const;
+  static const std::map<std::string, Kind> kinds = {
+      {"flat", &GeometryReader::flat},
+      {"sine-grating", &GeometryReader::sineGrating},
+      {"binary-grating", &GeometryReader::binaryGrating},
+      {"ridged", &GeometryReader::ridged},
+      {"gaussian", &GeometryReader::gaussian},
+      {"noise", &GeometryReader::noise},
+      {"hemispheres", &GeometryReader::hemispheres},
+      {"axicon", &GeometryReader::axicon},
+      {"overhang", &GeometryReader::overhang},
+      {"mesh", &GeometryReader::mesh},
+      {"heightfield", &GeometryReader::heightfield},
+  };
+  const auto it = kinds.find(kind);
+  if (it == kinds.end())
     geo.fail("kind", "unknown geometry kind '" + kind +
                          "' (flat, sine-grating, binary-grating, ridged, gaussian, noise, hemispheres, axicon, "
                          "overhang, mesh, heightfield)");
-  }
+  Microgeometry g = (reader.*(it->second))();
   g.periodic = periodic;
   if (groundRms_um > 0) addGroundNoise(g, groundRms_um, groundCorr, seed);
   if (size_t removed = g.removeDegenerate())
