@@ -1,6 +1,7 @@
 // `microbsdf plan JOB.toml [--json plan.json]`: what a job will compute and cost — tiles, the
 // effects planner's decisions, core-hours, memory, output size and the error each budget buys —
 // from short pilots (job/plan.h).
+#include <chrono>
 #include <iostream>
 
 #include "cluster/output_schema_of.h"
@@ -28,8 +29,10 @@ Command addPlanCommand(CLI::App& app) {
   c.run = [o] {
     installStopHandlers();
     setupLogging(0, "", "", false);
+    const auto loading = std::chrono::steady_clock::now();
     Job job = loadJob(o->jobPath);
     PlanOptions po;
+    po.jobLoadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loading).count();
     po.threads = o->threads;
     po.writeSecondsPerSlice = [](const Job& j, const DirectionGrid& g) {
       return measureWriteSecondsPerSlice(outputSchemaOf(j), g);

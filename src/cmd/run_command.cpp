@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -69,6 +70,9 @@ std::optional<int> planComponents(MpiSession& mpi, Job& job, int threads) {
 }
 
 int runCommand(int argc, char** argv, RunArgs a) {
+  // The whole run as this process sees it (MPI start-up, the job's geometry, the effects pilots,
+  // the tiles, the file): what `plan`'s wall-time estimate predicts (scripts/bench-plan).
+  const auto started = std::chrono::steady_clock::now();
   MpiSession mpi(&argc, &argv);
   installStopHandlers();
   setupLogging(mpi.rank(), "", "", a.verbose);
@@ -142,8 +146,11 @@ int runCommand(int argc, char** argv, RunArgs a) {
     }
     if (s.stoppedEarly) return exitCode(ExitCode::Stopped);
     if (mpi.rank() == 0)
-      spdlog::info("done: {} slices ({} tiles computed now, {} slices resumed), {} paths in total, {:.2f} s, wrote {}",
-                   s.tiles, s.computed, s.resumed, s.paths, s.seconds, out);
+      spdlog::info(
+          "done: {} slices ({} tiles computed now, {} slices resumed), {} paths in total, {:.2f} s, wrote {} "
+          "({:.2f} s since the program started)",
+          s.tiles, s.computed, s.resumed, s.paths, s.seconds, out,
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count());
   } catch (const std::bad_alloc&) {
     spdlog::error("run failed: out of memory (see `microbsdf plan` for the job's estimate per rank)");
     MPI_Abort(MPI_COMM_WORLD, exitCode(ExitCode::Failure));

@@ -376,7 +376,9 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
       {"wave_setup_seconds_per_rank", waveSetupSeconds},
       {"write_seconds_per_slice", writeSeconds},
       {"wall_seconds_on_these_cores", tileSeconds * computedTiles + waveSetupSeconds + writeSeconds * nTiles +
-                                          sceneSeconds + (effects ? effects->pilotSeconds : 0.0)},
+                                          sceneSeconds + options.jobLoadSeconds +
+                                          (effects ? effects->pilotSeconds : 0.0)},
+      {"job_load_seconds", options.jobLoadSeconds},
       {"core_hours", coreHours}};
   const double memoryBytes = memoryBytesPerRank(job, waveBytes);
   p["output_bytes_uncompressed"] = outputBytesUncompressed(job);

@@ -18,6 +18,9 @@ struct PlanOptions {
   // Seconds rank 0 spends writing one slice of this job's layout (the output writer lives above
   // this layer: `microbsdf plan` passes io's measureWriteSecondsPerSlice); unset: not counted.
   std::function<double(const Job&, const DirectionGrid&)> writeSecondsPerSlice;
+  // Seconds the caller spent loading the job (its geometry built and checked), which every rank of
+  // the run spends again before its first tile; 0: not counted.
+  double jobLoadSeconds = 0;
 };
 
 // Resident memory of one rank running `job`: the scene (Embree + double copies), one tile result
