@@ -51,6 +51,10 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
         s["multiple_check"] = st.multipleCheck;
         s["multiple_reenabled"] = st.multipleReenabled;
       }
+      if (!std::isnan(st.diffractionCheck)) {
+        s["diffraction_check"] = st.diffractionCheck;
+        s["diffraction_reenabled"] = st.diffractionReenabled;
+      }
       s["truncated"] = st.truncated;
       s["leaked"] = st.leaked;
       s["missed"] = st.missed;
@@ -123,9 +127,19 @@ void printInfo(const nlohmann::json& j) {
             << " lost: the energy of the lost component (Falster et al. 2020, Eq. 20, mean over λ), which WM + lost "
                "should bring\n"
             << " to GM's energy; — when the file has no lost component)\n";
-  int reached = 0, budget = 0, verified = 0;
-  std::vector<int> reenabled;
-  double worstCheck = 0;
+  int reached = 0, budget = 0;
+  // Skips the effects planner made, verified per slice: slices checked, those re-enabled, the largest check.
+  struct Verified {
+    int slices = 0;
+    std::vector<int> reenabled;
+    double worst = 0;
+  } multiple, diffraction;
+  auto tally = [](Verified& v, const nlohmann::json& s, const char* check, const char* reenabled) {
+    if (!s.contains(check)) return;
+    ++v.slices;
+    if (s[reenabled].get<bool>()) v.reenabled.push_back(s["index"].get<int>());
+    v.worst = std::max(v.worst, s[check].get<double>());
+  };
   for (const auto& s : j["slices"]) {
     if (!s["done"].get<bool>()) continue;
     auto mean = [](const nlohmann::json& a) {
@@ -158,25 +172,23 @@ void printInfo(const nlohmann::json& j) {
                 std::isnan(lost) ? "       —" : fmt::format("{:+8.4f}", lost).c_str());
     if (s["sampling_stop"] == "target") ++reached;
     if (s["sampling_stop"] == "budget") ++budget;
-    if (s.contains("multiple_check")) {
-      ++verified;
-      if (s["multiple_reenabled"].get<bool>()) reenabled.push_back(s["index"].get<int>());
-      worstCheck = std::max(worstCheck, s["multiple_check"].get<double>());
-    }
+    tally(multiple, s, "multiple_check", "multiple_reenabled");
+    tally(diffraction, s, "diffraction_check", "diffraction_reenabled");
   }
   if (reached + budget > 0)
     std::printf("progressive sampling: %d slices reached target_rel_error, %d stopped at max_paths_per_slice first\n",
                 reached, budget);
-  if (verified > 0) {
+  auto report = [](const Verified& v, const char* what, const char* figure) {
+    if (v.slices == 0) return;
     std::string which;
-    for (int i : reenabled) which += (which.empty() ? "" : " ") + std::to_string(i);
-    std::printf(
-        "multiple scattering: skipped by the effects planner, verified on %d slice(s) (largest energy + 3 s.e. "
-        "%.4f): %s\n",
-        verified, worstCheck,
-        reenabled.empty() ? "the skip held on every one"
-                          : ("beyond the tolerance, computed after all, on slice(s) " + which).c_str());
-  }
+    for (int i : v.reenabled) which += (which.empty() ? "" : " ") + std::to_string(i);
+    std::printf("%s: skipped by the effects planner, verified on %d slice(s) (largest %s %.4f): %s\n", what, v.slices,
+                figure, v.worst,
+                v.reenabled.empty() ? "the skip held on every one"
+                                    : ("beyond the tolerance, computed after all, on slice(s) " + which).c_str());
+  };
+  report(multiple, "multiple scattering", "energy + 3 s.e.");
+  report(diffraction, "diffraction", "WS - GS difference beyond noise");
 }
 
 }  // namespace

@@ -145,6 +145,8 @@ std::vector<std::string> rowDatasets(const OutputSchema& schema) {
     v.push_back(n);
   if (schema.guarded.has(Component::Multiple))
     for (const char* n : {"/stats/multiple_check", "/stats/multiple_reenabled"}) v.push_back(n);
+  if (schema.guarded.has(Component::Incoherent))
+    for (const char* n : {"/stats/diffraction_check", "/stats/diffraction_reenabled"}) v.push_back(n);
   return v;
 }
 
@@ -528,6 +530,16 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
               "1 when multiple_check exceeded [scene] tolerance: the slice holds multiple scattering after all "
               "(elsewhere /bsdf/multiple is the traced value, or 0 where the facet sum computed single scattering)");
     }
+    if (schema.guarded.has(Component::Incoherent)) {
+      write1D(s, "diffraction_check", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "1",
+              "diffraction the effects planner skipped, verified on the slice: the upper estimate beyond noise of "
+              "sum over the renderer's cells of |sum (f_ws - f_coherent) * projected_solid_angle| (largest over "
+              "wavelengths), from the pilot that ran this slice as the job does or from the slice's own wave term");
+      write1D(s, "diffraction_reenabled", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
+              "1 when diffraction_check exceeded [scene] tolerance: the slice holds its diffraction after all "
+              "(/bsdf/incoherent is the computed wave term wherever the slice computed it, 0 where a pilot "
+              "confirmed the skip)");
+    }
     {
       H5Dataset d = create3D(s, "energy_balance", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
       describe(d, "1",
@@ -612,6 +624,10 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
   if (schema_.guarded.has(Component::Multiple)) {
     writeRow(f, "/stats/multiple_check", i, {r.multipleCheck}, H5T_NATIVE_DOUBLE);
     writeRow(f, "/stats/multiple_reenabled", i, {r.multipleReenabled ? 1.0 : 0.0}, H5T_NATIVE_DOUBLE);
+  }
+  if (schema_.guarded.has(Component::Incoherent)) {
+    writeRow(f, "/stats/diffraction_check", i, {r.diffractionCheck}, H5T_NATIVE_DOUBLE);
+    writeRow(f, "/stats/diffraction_reenabled", i, {r.diffractionReenabled ? 1.0 : 0.0}, H5T_NATIVE_DOUBLE);
   }
   {
     std::vector<Component> traced;
@@ -829,6 +845,10 @@ SliceStats BsdfFileReader::stats(int incidence) const {
   if (H5Lexists(file_, "/stats/multiple_check", H5P_DEFAULT) > 0) {
     s.multipleCheck = readRow("/stats/multiple_check", incidence)[0];
     s.multipleReenabled = readRow("/stats/multiple_reenabled", incidence)[0] != 0;
+  }
+  if (H5Lexists(file_, "/stats/diffraction_check", H5P_DEFAULT) > 0) {
+    s.diffractionCheck = readRow("/stats/diffraction_check", incidence)[0];
+    s.diffractionReenabled = readRow("/stats/diffraction_reenabled", incidence)[0] != 0;
   }
   s.truncated = readRow("/stats/truncated", incidence);
   s.leaked = readRow("/stats/leaked", incidence);

@@ -102,6 +102,8 @@ struct SliceStats {
   int samplingStop = 0;                 // TileResult::SamplingStop
   double multipleCheck = std::nan("");  // TileResult::multipleCheck (NaN: not verified)
   bool multipleReenabled = false;
+  double diffractionCheck = std::nan("");  // TileResult::diffractionCheck (NaN: not verified)
+  bool diffractionReenabled = false;
   std::vector<double> truncated, leaked, missed;
   std::map<std::string, std::vector<double>> energyReflected, energyTransmitted;
   std::map<std::string, std::vector<double>> relError;  // per component, per wavelength

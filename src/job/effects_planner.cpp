@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -43,9 +44,18 @@ constexpr int kAreaPilotStride = 8;
 }  // namespace
 
 std::vector<int> pilotIncidences(const Job& job) {
-  const int n = int(job.incidence.size());
-  std::vector<int> order(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i) order[size_t(i)] = i;
+  // Candidates: the incidences whose tiles the job computes (a symmetric job's other slices are
+  // rotations of them, so a pilot there would repeat one).
+  std::vector<int> order;
+  if (job.symmetryReduced()) {
+    const AzimuthalSymmetry symmetry(job, DirectionGrid(job.gridLayout));
+    for (int i = 0; i < int(job.incidence.size()); ++i)
+      if (symmetry.representative(i) == i) order.push_back(i);
+  } else {
+    for (int i = 0; i < int(job.incidence.size()); ++i) order.push_back(i);
+  }
+  const int n = int(order.size());
+  const std::vector<int> candidates = order;
   auto cosTheta = [&](int i) { return std::abs(std::cos(radians(job.incidence[size_t(i)].theta_deg))); };
   std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return cosTheta(a) > cosTheta(b); });
   auto dir = [&](int i) {
@@ -62,7 +72,7 @@ std::vector<int> pilotIncidences(const Job& job) {
   while (int(picks.size()) < std::min(n, kMaxPilots)) {
     int best = -1;
     double bestDistance = -1;
-    for (int i = 0; i < n; ++i) {
+    for (int i : candidates) {
       double nearest = 1e300;
       for (int p : picks) nearest = std::min(nearest, safeAcos(dot(dir(i), dir(p))));
       if (nearest > bestDistance) bestDistance = nearest, best = i;
@@ -330,6 +340,76 @@ nlohmann::json wavelengthDecision(const Job& job, const DirectionGrid& grid, con
 // the deterministic ones Σ_b e_b Ω⊥ of their quadrature-error estimates, the larger over the
 // wavelengths. Every figure goes in the plan (with the samples per bin `area` would need): what
 // each accuracy costs on this job. Where no pilot can change the pick, none is run.
+// What one estimator pilot measured: cost per tile (and once per rank), predicted error.
+struct MeasuredEstimator {
+  WaveEstimatorKind kind;
+  std::string name;
+  bool deterministic;
+  double seconds, setup, error;
+};
+
+// One pilot tile of wave estimator c on incidence `pilot` as the job would run it: its predicted
+// L1 error of f_ws per slice (the larger over the wavelengths) and its time. `proxy` (per bin, the
+// max over λ of f_ws Ω⊥) is filled by the first pilot and tells `area`'s pilot where the lobes are.
+MeasuredEstimator measureEstimatorPilot(const Job& job, const ComponentSet& chosen, const DirectionGrid& grid,
+                                        const PeriodicScene& scene, int pilot, WaveEstimatorKind c,
+                                        std::vector<double>& proxy, bool first) {
+  using enum WaveEstimatorKind;
+  const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  const auto& inc = job.incidence[size_t(pilot)];
+  std::optional<Vec3> exact;
+  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  Job cj = job;
+  cj.waveEstimator = c;
+  cj.components = chosen;
+  const WaveSettings ws = waveSettingsOf(cj);
+  auto est = makeJobWaveEstimator(cj, grid, scene, ws);
+  const bool deterministic = est->deterministic();
+  // `area`'s cost is per exit bin (a tile of it can cost 40 of `orders`), so its pilot estimates
+  // about 1/kAreaPilotStride of the bins at the job's samples per bin: the nB/(2 stride) bins where
+  // the other estimators' table puts the most power (where its variance is: narrow lobes), each
+  // counted once, and every stride-th of the others, counted stride times; the time scales with the
+  // bins. Tried and rejected: a uniform stride (missed a glass grating's lobes: error 2000× too
+  // small) and fewer samples per bin scaled by 1/√N (too small an error for `area`, which misses
+  // the lobes with few samples, too large for `orders`, whose error does not fall as 1/√N).
+  std::vector<uint8_t> mask;
+  std::vector<double> weight(size_t(nB), 1.0);
+  double binFraction = 1;
+  if (c == Area && nB >= 4 * kAreaPilotStride) {
+    std::vector<int> byPower(static_cast<size_t>(nB));
+    for (int i = 0; i < nB; ++i) byPower[size_t(i)] = i;
+    std::stable_sort(byPower.begin(), byPower.end(), [&](int x, int y) { return proxy[size_t(x)] > proxy[size_t(y)]; });
+    mask.assign(size_t(nB), 0);
+    const int top = nB / (2 * kAreaPilotStride);
+    int picked = 0;
+    for (int i = 0; i < nB; ++i) {
+      const int bin = byPower[size_t(i)];
+      if (i < top) {
+        mask[size_t(bin)] = 1, ++picked;
+      } else if ((i - top) % kAreaPilotStride == 0) {
+        mask[size_t(bin)] = 1, ++picked;
+        weight[size_t(bin)] = kAreaPilotStride;
+      }
+    }
+    binFraction = double(picked) / nB;
+  }
+  const WaveTileResult w =
+      est->run(pilot, inc.bin, exact, pilotProgress("estimator pilot (" + waveEstimatorName(c) + ")", inc), mask);
+  double error = 0;
+  for (int l = 0; l < nL; ++l) {
+    double e = 0;
+    for (int bin = 0; bin < nB; ++bin) {
+      if (!mask.empty() && !mask[size_t(bin)]) continue;
+      const size_t x = size_t(l) * nB + bin;
+      e += weight[size_t(bin)] * w.fwsErr[x] * grid.projectedSolidAngle(bin);
+      if (first) proxy[size_t(bin)] = std::max(proxy[size_t(bin)], w.fws[x] * grid.projectedSolidAngle(bin));
+    }
+    error = std::max(error, deterministic ? e : std::sqrt(2 / kPi) * e);
+  }
+  const double seconds = std::max(0.0, w.seconds - est->setupSeconds()) / binFraction;
+  return MeasuredEstimator{c, waveEstimatorName(c), deterministic, seconds, est->setupSeconds(), error};
+}
+
 nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen, const DirectionGrid& grid,
                                      const PeriodicScene& scene, int pilot, const std::string& unaffordable) {
   using enum WaveEstimatorKind;
@@ -369,72 +449,13 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
     d["estimator"] = resolved;
     return d;
   }
-  const int nL = int(lambdas.size()), nB = grid.binCount();
   const auto& inc = job.incidence[size_t(pilot)];
-  std::optional<Vec3> exact;
-  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
   const double tol = job.scene.tolerance;
-  struct Measured {
-    WaveEstimatorKind kind;
-    std::string name;
-    bool deterministic;
-    double seconds, setup, error;
-  };
+  using Measured = MeasuredEstimator;
   std::vector<Measured> measured;
-  std::vector<double> proxy(size_t(nB), 0.0);  // the first table's max over λ of f_ws Ω⊥ per bin
-  // One pilot tile of estimator c as the job would run it.
-  auto measure = [&](WaveEstimatorKind c) -> Measured {
-    Job cj = job;
-    cj.waveEstimator = c;
-    cj.components = chosen;
-    const WaveSettings ws = waveSettingsOf(cj);
-    auto est = makeJobWaveEstimator(cj, grid, scene, ws);
-    const bool deterministic = est->deterministic();
-    // `area`'s cost is per exit bin (a tile of it can cost 40 of `orders`), so its pilot estimates
-    // about 1/kAreaPilotStride of the bins at the job's samples per bin: the nB/(2 stride) bins where
-    // the other estimators' table puts the most power (where its variance is: narrow lobes), each
-    // counted once, and every stride-th of the others, counted stride times; the time scales with the
-    // bins. Tried and rejected: a uniform stride (missed a glass grating's lobes: error 2000× too
-    // small) and fewer samples per bin scaled by 1/√N (too small an error for `area`, which misses
-    // the lobes with few samples, too large for `orders`, whose error does not fall as 1/√N).
-    std::vector<uint8_t> mask;
-    std::vector<double> weight(size_t(nB), 1.0);
-    double binFraction = 1;
-    if (c == Area && nB >= 4 * kAreaPilotStride) {
-      std::vector<int> byPower(static_cast<size_t>(nB));
-      for (int i = 0; i < nB; ++i) byPower[size_t(i)] = i;
-      std::stable_sort(byPower.begin(), byPower.end(),
-                       [&](int x, int y) { return proxy[size_t(x)] > proxy[size_t(y)]; });
-      mask.assign(size_t(nB), 0);
-      const int top = nB / (2 * kAreaPilotStride);
-      int picked = 0;
-      for (int i = 0; i < nB; ++i) {
-        const int bin = byPower[size_t(i)];
-        if (i < top) {
-          mask[size_t(bin)] = 1, ++picked;
-        } else if ((i - top) % kAreaPilotStride == 0) {
-          mask[size_t(bin)] = 1, ++picked;
-          weight[size_t(bin)] = kAreaPilotStride;
-        }
-      }
-      binFraction = double(picked) / nB;
-    }
-    const WaveTileResult w =
-        est->run(pilot, inc.bin, exact, pilotProgress("estimator pilot (" + waveEstimatorName(c) + ")", inc), mask);
-    double error = 0;
-    for (int l = 0; l < nL; ++l) {
-      double e = 0;
-      for (int bin = 0; bin < nB; ++bin) {
-        if (!mask.empty() && !mask[size_t(bin)]) continue;
-        const size_t x = size_t(l) * nB + bin;
-        e += weight[size_t(bin)] * w.fwsErr[x] * grid.projectedSolidAngle(bin);
-        if (measured.empty())
-          proxy[size_t(bin)] = std::max(proxy[size_t(bin)], w.fws[x] * grid.projectedSolidAngle(bin));
-      }
-      error = std::max(error, deterministic ? e : std::sqrt(2 / kPi) * e);
-    }
-    const double seconds = std::max(0.0, w.seconds - est->setupSeconds()) / binFraction;
-    return Measured{c, waveEstimatorName(c), deterministic, seconds, est->setupSeconds(), error};
+  std::vector<double> proxy(size_t(grid.binCount()), 0.0);  // the first table's max over λ of f_ws Ω⊥ per bin
+  auto measure = [&](WaveEstimatorKind c) {
+    return measureEstimatorPilot(job, chosen, grid, scene, pilot, c, proxy, measured.empty());
   };
   // The deterministic estimators' error over an incidence bin is their interpolation's and binning's
   // (orders_estimator.cpp, binOverIncidenceBin; estimates for the coarser, on the safe side). Raising
@@ -517,7 +538,21 @@ struct PilotContext {
   double budgetTiles = 0;
   double tol = 0;
   // The pilot beam of incidence p: its exact direction for a job of collimated beams, else its
-  // bin's centre.
+  // bin's centre. Collimated pilot beams through the centres of the incidence bins: the geometric
+  // and the wave pilot see the same incidence, a narrow lobe is not smeared over an incidence bin
+  // by a handful of wave incidence samples, and a specular reflection lands inside a bin (a beam
+  // along a bin edge or the pole would split a diffraction lobe between bins that the geometric
+  // delta does not share). So these pilots judge diffraction at the bins' resolution away from
+  // their edges: a lobe narrower than the bins but wide enough to spill across their edges in the
+  // job's bin-averaged table (a flat mirror under a 50 µm coherence length on 11° bins: WS − GS
+  // 0.12–0.33 per slice) is not seen. Averaging both pilots over the bin with a path-traced GS was
+  // tried: its noise floor (0.04 at 20 000 paths) hid the flat mirror's 0.007 and the decision fell
+  // back to "kept on". Where both sides can be had without noise — a deterministic wave pilot
+  // (`exact`, `fft`) and the facet sum of single scattering (scattering/single_scattering.h)
+  // affordable at the pilot bins — the diffraction decision averages both over the incidence bins
+  // as the job does (runDiffractionPilots). A job of collimated beams (`incidence_sampling =
+  // "exact"`) is piloted along its own directions: a grating lit exactly along its grooves scatters
+  // nothing twice, where the bin's centre may.
   Vec3 beam(int p) const {
     const IncidenceDirection& inc = job.incidence[size_t(p)];
     return job.exactIncidence ? sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg)) : grid.centre(inc.bin);
@@ -603,10 +638,60 @@ struct DiffractionPilots {
   std::string estimatorName;
   double wavePilotCost = 1;
   size_t waveAffordable = 0;
+  // (incidence, upper estimate over λ) of each pilot run as the job runs that tile.
+  std::vector<std::pair<int, double>> jobLike;
 };
 
 // Runs the diffraction pilots the budget affords (adding their work to *waveSpent) and measures the
 // WS − GS difference at the renderer's resolution.
+// At wavelength l: L1 of the cells' Σ (f_ws − f_coh) Ω⊥, its expected noise (floor) and the
+// variance Σ (s Ω⊥)². With a replica (a second Monte Carlo pilot of another seed) f_ws is the
+// two's mean, and each cell's floor is at least the noise the two show, |Σ (w1 − w2) Ω⊥| / 2
+// (the mean's noise has the distribution of the half-difference's): the standard errors
+// of a heavy-tailed Kirchhoff estimate can be far too small.
+struct DiffractionFigures {
+  double l1, floor, var;
+  double upper() const { return l1 - floor + 2 * std::sqrt(var); }
+  double lower() const { return l1 - floor - 2 * std::sqrt(var); }
+};
+// The figures from each bin's WS − GS difference, its standard deviation and (with a replica) half
+// the two pilots' difference: perBin(b) → {diff, sd, spread}.
+template <class PerBin>
+DiffractionFigures cellFigures(const DirectionGrid& grid, const std::vector<int>& cellOf, int nCells, PerBin perBin) {
+  std::vector<double> diff(size_t(nCells), 0.0), cellVar(size_t(nCells), 0.0), spread(size_t(nCells), 0.0);
+  for (int b = 0; b < grid.binCount(); ++b) {
+    if (cellOf[size_t(b)] < 0) continue;
+    const size_t c = size_t(cellOf[size_t(b)]);
+    const double op = grid.projectedSolidAngle(b);
+    const std::array<double, 3> x = perBin(b);
+    diff[c] += x[0] * op;
+    cellVar[c] += x[1] * op * x[1] * op;
+    spread[c] += x[2] * op;
+  }
+  DiffractionFigures f{0, 0, 0};
+  for (size_t c = 0; c < size_t(nCells); ++c) {
+    f.l1 += std::abs(diff[c]);
+    f.floor += std::max(std::sqrt(2 / kPi) * std::sqrt(cellVar[c]), std::abs(spread[c]));
+    f.var += cellVar[c];
+  }
+  return f;
+}
+DiffractionFigures cellDifference(const DirectionGrid& grid, const std::vector<int>& cellOf, int nCells,
+                                  const WaveTileResult& w, const WaveTileResult* w2, const TileResult& r, int l) {
+  return cellFigures(grid, cellOf, nCells, [&](int b) {
+    const size_t x = size_t(l) * grid.binCount() + b;
+    const double ws = w2 ? 0.5 * (w.fws[x] + w2->fws[x]) : w.fws[x];
+    const double wsErr = w2 ? 0.5 * std::hypot(w.fwsErr[x], w2->fwsErr[x]) : w.fwsErr[x];
+    return std::array<double, 3>{ws - r.at(Component::Coherent, l, b),
+                                 std::hypot(wsErr, r.stdError[int(Component::Coherent)][x]),
+                                 w2 ? 0.5 * (w.fws[x] - w2->fws[x]) : 0.0};
+  });
+}
+
+int cellCount(const std::vector<int>& cellOf) {
+  return cellOf.empty() ? 0 : *std::max_element(cellOf.begin(), cellOf.end()) + 1;
+}
+
 DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpentOut) {
   const Job& job = ctx.job;
   const DirectionGrid& grid = ctx.grid;
@@ -614,7 +699,7 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpen
   const WaveSettings& ws = ctx.ws;
   const std::vector<int>& pilots = ctx.pilots;
   const std::vector<TileResult>& geo = ctx.geo;
-  const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  const int nL = int(job.lambda_nm.size());
   const double tol = ctx.tol, budgetTiles = ctx.budgetTiles;
   const uint64_t paths = ctx.paths;
   auto beam = [&](int p) { return ctx.beam(p); };
@@ -651,7 +736,7 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpen
   // resolution (bins pooled into cells of that size, resolutionCells()); the decision uses the
   // largest upper estimate (L1 − floor + 2 sd) and the largest lower estimate (L1 − floor − 2 sd).
   const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
-  const int nCells = out.nCells = cellOf.empty() ? 0 : *std::max_element(cellOf.begin(), cellOf.end()) + 1;
+  const int nCells = out.nCells = cellCount(cellOf);
   double& upper = out.upper;
   double& lower = out.lower;
   double& worstL1 = out.worstL1;
@@ -674,45 +759,16 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpen
     const std::optional<Vec3> dir = binAveraged ? std::nullopt : std::optional<Vec3>(beam(pilots[k]));
     const WaveTileResult w = est->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot", inc));
     const TileResult r = binAveraged ? facetGs->run(pilots[k], pilots[k], inc.bin, std::nullopt) : geo[k];
-    // Per wavelength: L1 of the cells' Σ (f_ws − f_coh) Ω⊥, its expected noise (floor) and the
-    // variance Σ (s Ω⊥)². With a replica (a second Monte Carlo pilot of another seed) f_ws is the
-    // two's mean, and each cell's floor is at least the noise the two show, |Σ (w1 − w2) Ω⊥| / 2
-    // (the mean's noise has the distribution of the half-difference's): the standard errors
-    // of a heavy-tailed Kirchhoff estimate can be far too small.
-    struct Figures {
-      double l1, floor, var;
-    };
-    auto figures = [&](int l, const WaveTileResult* w2) {
-      std::vector<double> diff(size_t(nCells), 0.0), cellVar(size_t(nCells), 0.0), spread(size_t(nCells), 0.0);
-      for (int b = 0; b < nB; ++b) {
-        if (cellOf[size_t(b)] < 0) continue;
-        const size_t x = size_t(l) * nB + b, c = size_t(cellOf[size_t(b)]);
-        const double op = grid.projectedSolidAngle(b);
-        const double ws = w2 ? 0.5 * (w.fws[x] + w2->fws[x]) : w.fws[x];
-        const double wsErr = w2 ? 0.5 * std::hypot(w.fwsErr[x], w2->fwsErr[x]) : w.fwsErr[x];
-        const double sd = std::hypot(wsErr, r.stdError[int(Component::Coherent)][x]);
-        diff[c] += (ws - r.at(Component::Coherent, l, b)) * op;
-        cellVar[c] += sd * op * sd * op;
-        if (w2) spread[c] += 0.5 * (w.fws[x] - w2->fws[x]) * op;
-      }
-      Figures f{0, 0, 0};
-      for (size_t c = 0; c < size_t(nCells); ++c) {
-        f.l1 += std::abs(diff[c]);
-        f.floor += std::max(std::sqrt(2 / kPi) * std::sqrt(cellVar[c]), std::abs(spread[c]));
-        f.var += cellVar[c];
-      }
-      return f;
-    };
-    std::vector<Figures> fig;
+    auto figures = [&](int l, const WaveTileResult* w2) { return cellDifference(grid, cellOf, nCells, w, w2, r, l); };
+    std::vector<DiffractionFigures> fig;
     bool marginal = false;
     for (int l = 0; l < nL; ++l) {
       fig.push_back(figures(l, nullptr));
-      const Figures& f = fig.back();
+      const DiffractionFigures& f = fig.back();
       // "On" from a Monte Carlo pilot whose noise floor is most of its difference rests on that
       // floor being right: confirmed by a replica (the gentle noise's area pilot: L1 38.6 against
       // a floor of 34.2 claimed 1.99 beyond it at one incidence).
-      marginal =
-          marginal || (!est->deterministic() && f.l1 - f.floor - 2 * std::sqrt(f.var) > tol && f.floor > 0.5 * f.l1);
+      marginal = marginal || (!est->deterministic() && f.lower() > tol && f.floor > 0.5 * f.l1);
     }
     waveSpent += wavePilotCost;
     // A marginal pilot the budget cannot confirm decides nothing (its lower estimate is dropped).
@@ -726,15 +782,21 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpen
       ++replicas;
       for (int l = 0; l < nL; ++l) fig[size_t(l)] = figures(l, &w2);
     }
-    for (const Figures& f : fig) {
-      if (!unconfirmed) lower = std::max(lower, f.l1 - f.floor - 2 * std::sqrt(f.var));
-      if (f.l1 - f.floor + 2 * std::sqrt(f.var) > upper) {
-        upper = f.l1 - f.floor + 2 * std::sqrt(f.var);
+    double pilotUpper = -1e300;
+    for (const DiffractionFigures& f : fig) {
+      if (!unconfirmed) lower = std::max(lower, f.lower());
+      pilotUpper = std::max(pilotUpper, f.upper());
+      if (f.upper() > upper) {
+        upper = f.upper();
         worstL1 = f.l1;
         worstFloor = f.floor;
         worstTheta = inc.theta_deg;
       }
     }
+    // A pilot that treats its incidence as the job does (averaged over the bin, or along the job's
+    // own direction) verifies a skip on that tile; a beam through the centre of a bin the job
+    // averages over does not (TileComputer checks that tile itself).
+    if (binAveraged || job.exactIncidence) out.jobLike.emplace_back(pilots[k], pilotUpper);
     // One pilot whose difference exceeds the tolerance beyond noise decides: the others would
     // only confirm it (they cost as much as a tile's wave term each).
     wavePilotsRun = int(k) + 1;
@@ -744,8 +806,57 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpen
   return out;
 }
 
+}  // namespace
+
+double diffractionUpperBound(const TileResult& r, const DirectionGrid& grid, const std::vector<int>& cellOf) {
+  if (!r.has(Component::Incoherent)) return 0;
+  const int nCells = cellCount(cellOf);
+  double bound = 0;
+  for (int l = 0; l < r.nLambda; ++l) {
+    const DiffractionFigures f = cellFigures(grid, cellOf, nCells, [&](int b) {
+      const double v = r.at(Component::Incoherent, l, b);
+      const double e = r.stdError[int(Component::Incoherent)][size_t(l) * r.nBins + b];
+      // A bin the wave term left out (none on a checked tile) adds nothing.
+      return std::isfinite(v) && std::isfinite(e) ? std::array<double, 3>{v, e, 0.0} : std::array<double, 3>{0, 0, 0};
+    });
+    bound = std::max(bound, f.upper());
+  }
+  return bound;
+}
+
+namespace {
+
 // The diffraction decision from the pilots' figures, the budget and, where the pilots cannot decide
 // and the features are much larger than λ, a Kirchhoff-theory estimate. Returns it with "on" set.
+// Kirchhoff-theory estimate, used when the pilot cannot decide (its noise straddles the
+// tolerance): the diffraction-limited specular spike 2 R e^{-g} (geometric optics has none;
+// R <= 1) plus the blur of a lobe of width 2·slope by the window's diffraction, angular sd
+// λ/(2√2 π σ_w) with σ_w = δc/6, which changes a Gaussian lobe by about (blur/width)² in L1.
+// Valid only for features much larger than λ: correlation length √2 σ_h / slope >= 5 λ.
+// g is the Rayleigh roughness (4π σ_h cos θi / λ)² at the job's most grazing incidence and longest
+// wavelength (the smallest g, the strongest specular spike; the longest λ also blurs most), so the
+// estimate holds for every tile of the job and needs no check on them; the regime, a rule of thumb,
+// is judged at the mean wavelength.
+struct KirchhoffEstimate {
+  double sigmaH, slope, g, corr, blurRad, lobeRad, physical;
+  bool geometricRegime;
+};
+KirchhoffEstimate kirchhoffEstimate(const Job& job) {
+  const double lambda = *std::max_element(job.lambda_nm.begin(), job.lambda_nm.end()) * 1e-3;
+  const double sigmaH = rmsHeight(job.geometry), slope = rmsSlope(job.geometry);
+  double cosMin = 1;
+  for (const IncidenceDirection& inc : job.incidence)
+    cosMin = std::min(cosMin, std::abs(std::cos(radians(inc.theta_deg))));
+  const double g = std::pow(4 * kPi * sigmaH * cosMin / lambda, 2);
+  const double corr = slope > 0 ? std::sqrt(2.0) * sigmaH / slope : 0.0;
+  const double sigmaW = windowSigma(job.scene.coherenceLength_um);
+  const double blurRad = sigmaW > 0 ? lambda / (2 * std::sqrt(2.0) * kPi * sigmaW) : kPi;
+  const double lobeRad = 2 * slope;
+  const double physical = 2 * std::exp(-std::min(g, 700.0)) + (lobeRad > 0 ? std::pow(blurRad / lobeRad, 2) : 1e300);
+  // The regime (features >> λ) is judged at the mean wavelength, as documented.
+  return {sigmaH, slope, g, corr, blurRad, lobeRad, physical, corr >= 5 * job.meanLambda_um() && slope > 0};
+}
+
 nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilots& m) {
   const Job& job = ctx.job;
   const DirectionGrid& grid = ctx.grid;
@@ -762,21 +873,20 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
   const size_t waveAffordable = m.waveAffordable;
   nlohmann::json d;
   bool on = false;
-  const double sigmaH = rmsHeight(job.geometry), slope = rmsSlope(job.geometry);
-  // Rayleigh roughness at the job's most grazing incidence (the smallest g, the strongest
-  // specular spike).
-  double cosMin = 1;
-  for (const IncidenceDirection& inc : job.incidence)
-    cosMin = std::min(cosMin, std::abs(std::cos(radians(inc.theta_deg))));
+  std::string decidedBy = "kirchhoff";  // of an "off": the pilots, or the Kirchhoff estimate
   // "On" needs one pilot incidence; "off" the first three of the planned ones (the most grazing,
   // the closest to normal and the median), the spread after them as far as the budget goes.
   const bool complete = wavePilotsRun >= std::min<int>(3, int(planned.size()));
-  const double g = std::pow(4 * kPi * sigmaH * cosMin / meanLambda, 2);
+  const KirchhoffEstimate k = kirchhoffEstimate(job);
+  const double g = k.g, sigmaH = k.sigmaH, slope = k.slope, corr = k.corr, blurRad = k.blurRad, lobeRad = k.lobeRad,
+               physical = k.physical;
+  const bool geometricRegime = k.geometricRegime;
   const double blurDeg = job.scene.coherenceLength_um > 0 ? degrees(meanLambda / job.scene.coherenceLength_um) : 0;
   std::string why =
       std::string(binAveraged ? "pilot (averaged over the incidence bins without noise: " + m.estimatorName +
                                     " and the facet sum of single scattering) "
-                              : "pilot (beams at the bins' centres) ") +
+                  : job.exactIncidence ? "pilot (beams along the job's own directions) "
+                                       : "pilot (beams at the bins' centres) ") +
       "WS - GS difference sum|f_ws - f_coh| * proj. solid angle = " + fmt3(worstL1) + " (noise floor " +
       fmt3(worstFloor) + "; beyond noise: lower estimate " + fmt3(lower) + ", upper " + fmt3(upper) + ") at theta " +
       fmt3(worstTheta) + " deg" +
@@ -787,17 +897,6 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
                           " marginal wave pilot(s) re-run with another seed: the floor is at "
                           "least the noise the two show)"
                     : "");
-  // Kirchhoff-theory estimate, used when the pilot cannot decide (its noise straddles the
-  // tolerance): the diffraction-limited specular spike 2 R e^{-g} (geometric optics has none;
-  // R <= 1) plus the blur of a lobe of width 2·slope by the window's diffraction, angular sd
-  // λ/(2√2 π σ_w) with σ_w = δc/6, which changes a Gaussian lobe by about (blur/width)² in L1.
-  // Valid only for features much larger than λ: correlation length √2 σ_h / slope >= 5 λ.
-  const double corr = slope > 0 ? std::sqrt(2.0) * sigmaH / slope : 0.0;
-  const double sigmaW = windowSigma(job.scene.coherenceLength_um);
-  const double blurRad = sigmaW > 0 ? meanLambda / (2 * std::sqrt(2.0) * kPi * sigmaW) : kPi;
-  const double lobeRad = 2 * slope;
-  const double physical = 2 * std::exp(-std::min(g, 700.0)) + (lobeRad > 0 ? std::pow(blurRad / lobeRad, 2) : 1e300);
-  const bool geometricRegime = corr >= 5 * meanLambda && slope > 0;
   const std::string budgetNote =
       "the pilot budget (" + fmt3(job.pilotBudget) + " of the job's " + std::to_string(computed) +
       " computed tiles, a wave pilot costing " + fmt3(wavePilotCost) + " of a tile's wave term) allows " +
@@ -821,6 +920,7 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
            (on ? " exceeds it: kept on" : " is below it too");
   } else if (upper <= tol) {
     on = false;
+    decidedBy = "pilots";
     why +=
         " is below the tolerance " + fmt3(tol) + (wavePilotsRun < int(planned.size()) ? " (" + budgetNote + ")" : "");
   } else if (lower > tol) {
@@ -847,7 +947,7 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
           (job.scene.angularResolution_deg > 0 ? " pooled to the renderer's " + fmt3(job.scene.angularResolution_deg) +
                                                      " deg (" + std::to_string(nCells) + " cells)"
                                                : ""));
-  d["pilot_incidence"] = binAveraged ? "bin-averaged" : "bin centre";
+  d["pilot_incidence"] = binAveraged ? "bin-averaged" : job.exactIncidence ? "exact" : "bin centre";
   d["pilot_lower"] = lower;
   d["kirchhoff_estimate"] = physical;
   d["rms_slope"] = slope;
@@ -864,6 +964,12 @@ nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilo
   d["wave_samples_per_bin"] = ctx.ws.samplesPerBin;
   d["wave_pilots_run"] = wavePilotsRun;
   d["wave_pilot_replicas"] = replicas;
+  if (!on) d["decided_by"] = decidedBy;
+  if (!on && decidedBy == "pilots") {
+    nlohmann::json verified = nlohmann::json::array();
+    for (const auto& [incidence, bound] : m.jobLike) verified.push_back({{"incidence", incidence}, {"upper", bound}});
+    d["pilot_verified"] = verified;
+  }
   d["on"] = on;
   return d;
 }
@@ -891,7 +997,56 @@ nlohmann::json btdfDecision(const Job& job, const ComponentSet& chosen, EffectsP
   }
 }
 
+// The job's wave estimator for the pilots, with at least options.waveSamplesPerBin samples and no
+// masked sums (`lost` is decided on request only).
+WaveSettings pilotWaveSettings(const Job& job, const EffectsPilotOptions& options) {
+  WaveSettings ws = waveSettingsOf(job);
+  ws.computeMasked = false;
+  // Where the grating-order regime holds (a periodic patch under a window much wider than it), the
+  // deterministic `exact` evaluator gives the pilot without sampling noise, so a
+  // difference is judged against the tolerance alone; it is used when the facet sums stay cheap.
+  {
+    const std::vector<double> lambdas = job.lambda_um();
+    const double lambdaMin = *std::min_element(lambdas.begin(), lambdas.end());
+    // One cell's facets over the cell's orders (lattice_cell.h).
+    const double work = job.facetsPerCell() * kPi * job.cellSizeX() * job.cellSizeY() / (lambdaMin * lambdaMin);
+    if (ws.estimator == WaveEstimatorKind::Orders && work <= kExactPilotMaxWork)
+      ws.estimator = WaveEstimatorKind::Exact;
+  }
+  ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));
+  return ws;
+}
+
+// Components named beside "auto" are kept whatever the pilots say.
+void keepIfRequested(nlohmann::json& d, const ComponentSet& forced, Component c) {
+  if (forced.has(c) && !d["on"].get<bool>()) {
+    d["reason"] = d["reason"].get<std::string>() + "; kept: requested";
+    d["on"] = true;
+    d.erase("decided_by");
+    d.erase("pilot_verified");
+  }
+}
+
 }  // namespace
+
+// A diffraction skip the pilots decided is verified on every tile no pilot covered by that tile's
+// own wave term (TileComputer), so it never costs more than the wave term it skips — unless the job
+// would halve its wave term by reciprocity (docs/physics.md §8), which a slice-by-slice check
+// cannot (a slice's diffraction would come from its reciprocal partner's). Then, when more than
+// half the computed tiles need the check, computing diffraction is the cheaper way: it stays on.
+void keepIfVerifyingCostsMore(const Job& job, int computed, nlohmann::json& d) {
+  if (d["on"].get<bool>() || d.value("decided_by", "") != "pilots") return;
+  Job withDiffraction = job;
+  withDiffraction.components.add(Component::Incoherent);
+  const int unverified = computed - int(d["pilot_verified"].size());
+  if (!withDiffraction.halvesWaveByReciprocity() || 2 * unverified <= computed) return;
+  d["on"] = true;
+  d.erase("decided_by");
+  d.erase("pilot_verified");
+  d["reason"] = d["reason"].get<std::string>() + "; but verifying the skip on the " + std::to_string(unverified) +
+                " of " + std::to_string(computed) +
+                " tiles no pilot covered would cost more than the wave term the job halves by reciprocity: kept on";
+}
 
 EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
   const auto t0 = Clock::now();
@@ -921,39 +1076,9 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
   pilots.resize(
       std::min(planned.size(),
                size_t(std::max(0.0, std::floor(budgetTiles * double(job.pathsPerSlice) / double(paths) + 1e-9)))));
-  // The job's wave estimator for the pilots, with at least options.waveSamplesPerBin samples and no
-  // masked sums (`lost` is decided on request only).
-  WaveSettings ws = waveSettingsOf(job);
-  ws.computeMasked = false;
-  // Where the grating-order regime holds (a periodic patch under a window much wider than it), the
-  // deterministic `exact` evaluator gives the pilot without sampling noise, so a
-  // difference is judged against the tolerance alone; it is used when the facet sums stay cheap.
-  {
-    const std::vector<double> lambdas = job.lambda_um();
-    const double lambdaMin = *std::min_element(lambdas.begin(), lambdas.end());
-    // One cell's facets over the cell's orders (lattice_cell.h).
-    const double work = job.facetsPerCell() * kPi * job.cellSizeX() * job.cellSizeY() / (lambdaMin * lambdaMin);
-    if (ws.estimator == WaveEstimatorKind::Orders && work <= kExactPilotMaxWork)
-      ws.estimator = WaveEstimatorKind::Exact;
-  }
-  ws.samplesPerBin = std::max<int>(options.waveSamplesPerBin, int(job.waveSamplesPerBin));
+  const WaveSettings ws = pilotWaveSettings(job, options);
 
   PilotContext ctx{job, grid, transport, ws, planned, pilots, {}, paths, computed, budgetTiles, tol};
-  // Collimated pilot beams through the centres of the incidence bins: the geometric and the wave
-  // pilot see the same incidence, a narrow lobe is not smeared over an incidence bin by a handful of
-  // wave incidence samples, and a specular reflection lands inside a bin (a beam along a bin edge or
-  // the pole would split a diffraction lobe between bins that the geometric delta does not share).
-  // So these pilots judge diffraction at the bins' resolution away from their edges: a lobe narrower
-  // than the bins but wide enough to spill across their edges in the job's bin-averaged table (a flat
-  // mirror under a 50 µm coherence length on 11° bins: WS − GS 0.12–0.33 per slice) is not seen.
-  // Averaging both pilots over the bin with a path-traced GS was tried: its noise floor (0.04 at
-  // 20 000 paths) hid the flat mirror's 0.007 and the decision fell back to "kept on". Where both
-  // sides can be had without noise — a deterministic wave pilot (`exact`, `fft`) and the facet sum of
-  // single scattering (scattering/single_scattering.h) affordable at the pilot bins — the
-  // diffraction decision averages both over the incidence bins as the job does (below).
-  // A job of collimated beams (`incidence_sampling = "exact"`) is piloted along its own directions:
-  // a grating lit exactly along its grooves scatters nothing twice, where the bin's centre may.
-  // (PilotContext::beam.)
   for (int p : pilots)
     ctx.geo.push_back(transport.run(p, p, job.incidence[size_t(p)].bin, ctx.beam(p),
                                     pilotProgress("geometric pilot", job.incidence[size_t(p)])));
@@ -970,36 +1095,22 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
   // incidences it leaves open.
   {
     nlohmann::json d = multipleDecision(ctx);
-    bool on = d["on"].get<bool>();
-    if (forced.has(Component::Multiple) && !on) {
-      d["reason"] = d["reason"].get<std::string>() + "; kept: requested";
-      on = true;
-    }
-    d["on"] = on;
+    keepIfRequested(d, forced, Component::Multiple);
     push(d);
-    if (on) chosen.add(Component::Multiple);
+    if (d["on"].get<bool>()) chosen.add(Component::Multiple);
   }
 
   // Diffraction.
   double waveSpent = 0;  // wave pilots' work, in the job's wave terms
   {
-    nlohmann::json d;
-    bool on = false;
-    if (job.statistical) {
-      d = decision("incoherent", false,
-                   "a statistical surface has no explicit geometry to diffract (microflake model)");
-    } else {
-      const DiffractionPilots measured = runDiffractionPilots(ctx, &waveSpent);
-      d = diffractionVerdict(ctx, measured);
-      on = d["on"].get<bool>();
-    }
-    if (forced.has(Component::Incoherent) && !on) {
-      d["reason"] = d["reason"].get<std::string>() + "; kept: requested";
-      on = true;
-    }
-    d["on"] = on;
+    nlohmann::json d = job.statistical
+                           ? decision("incoherent", false,
+                                      "a statistical surface has no explicit geometry to diffract (microflake model)")
+                           : diffractionVerdict(ctx, runDiffractionPilots(ctx, &waveSpent));
+    keepIfRequested(d, forced, Component::Incoherent);
+    keepIfVerifyingCostsMore(job, computed, d);
     push(d);
-    if (on) chosen.add(Component::Incoherent);
+    if (d["on"].get<bool>()) chosen.add(Component::Incoherent);
   }
   // The wave estimator, from the tolerance and the measured cost (on the middle pilot incidence).
   // Its pilots cost one or two of the job's wave terms (and `area` on an eighth of the bins).
@@ -1066,6 +1177,13 @@ void applyEffectsPlan(Job& job, const EffectsPlan& plan) {
   if (const EffectDecision* m = plan.find(Effect::Multiple); m && !m->on) {
     job.guarded.add(Component::Multiple);
     job.components.add(Component::Multiple);
+  }
+  // A diffraction skip the pilots decided is verified on every tile (tile_computer.h); one the
+  // Kirchhoff estimate decided holds for every tile by construction (its worst incidence and λ).
+  if (const EffectDecision* d = plan.find(Effect::Incoherent);
+      d && !d->on && d->evidence.value("decided_by", "") == "pilots") {
+    job.guarded.add(Component::Incoherent);
+    job.components.add(Component::Incoherent);
   }
   job.waveTransmission = plan.waveTransmission.value_or(true);
   if (plan.lambda_nm) job.lambda_nm = *plan.lambda_nm;

@@ -15,7 +15,10 @@
 //    than λ (correlation length √2 σ_h/slope >= 5 λ), a Kirchhoff-theory estimate decides: the
 //    specular spike 2 e^{−g}, g = (4π σ_h cos θi / λ)² the Rayleigh roughness, plus the blur of
 //    the geometric lobe (width 2 × rms slope) by the window's diffraction (sd λ/(2√2 π σ_w)),
-//    (blur/lobe)². Otherwise diffraction stays on (the safe side).
+//    (blur/lobe)², at the job's most grazing incidence and longest wavelength. Otherwise
+//    diffraction stays on (the safe side). An "off" from the pilots is verified on every tile
+//    (tile_computer.h): a tile a pilot ran as the job does has its figure, any other computes its
+//    wave term and keeps it when its upper estimate exceeds the tolerance.
 //  - lost: only on request (a diagnostic, not part of any model).
 //  - BTDF: a conductor transmits nothing; a dielectric's transmission is traced with its
 //    reflection.
@@ -31,8 +34,10 @@
 #pragma once
 #include <nlohmann/json.hpp>
 
+#include "core/direction_grid.h"
 #include "job/effects_plan.h"
 #include "job/job.h"
+#include "scattering/tile_result.h"
 
 namespace mbsdf {
 
@@ -47,10 +52,17 @@ struct EffectsPilotOptions {
 // 0 keeps the bins.
 std::vector<int> resolutionCells(const DirectionGrid& grid, double resolution_deg);
 
+// The upper estimate beyond noise of a slice's diffraction, as the planner's pilots measure it: the
+// largest over λ of L1 − floor + 2 sd of its `incoherent` component (WS − GS) pooled into the
+// renderer's cells (resolutionCells), L1 = Σ_cells |Σ_b∈cell f Ω⊥|, floor = √(2/π) Σ_cells s_cell.
+// 0 when the slice has no `incoherent`.
+double diffractionUpperBound(const TileResult& r, const DirectionGrid& grid, const std::vector<int>& cellOf);
+
 // Pilot incidence indices (distinct), in the order pilots run (a budget keeps the first ones): the
 // most grazing incidence of the job, the one closest to normal, the median in θ, then each time the
 // direction farthest (in angle) from those already picked, so that azimuths are covered as well as
-// polar angles; every incidence when the job has at most kMaxPilots. Used by the effects planner
+// polar angles; every incidence when the job has at most kMaxPilots. Only incidences whose tiles the
+// job computes are candidates (a symmetric job's ring representatives). Used by the effects planner
 // and by `plan`'s cost pilot.
 constexpr int kMaxPilots = 6;
 std::vector<int> pilotIncidences(const Job& job);

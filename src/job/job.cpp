@@ -563,6 +563,9 @@ int Job::visibilityTableResolution() const {
 std::string Job::reciprocityOffReason() const {
   if (!components.has(Component::Incoherent)) return "no wave term";
   if (!reciprocity) return "[effects] reciprocity = false";
+  if (guarded.has(Component::Incoherent))
+    return "diffraction was skipped and is verified slice by slice (a slice's check cannot come from its "
+           "reciprocal partner)";
   if (symmetryReduced()) return "symmetry reduction: part of each ring is computed, the other slices are rotations";
   if (!incidenceAll) return "incidence is a list of directions, not \"all\"";
   if (exactIncidence) return "incidence_sampling = \"exact\" (bin-centre beams are not reciprocal bin to bin)";

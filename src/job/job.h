@@ -82,9 +82,11 @@ struct Job {
   bool autoComponents = false;
   std::string effectsPlan;
   // Components the effects planner skipped that every tile verifies on itself: `multiple`, whose
-  // energy on the tile a few thousand full-depth paths bound (+ 3 standard errors); past the
-  // tolerance the tile computes it after all. They are in `components` (the file holds them:
-  // zeros where the skip was confirmed) but not in what a tile computes first.
+  // energy on the tile a few thousand full-depth paths bound (+ 3 standard errors); `incoherent`
+  // (diffraction), confirmed by the pilot that ran a tile as the job does, elsewhere by the tile's
+  // own wave term. Past the tolerance the tile computes it after all. They are in `components` (the
+  // file holds them: zeros where the skip was confirmed without computing them) but not in what a
+  // tile computes first.
   ComponentSet guarded;
   // False when the planner found that the renderer needs no BTDF of this dielectric: the wave term
   // skips the transmitted exit bins, which keep geometric optics (incoherent = 0 there).

@@ -172,20 +172,123 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
   a["targets"] = targets;
   return a;
 }
-}  // namespace
-
-nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
-  std::optional<tbb::global_control> threads;
-  if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
-  // components = "auto": the effects planner's pilots decide first (the run does the same).
-  Job job = requested;
-  std::optional<EffectsPlan> effects;
-  if (job.autoComponents) {
-    effects = planEffects(job);
-    applyEffectsPlan(job, *effects);
+// The wave term's pilots (a Monte Carlo estimator at two budgets, for its error's rate), each added
+// to its path pilot's tile: its cost per tile at the job's budget, its memory and set-up, and the
+// predicted relative error per pilot at the job's budget.
+struct WavePilotCost {
+  double seconds = 0, bytes = 0, setupSeconds = 0;
+  std::vector<double> relErrors;
+  double rate = 0.5;  // the wave term's error ∝ samples^−rate
+  bool deterministic = true;
+};
+WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const GeometricTransport& transport,
+                             const PlanOptions& options, const std::vector<int>& pilots,
+                             const std::function<std::optional<Vec3>(int)>& exactOf,
+                             std::vector<TileResult>& pilotTiles) {
+  WavePilotCost out;
+  double& waveSeconds = out.seconds;
+  double& waveRate = out.rate;
+  bool& waveDeterministic = out.deterministic;
+  std::vector<double>& waveRelErrors = out.relErrors;
+  WaveSettings ws = waveSettingsOf(job);
+  ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
+                                   ws.estimator == WaveEstimatorKind::Area ? 2 * int(job.wavePointsPerDirection) : 16);
+  auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
+  waveDeterministic = est->deterministic();
+  // A Monte Carlo wave term's error falls as 1/√N only once its samples resolve the lobes (with a
+  // few samples per bin the per-bin errors are themselves rough: `orders` on a rough patch went
+  // 0.13, 0.11, 0.072, 0.030 at 16, 64, 256, 1024 samples per bin). A second pass at 4× the pilot's
+  // samples (at most the job's) measures the rate, e(N) ∝ N^−a with a in [0, 1/2] (never faster
+  // than 1/√N), and the error at the job's budget follows from the second pass; so does the time.
+  WaveSettings ws2 = ws;
+  ws2.samplesPerBin = std::min<int>(int(job.waveSamplesPerBin), 4 * ws.samplesPerBin);
+  const bool twoPasses = !waveDeterministic && ws2.samplesPerBin > ws.samplesPerBin;
+  std::unique_ptr<WaveEstimator> est2 = twoPasses ? makeJobWaveEstimator(job, grid, *transport.scene(), ws2) : nullptr;
+  const int timedSamples = twoPasses ? ws2.samplesPerBin : ws.samplesPerBin;
+  // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
+  const double scale = waveDeterministic ? 1.0 : double(job.waveSamplesPerBin) / double(timedSamples);
+  const double N = double(job.waveSamplesPerBin);
+  for (size_t k = 0; k < pilots.size(); ++k) {
+    const int t = pilots[k];
+    spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
+    const WaveTileResult w = est->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
+    const double e1 = waveRelativeError(w, grid);
+    if (waveDeterministic) {
+      waveRelErrors.push_back(e1);
+      waveSeconds += w.seconds;
+    } else if (!twoPasses) {
+      waveRelErrors.push_back(e1 * std::sqrt(double(ws.samplesPerBin) / N));
+      waveSeconds += w.seconds;
+    } else {
+      const WaveTileResult w2 = est2->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
+      const double e2 = waveRelativeError(w2, grid);
+      const double rate =
+          e1 > 0 && e2 > 0
+              ? std::clamp(std::log(e1 / e2) / std::log(double(ws2.samplesPerBin) / ws.samplesPerBin), 0.0, 0.5)
+              : 0.5;
+      waveRate = std::min(waveRate, rate);
+      waveRelErrors.push_back(e2 * std::pow(N / double(ws2.samplesPerBin), -rate));
+      waveSeconds += w2.seconds;
+    }
+    if (pilotTiles[k].has(Component::Coherent))
+      addWaveComponents(pilotTiles[k], w, job.components.has(Component::Incoherent),
+                        job.components.has(Component::Lost));
   }
-  const int cores = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
-  DirectionGrid grid(job.gridLayout);
+  // What the first pilot built for every later tile (exact's visibility table) is paid once per
+  // rank, not per tile.
+  out.setupSeconds = est->setupSeconds();
+  waveSeconds = (waveSeconds - out.setupSeconds) * scale / double(pilots.size());
+  out.bytes = est->memoryBytes();
+  return out;
+}
+
+// The worst energy balance over the pilot tiles (BsdfFileWriter::writeEnergyBalance): for a lossless
+// material R + T + lost paths − 1, for an absorbing one the excess over 1.
+double worstEnergyBalance(const Job& job, const DirectionGrid& grid, const std::vector<TileResult>& pilotTiles) {
+  std::vector<Component> model;
+  for (Component c : job.components.list())
+    if (c != Component::Lost && c != Component::GeoMasked) model.push_back(c);
+  double worst = 0;
+  for (const TileResult& r : pilotTiles)
+    for (double b : energyBalance(r, grid, model, job.material.lossless()))
+      if (std::abs(b) > std::abs(worst)) worst = b;
+  return worst;
+}
+
+// The path pilots: each pilot incidence's tile at the pilot's budget, its time scaled to the job's
+// paths (a facet-sum tile, with no paths, is the tile's cost: transport.h), and the relative error
+// of the path-traced table at the pilot's budget (relativeError, largest over wavelengths; 0 where
+// the tile is deterministic).
+struct PathPilotCost {
+  double seconds = 0;       // per tile at the job's budget, mean over the pilots
+  double pilotSeconds = 0;  // per pilot tile as run
+  int facetTiles = 0;
+  std::vector<TileResult> tiles;
+  std::vector<double> relErrors;
+};
+PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid& grid,
+                         const GeometricTransport& transport, const std::vector<int>& pilots, uint64_t pilotPaths,
+                         const std::function<std::optional<Vec3>(int)>& exactOf) {
+  PathPilotCost out;
+  std::vector<Component> traced;
+  for (Component c : {Component::Coherent, Component::Multiple})
+    if (planned.components.has(c)) traced.push_back(c);
+  for (int t : pilots) {
+    spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
+    out.tiles.push_back(transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: path pilot")));
+    const TileResult& r = out.tiles.back();
+    const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
+    out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
+    out.pilotSeconds += r.seconds / double(pilots.size());
+    out.seconds +=
+        r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
+    out.facetTiles += r.samples == 0;
+  }
+  return out;
+}
+
+// What the job is, for the plan: geometry, material, wavelengths, grid, tiles and symmetry.
+nlohmann::json describeJob(const Job& job, const DirectionGrid& grid, int computedTiles) {
   const int nTiles = int(job.incidence.size()), nL = int(job.lambda_nm.size()), nB = grid.binCount();
   nlohmann::json p;
   p["job"] = job.file;
@@ -201,13 +304,49 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   p["wavelengths"] = nL;
   p["grid"] = {{"kind", grid.kind()}, {"bins", nB}};
   p["tiles"] = nTiles;
-  // Symmetry: one computed tile per θ ring of an isotropic surface (symmetry.h).
-  const int computedTiles = job.symmetryReduced() ? AzimuthalSymmetry(job, grid).representativeCount() : nTiles;
   p["symmetry"] = {{"reduced", job.symmetryReduced()},
                    {"isotropic", job.isotropic},
                    {"rotation_order", job.rotationOrder},
                    {"reason", job.symmetryReason},
                    {"tiles_computed", computedTiles}};
+  return p;
+}
+
+// Suggested Slurm resources: ranks of 8 cores (a cluster node's share, not this machine's), enough
+// to finish in about 12 hours.
+std::string slurmHeader(double tileSeconds, double waveSetupSeconds, double coreHours, int computedTiles, int cores,
+                        double memoryBytes) {
+  const int cpusPerTask = 8;
+  int ntasks = std::max(1, std::min(computedTiles, int(std::ceil(coreHours / (12.0 * cpusPerTask)))));
+  double wallHours =
+      (tileSeconds * std::ceil(double(computedTiles) / ntasks) + waveSetupSeconds) * cores / cpusPerTask / 3600.0;
+  int minutes = int(std::ceil(wallHours * 60 * 1.3)) + 10;
+  std::ostringstream sb;
+  sb << "#SBATCH --ntasks=" << ntasks << "\n#SBATCH --cpus-per-task=" << cpusPerTask
+     << "\n#SBATCH --time=" << minutes / 60 << ":" << (minutes % 60 < 10 ? "0" : "") << minutes % 60
+     << ":00\n#SBATCH --mem-per-cpu=" << std::max(1, int(std::ceil(memoryBytes / cpusPerTask / 1e9 * 2))) << "G\n"
+     << "#SBATCH --signal=B:USR1@300\n#SBATCH --requeue\n";
+  return sb.str();
+}
+
+}  // namespace
+
+nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
+  std::optional<tbb::global_control> threads;
+  if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
+  // components = "auto": the effects planner's pilots decide first (the run does the same).
+  Job job = requested;
+  std::optional<EffectsPlan> effects;
+  if (job.autoComponents) {
+    effects = planEffects(job);
+    applyEffectsPlan(job, *effects);
+  }
+  const int cores = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
+  DirectionGrid grid(job.gridLayout);
+  const int nTiles = int(job.incidence.size()), nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  // Symmetry: one computed tile per θ ring of an isotropic surface (symmetry.h).
+  const int computedTiles = job.symmetryReduced() ? AzimuthalSymmetry(job, grid).representativeCount() : nTiles;
+  nlohmann::json p = describeJob(job, grid, computedTiles);
   if (effects) p["effects"] = effects->toJson();
   std::vector<std::string> comps;
   for (Component c : job.components.list()) comps.push_back(componentName(c));
@@ -237,88 +376,28 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   for (Component c : job.guarded.list()) planned.components.remove(c);
   GeometricTransport transport(planned, grid, pilotPaths);
   const double sceneSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
-  // Paths scale with paths_per_slice; a facet-sum tile (no paths, transport.h) is the tile's cost.
-  double pathSeconds = 0, pilotSeconds = 0;
-  int facetTiles = 0;
-  std::vector<TileResult> pilotTiles;
-  // The relative error per pilot slice (relativeError, largest over wavelengths) of the path-traced
-  // table at the pilot's budget; 0 where the tile is deterministic (the facet sum).
-  std::vector<Component> traced;
-  for (Component c : {Component::Coherent, Component::Multiple})
-    if (planned.components.has(c)) traced.push_back(c);
-  std::vector<double> pathRelErrors;
-  for (int t : pilots) {
-    spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
-    pilotTiles.push_back(transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: path pilot")));
-    const TileResult& r = pilotTiles.back();
-    const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
-    pathRelErrors.push_back(*std::max_element(e.begin(), e.end()));
-    pilotSeconds += r.seconds / double(pilots.size());
-    pathSeconds +=
-        r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
-    facetTiles += r.samples == 0;
-  }
+  PathPilotCost paths = pathPilots(job, planned, grid, transport, pilots, pilotPaths, exactOf);
+  const double pathSeconds = paths.seconds, pilotSeconds = paths.pilotSeconds;
+  const int facetTiles = paths.facetTiles;
+  std::vector<TileResult>& pilotTiles = paths.tiles;
+  const std::vector<double>& pathRelErrors = paths.relErrors;
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
-  double waveSeconds = 0, waveBytes = 0, waveSetupSeconds = 0;
-  std::vector<double> waveRelErrors;
-  double waveRate = 0.5;  // the wave term's error ∝ samples^−waveRate
-  bool waveDeterministic = true;
-  if (job.needsWave()) {
-    WaveSettings ws = waveSettingsOf(job);
-    ws.samplesPerBin =
-        std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
-                      ws.estimator == WaveEstimatorKind::Area ? 2 * int(job.wavePointsPerDirection) : 16);
-    auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
-    waveDeterministic = est->deterministic();
-    // A Monte Carlo wave term's error falls as 1/√N only once its samples resolve the lobes (with a
-    // few samples per bin the per-bin errors are themselves rough: `orders` on a rough patch went
-    // 0.13, 0.11, 0.072, 0.030 at 16, 64, 256, 1024 samples per bin). A second pass at 4× the pilot's
-    // samples (at most the job's) measures the rate, e(N) ∝ N^−a with a in [0, 1/2] (never faster
-    // than 1/√N), and the error at the job's budget follows from the second pass; so does the time.
-    WaveSettings ws2 = ws;
-    ws2.samplesPerBin = std::min<int>(int(job.waveSamplesPerBin), 4 * ws.samplesPerBin);
-    const bool twoPasses = !waveDeterministic && ws2.samplesPerBin > ws.samplesPerBin;
-    std::unique_ptr<WaveEstimator> est2 =
-        twoPasses ? makeJobWaveEstimator(job, grid, *transport.scene(), ws2) : nullptr;
-    const int timedSamples = twoPasses ? ws2.samplesPerBin : ws.samplesPerBin;
-    // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
-    const double scale = waveDeterministic ? 1.0 : double(job.waveSamplesPerBin) / double(timedSamples);
-    const double N = double(job.waveSamplesPerBin);
-    for (size_t k = 0; k < pilots.size(); ++k) {
-      const int t = pilots[k];
-      spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
-      const WaveTileResult w = est->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
-      const double e1 = waveRelativeError(w, grid);
-      if (waveDeterministic) {
-        waveRelErrors.push_back(e1);
-        waveSeconds += w.seconds;
-      } else if (!twoPasses) {
-        waveRelErrors.push_back(e1 * std::sqrt(double(ws.samplesPerBin) / N));
-        waveSeconds += w.seconds;
-      } else {
-        const WaveTileResult w2 = est2->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
-        const double e2 = waveRelativeError(w2, grid);
-        const double rate =
-            e1 > 0 && e2 > 0
-                ? std::clamp(std::log(e1 / e2) / std::log(double(ws2.samplesPerBin) / ws.samplesPerBin), 0.0, 0.5)
-                : 0.5;
-        waveRate = std::min(waveRate, rate);
-        waveRelErrors.push_back(e2 * std::pow(N / double(ws2.samplesPerBin), -rate));
-        waveSeconds += w2.seconds;
-      }
-      if (pilotTiles[k].has(Component::Coherent))
-        addWaveComponents(pilotTiles[k], w, job.components.has(Component::Incoherent),
-                          job.components.has(Component::Lost));
-    }
-    // What the first pilot built for every later tile (exact's visibility table) is paid once per
-    // rank, not per tile.
-    waveSetupSeconds = est->setupSeconds();
-    waveSeconds = (waveSeconds - waveSetupSeconds) * scale / double(pilots.size());
-    waveBytes = est->memoryBytes();
-  }
+  const WavePilotCost wave =
+      job.needsWave() ? waveTermPilots(job, grid, transport, options, pilots, exactOf, pilotTiles) : WavePilotCost{};
+  double waveSeconds = wave.seconds;
+  const double waveBytes = wave.bytes, waveSetupSeconds = wave.setupSeconds, waveRate = wave.rate;
+  const std::vector<double>& waveRelErrors = wave.relErrors;
+  const bool waveDeterministic = wave.deterministic;
   // Reciprocity (docs/physics.md §8): the wave term of each pair of incidence bins once. The pilot ran
   // the whole slice; on average a tile computes the pairs' fraction of it.
-  if (job.components.has(Component::Incoherent)) {
+  // A skipped diffraction (Job::guarded) costs a wave term only on the tiles no pilot verified.
+  if (job.guarded.has(Component::Incoherent) && !job.components.has(Component::Lost)) {
+    const EffectDecision* d = effects ? effects->find(Effect::Incoherent) : nullptr;
+    const int verified = d && d->evidence.contains("pilot_verified") ? int(d->evidence["pilot_verified"].size()) : 0;
+    const int checked = std::max(0, computedTiles - verified);
+    p["diffraction_check"] = {{"tiles_checked", checked}, {"tiles_verified_by_pilots", verified}};
+    waveSeconds *= double(checked) / std::max(1, computedTiles);
+  } else if (job.components.has(Component::Incoherent)) {
     if (job.halvesWaveByReciprocity()) {
       const double fraction = ReciprocalPairs(job.incidenceBins(), nB, grid.binsPerHemisphere()).computedFraction();
       p["reciprocity"] = {{"used", true},
@@ -335,17 +414,9 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   // material R + T + lost paths − 1, for an absorbing one the excess over 1. Scalar diffraction on
   // deep or steep structures does not conserve energy; this is the first warning of it (with a
   // Monte Carlo wave estimator the pilot's reduced samples make it noisy).
-  {
-    std::vector<Component> model;
-    for (Component c : job.components.list())
-      if (c != Component::Lost && c != Component::GeoMasked) model.push_back(c);
-    double worst = 0;
-    for (const TileResult& r : pilotTiles)
-      for (double b : energyBalance(r, grid, model, job.material.lossless()))
-        if (std::abs(b) > std::abs(worst)) worst = b;
-    p["energy_balance"] = {
-        {"worst_at_pilots", worst}, {"tolerance", job.scene.tolerance}, {"lossless", job.material.lossless()}};
-  }
+  p["energy_balance"] = {{"worst_at_pilots", worstEnergyBalance(job, grid, pilotTiles)},
+                         {"tolerance", job.scene.tolerance},
+                         {"lossless", job.material.lossless()}};
   p["scalar_validity"] = toJson(scalarValidity(job));
   // Rank 0 writes every slice (rotated ones too) with a flush and a journal fsync: measured by the
   // caller's writer (PlanOptions::writeSecondsPerSlice), which this layer does not know.
@@ -369,32 +440,20 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   }
   p["accuracy"] = accuracyTable(job, pilots, pathRelErrors, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
                                 waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
-  p["estimate"] = {
-      {"seconds_per_tile", tileSeconds},
-      {"path_seconds_per_tile", pathSeconds},
-      {"wave_seconds_per_tile", waveSeconds},
-      {"wave_setup_seconds_per_rank", waveSetupSeconds},
-      {"write_seconds_per_slice", writeSeconds},
-      {"wall_seconds_on_these_cores", tileSeconds * computedTiles + waveSetupSeconds + writeSeconds * nTiles +
-                                          sceneSeconds + options.jobLoadSeconds +
-                                          (effects ? effects->pilotSeconds : 0.0)},
-      {"job_load_seconds", options.jobLoadSeconds},
-      {"core_hours", coreHours}};
+  p["estimate"] = {{"seconds_per_tile", tileSeconds},
+                   {"path_seconds_per_tile", pathSeconds},
+                   {"wave_seconds_per_tile", waveSeconds},
+                   {"wave_setup_seconds_per_rank", waveSetupSeconds},
+                   {"write_seconds_per_slice", writeSeconds},
+                   {"wall_seconds_on_these_cores", tileSeconds * computedTiles + waveSetupSeconds +
+                                                       writeSeconds * nTiles + sceneSeconds + options.jobLoadSeconds +
+                                                       (effects ? effects->pilotSeconds : 0.0)},
+                   {"job_load_seconds", options.jobLoadSeconds},
+                   {"core_hours", coreHours}};
   const double memoryBytes = memoryBytesPerRank(job, waveBytes);
   p["output_bytes_uncompressed"] = outputBytesUncompressed(job);
   p["memory_bytes_per_rank"] = memoryBytes;
-  // Suggested Slurm resources: ranks of 8 cores, enough to finish in about 12 hours.
-  const int cpusPerTask = 8;
-  int ntasks = std::max(1, std::min(computedTiles, int(std::ceil(coreHours / (12.0 * cpusPerTask)))));
-  double wallHours =
-      (tileSeconds * std::ceil(double(computedTiles) / ntasks) + waveSetupSeconds) * cores / cpusPerTask / 3600.0;
-  int minutes = int(std::ceil(wallHours * 60 * 1.3)) + 10;
-  std::ostringstream sb;
-  sb << "#SBATCH --ntasks=" << ntasks << "\n#SBATCH --cpus-per-task=" << cpusPerTask
-     << "\n#SBATCH --time=" << minutes / 60 << ":" << (minutes % 60 < 10 ? "0" : "") << minutes % 60
-     << ":00\n#SBATCH --mem-per-cpu=" << std::max(1, int(std::ceil(memoryBytes / cpusPerTask / 1e9 * 2))) << "G\n"
-     << "#SBATCH --signal=B:USR1@300\n#SBATCH --requeue\n";
-  p["sbatch"] = sb.str();
+  p["sbatch"] = slurmHeader(tileSeconds, waveSetupSeconds, coreHours, computedTiles, cores, memoryBytes);
   return p;
 }
 
@@ -507,6 +566,11 @@ std::string formatPlan(const nlohmann::json& p) {
                              "% of the same-side bin pairs, the rest mirrored (saves " +
                              n(p["reciprocity"]["core_hours_saved"]) + " core-hours)\n"
                        : "not used: " + p["reciprocity"]["reason"].get<std::string>() + "\n")
+            : std::string())
+    << (p.contains("diffraction_check")
+            ? "diffraction:    skipped; verified by pilots on " +
+                  p["diffraction_check"]["tiles_verified_by_pilots"].dump() + " tiles, by their own wave term on " +
+                  p["diffraction_check"]["tiles_checked"].dump() + " (counted in the estimate)\n"
             : std::string())
     << "output:         " << gb(p["output_bytes_uncompressed"].get<double>()) << " uncompressed (upper bound)\n"
     << "memory / rank:  " << gb(p["memory_bytes_per_rank"].get<double>()) << "\n"

@@ -52,6 +52,13 @@ TileComputer::TileComputer(const Job& job, const DirectionGrid& grid)
   if (job.needsWave()) wave_ = makeJobWaveEstimator(job, grid, *transport_.scene(), waveSettingsOf(job));
   if (wave_ && job.halvesWaveByReciprocity())
     pairs_.emplace(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere());
+  if (job.guarded.has(Component::Incoherent)) {
+    cellOf_ = resolutionCells(grid, job.scene.angularResolution_deg);
+    const EffectsPlan plan = EffectsPlan::fromJson(nlohmann::json::parse(job.effectsPlan));
+    if (const EffectDecision* d = plan.find(Effect::Incoherent); d && d->evidence.contains("pilot_verified"))
+      for (const auto& v : d->evidence["pilot_verified"])
+        pilotDiffraction_[v["incidence"].get<int>()] = v["upper"].get<double>();
+  }
 }
 
 TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb, double* pathSeconds,
@@ -89,9 +96,10 @@ TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb,
   }
   if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(t, exact, cb, r);
   *pathSeconds += since(ts);
-  if (wave_) {
+  if (wave_ && (!job.guarded.has(Component::Incoherent) || verifySkippedDiffraction(t, r))) {
     auto tw = Clock::now();
     addWaveTerm(t, exact, cb, r);
+    if (job.guarded.has(Component::Incoherent)) recordDiffractionCheck(t, r);
     *waveSeconds += since(tw);
   }
   r.seconds = since(ts);
@@ -165,6 +173,28 @@ void TileComputer::verifySkippedMultiple(int t, const std::optional<Vec3>& exact
         "tile {} (theta_i {:.3g} deg, phi_i {:.3g} deg): multiple scattering up to {:.4f} (+3 standard errors), "
         "beyond the tolerance {}: the effects planner's pilots did not see it, this slice has it",
         t, inc.theta_deg, inc.phi_deg, r.multipleCheck, job.scene.tolerance);
+}
+
+bool TileComputer::verifySkippedDiffraction(int t, TileResult& r) const {
+  const auto pilot = pilotDiffraction_.find(t);
+  // `lost` needs the wave term's masked sums anyway: the check then comes from it.
+  if (pilot == pilotDiffraction_.end() || job_.components.has(Component::Lost)) return true;
+  r.diffractionCheck = pilot->second;
+  r.diffractionReenabled = false;  // the pilot's figure was below the tolerance, or diffraction would be on
+  r.value[int(Component::Incoherent)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+  r.stdError[int(Component::Incoherent)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+  return false;
+}
+
+void TileComputer::recordDiffractionCheck(int t, TileResult& r) const {
+  const auto& inc = job_.incidence[size_t(t)];
+  r.diffractionCheck = diffractionUpperBound(r, grid_, cellOf_);
+  r.diffractionReenabled = r.diffractionCheck > job_.scene.tolerance;
+  if (r.diffractionReenabled)
+    spdlog::warn(
+        "tile {} (theta_i {:.3g} deg, phi_i {:.3g} deg): diffraction changes the slice by up to {:.4f} beyond noise, "
+        "beyond the tolerance {}: the effects planner's pilots did not see it, this slice has it",
+        t, inc.theta_deg, inc.phi_deg, r.diffractionCheck, job_.scene.tolerance);
 }
 
 }  // namespace mbsdf

@@ -1,11 +1,12 @@
 // One tile of a job (an incidence direction × every wavelength) as the run computes it, apart from
 // where it runs: the geometric transport (paths or the facet sum of single scattering), progressive
-// sampling to [sampling] target_rel_error, the check of a `multiple` the effects planner skipped
-// (Job::guarded), and the wave term — with reciprocity's exit mask (docs/physics.md §8) and the
+// sampling to [sampling] target_rel_error, the checks of a `multiple` or a diffraction the effects
+// planner skipped (Job::guarded), and the wave term — with reciprocity's exit mask (docs/physics.md §8) and the
 // transmitted bins left to geometric optics where the renderer needs no BTDF. The scheduler
 // (cluster/runner.h) hands tiles out and writes them; this is what a tile is.
 #pragma once
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 
@@ -37,6 +38,12 @@ class TileComputer {
                              TileResult& r) const;
   void addWaveTerm(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& progress,
                    TileResult& r) const;
+  // A diffraction the effects planner skipped, verified on tile t: by the pilot that ran this tile
+  // as the job does (its upper estimate; the slice's `incoherent` is stored as 0), else by the
+  // tile's own wave term (computed and kept; re-enabled when its upper estimate beyond noise at the
+  // renderer's resolution exceeds the tolerance). Returns whether the wave term is still to run.
+  bool verifySkippedDiffraction(int t, TileResult& r) const;
+  void recordDiffractionCheck(int t, TileResult& r) const;
 
   const Job& job_;
   const DirectionGrid& grid_;
@@ -46,6 +53,8 @@ class TileComputer {
   std::optional<double> singleBounceLimit_;
   std::unique_ptr<WaveEstimator> wave_;
   std::optional<ReciprocalPairs> pairs_;
+  std::map<int, double> pilotDiffraction_;  // incidence → upper estimate of the pilot run as the job does
+  std::vector<int> cellOf_;                 // the renderer's cells (effects_planner.h resolutionCells)
 };
 
 }  // namespace mbsdf

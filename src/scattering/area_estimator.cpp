@@ -131,6 +131,40 @@ class ExitDirectionSampler {
 
 AreaWaveEstimator::AreaWaveEstimator(const WaveContext& ctx) : ctx_(ctx), sampler_(ctx.geometry) {}
 
+// Bin b's integral mean_k p_k / pdf_k over the M directions of each wavelength (p: [k * nL + l]) as a
+// bin-averaged BSDF (× toF = 1/Ω⊥) into f, with the standard error of the stratified mean into e.
+static void binIntegral(const ExitDirectionSampler& dirs, int M, int nL, int nB, int b, double toF,
+                        const std::vector<double>& p, std::vector<double>& f, std::vector<double>& e) {
+  const int T = dirs.techniques();
+  std::vector<double> sum(T), sum2(T);
+  std::vector<int> n(T);
+  for (int l = 0; l < nL; ++l) {
+    std::fill(sum.begin(), sum.end(), 0.0);
+    std::fill(sum2.begin(), sum2.end(), 0.0);
+    std::fill(n.begin(), n.end(), 0);
+    double mean = 0;
+    for (int k = 0; k < M; ++k) {
+      double v = p[size_t(k) * nL + l];
+      int t = dirs.technique(k) + 1;
+      sum[t] += v;
+      sum2[t] += v * v;
+      n[t]++;
+      mean += v;
+    }
+    mean /= M;
+    // Variance of a stratified sum: Σ_t n_t Var_t / M², Var_t from each technique's own
+    // samples (a technique with one sample contributes its square: conservative).
+    double var = 0;
+    for (int t = 0; t < T; ++t) {
+      if (n[t] == 0) continue;
+      double vt = n[t] > 1 ? std::max(0.0, (sum2[t] - sum[t] * sum[t] / n[t]) / (n[t] - 1)) : sum2[t];
+      var += n[t] * vt;
+    }
+    f[size_t(l) * nB + b] = mean * toF;
+    e[size_t(l) * nB + b] = std::sqrt(var) / M * toF;
+  }
+}
+
 WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
                                       const std::function<void(uint64_t)>& progress,
                                       const std::vector<uint8_t>& exitMask) const {
@@ -215,34 +249,7 @@ WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<
     // the mean over the M independent directions.
     const double toF = 1.0 / grid.projectedSolidAngle(b);
     auto reduce = [&](const std::vector<double>& p, std::vector<double>& f, std::vector<double>& e) {
-      const int T = dirs.techniques();
-      std::vector<double> sum(T), sum2(T);
-      std::vector<int> n(T);
-      for (int l = 0; l < nL; ++l) {
-        std::fill(sum.begin(), sum.end(), 0.0);
-        std::fill(sum2.begin(), sum2.end(), 0.0);
-        std::fill(n.begin(), n.end(), 0);
-        double mean = 0;
-        for (int k = 0; k < M; ++k) {
-          double v = p[size_t(k) * nL + l];
-          int t = dirs.technique(k) + 1;
-          sum[t] += v;
-          sum2[t] += v * v;
-          n[t]++;
-          mean += v;
-        }
-        mean /= M;
-        // Variance of a stratified sum: Σ_t n_t Var_t / M², Var_t from each technique's own
-        // samples (a technique with one sample contributes its square: conservative).
-        double var = 0;
-        for (int t = 0; t < T; ++t) {
-          if (n[t] == 0) continue;
-          double vt = n[t] > 1 ? std::max(0.0, (sum2[t] - sum[t] * sum[t] / n[t]) / (n[t] - 1)) : sum2[t];
-          var += n[t] * vt;
-        }
-        f[size_t(l) * nB + b] = mean * toF;
-        e[size_t(l) * nB + b] = std::sqrt(var) / M * toF;
-      }
+      binIntegral(dirs, M, nL, nB, b, toF, p, f, e);
     };
     reduce(pv, r.fws, r.fwsErr);
     if (masked) reduce(pm, r.pmsk, r.pmskErr);

@@ -262,6 +262,191 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
     }
 }
 
+// The propagating orders of every wavelength for incidence wi: reflected on the incident side;
+// for the masked field of a conductor also the reflected orders below the horizon; for a
+// dielectric the transmitted ones (when wanted). Only the orders of the cell's lattice carry power
+// (lattice_cell.h): a = nx a', b = ny b'.
+std::vector<Order> propagatingOrders(const WaveContext& ctx, const wave::Media& media, const LatticeCell& cell,
+                                     const Vec3& wi, bool fromAbove, bool transmissionWanted, bool masked) {
+  const double Lx = ctx.scene.sizeX(), Ly = ctx.scene.sizeY(), sigma = ctx.window.sigma();
+  const double cosI = std::abs(wi.z);
+  std::vector<Order> orders;
+  for (int l = 0; l < int(ctx.lambda_um.size()); ++l) {
+    const double k0 = 2 * kPi / ctx.lambda_um[l];
+    for (int side = 0; side < 3; ++side) {
+      const bool trans = side == 2;
+      if (trans && (media.conductor() || !transmissionWanted)) continue;
+      if (side == 1 && !(masked && media.conductor())) continue;
+      const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
+      const double reach = nO * k0 + nI * k0;  // |G| can be at most this for a propagating order
+      const long amax = long(std::ceil(reach * cell.sizeX / (2 * kPi))),
+                 bmax = long(std::ceil(reach * cell.sizeY / (2 * kPi)));
+      for (long ac = -amax; ac <= amax; ++ac)
+        for (long bc = -bmax; bc <= bmax; ++bc) {
+          const long a = ac * cell.nx, b = bc * cell.ny;
+          double x = -(2 * kPi * a / Lx + nI * k0 * wi.x) / (nO * k0);
+          double y = -(2 * kPi * b / Ly + nI * k0 * wi.y) / (nO * k0);
+          double r2 = x * x + y * y;
+          if (r2 >= 1) continue;  // evanescent
+          double cz = std::sqrt(1 - r2);
+          bool up = fromAbove != (trans || side == 1);
+          Order o;
+          o.a = a;
+          o.b = b;
+          o.below = side == 1;
+          o.lambda = l;
+          o.wo = {x, y, up ? cz : -cz};
+          o.transmission = trans;
+          o.scale = 1.0 / (4 * nI * nO * k0 * k0 * Lx * Lx * Ly * Ly * cosI) *
+                    (kPi * sigma * sigma / ctx.window.w2());  // W2 of the truncated copy sum
+          o.sd = 1.0 / (std::sqrt(2.0) * sigma * nO * k0);
+          orders.push_back(o);
+        }
+    }
+  }
+  return orders;
+}
+
+// Monte Carlo: the group sums S_g of the Kirchhoff integrand (s, p; visible, masked) over N
+// surface points for every order, indexed by groupSlot. Points in parallel blocks, each block
+// accumulating into its own group: deterministic. Rays cast are added per group.
+size_t groupSlot(size_t o, int pol, int g, int msk) {
+  return ((o * 2 + pol) * kGroups + g) * 2 + msk;
+}
+void accumulateGroupSums(const WaveContext& ctx, const SurfaceSampler& sampler, const std::vector<Order>& orders,
+                         int tile, int k, int N, const Vec3& wi, bool fromAbove, const wave::Media& media, bool masked,
+                         std::vector<Complex>& S, std::vector<uint64_t>& blockRays) {
+  const double area = sampler.totalArea();
+  tbb::parallel_for(0, kGroups, [&](int g) {
+    if (stopRequested()) return;
+    const int j0 = g * N / kGroups, j1 = (g + 1) * N / kGroups;
+    for (int j = j0; j < j1; ++j) {
+      Sampler ps(ctx.settings.seed, uint32_t(tile), (uint64_t(k) << 32) | uint64_t(j), kOrdersStream + 1);
+      // Stratified over the surface within each group (the groups are independent replicas).
+      const double u1 = (double(j - j0) + ps.get1D()) / double(j1 - j0);
+      SurfaceSample sp = sampler.sample(u1, ps.get1D(), ps.get1D());
+      const Vec3 m = fromAbove ? sp.n : -sp.n;
+      const double cosLocal = dot(m, wi);
+      if (cosLocal <= 0) continue;
+      ++blockRays[g];
+      if (!wave::escapes(ctx.scene, sp.x, m, wi, sp.prim, fromAbove)) continue;
+      for (size_t o = 0; o < orders.size(); ++o) {
+        const Order& ord = orders[o];
+        const ExitVisibility vis =
+            wave::visibleExit(ctx.scene, sp.x, m, ord.wo, sp.prim, fromAbove, ord.transmission, &blockRays[g]);
+        if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
+        const bool visible = vis == ExitVisibility::Visible;
+        const int l = ord.lambda;
+        const double k0 = 2 * kPi / ctx.lambda_um[l];
+        KirchhoffValue kv = wave::integrandAt(media, l, sp.x, m, wi, ord.wo, k0, fromAbove, ord.transmission);
+        // kirchhoffIntegrand's phase is q·x with q_xy = G exactly at the order direction: it is
+        // the e^{i (G·x_xy + q_z z)} of Ĥ_G.
+        const int msk = visible ? 0 : 1;
+        const Complex xs = kv.s * area, xp = kv.p * area;
+        S[groupSlot(o, 0, g, msk)] += xs;
+        S[groupSlot(o, 1, g, msk)] += xp;
+      }
+    }
+  });
+}
+
+// An order's power, its variance and the lobe's share of each bin.
+struct OrderPower {
+  double P[2] = {0, 0}, var[2] = {0, 0};
+  std::vector<std::pair<int, double>> share;
+};
+
+// Monte Carlo |Ĥ_G|² of order o (visible or masked) from the group sums S_g (independent
+// replicas, each stratified), unbiased: (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)), with a
+// delete-a-group jackknife variance. False when the power is 0.
+bool monteCarloPower(const std::vector<Complex>& S, size_t o, int msk, int N, double scale, double* P, double* var) {
+  auto estimate = [&](int skip) {
+    const double ng = double(N) / kGroups;
+    const int G = skip < 0 ? kGroups : kGroups - 1;
+    double total = 0;
+    for (int pol = 0; pol < 2; ++pol) {
+      Complex sum = 0;
+      double q = 0;
+      for (int g = 0; g < kGroups; ++g)
+        if (g != skip) {
+          sum += S[groupSlot(o, pol, g, msk)];
+          q += std::norm(S[groupSlot(o, pol, g, msk)]);
+        }
+      total += 0.5 * (std::norm(sum) - q) / (ng * ng * G * (G - 1));
+    }
+    return total * scale;
+  };
+  const double p = estimate(-1);
+  if (p == 0) return false;
+  double jk[kGroups], jkMean = 0;
+  for (int g = 0; g < kGroups; ++g) {
+    jk[g] = estimate(g);
+    jkMean += jk[g] / kGroups;
+  }
+  double v = 0;
+  for (double x : jk) v += (x - jkMean) * (x - jkMean);
+  *P = p;
+  *var = v * double(kGroups - 1) / kGroups;
+  return true;
+}
+
+// exact/fft: Ĥ_G (s, p; visible, masked) of every order into H; returns the rays cast. exact: every
+// order by facet sums. fft: by the FFT of the facets' fields, except transmitted orders from the
+// denser medium: their integrand is the reverse path's (wave::integrandAt), which depends on the
+// order's direction through the facet's Fresnel factor and is no longer a field shared by all
+// orders; those take the facet sums.
+uint64_t deterministicAmplitudes(const WaveContext& ctx, OrderAmplitudes amplitudes,
+                                 const HeightfieldSpectrum* spectrum, const LatticeCell& cell, const SlopeBound& slope,
+                                 const std::function<const VisibilityTable*()>& visibilityTable,
+                                 const std::vector<Order>& orders, const Vec3& wi, bool fromAbove,
+                                 const wave::Media& media, bool masked, std::vector<Complex>& H) {
+  const size_t nO = orders.size();
+  uint64_t rays = 0;
+  auto facetSum = [&](size_t o) {
+    return amplitudes == OrderAmplitudes::Exact ||
+           (orders[o].transmission && media.reverseTransmission(orders[o].lambda, fromAbove));
+  };
+  if (amplitudes == OrderAmplitudes::Fourier)
+    fourierAmplitudes(ctx, *spectrum, orders, wi, fromAbove, media, masked, H.data(), &rays);
+  bool anyFacetSum = false;
+  for (size_t o = 0; o < nO; ++o) anyFacetSum = anyFacetSum || facetSum(o);
+  if (!anyFacetSum) return rays;
+  const VisibilityTable* table = visibilityTable();
+  const std::vector<uint8_t> lit = wave::firstLevelShadowing(ctx, cell, table, slope, wi, fromAbove, &rays);
+  std::vector<uint64_t> orderRays(nO, 0);
+  wave::ShadowCache shadow(cell.facets.size());
+  tbb::parallel_for(size_t(0), nO, [&](size_t o) {
+    if (stopRequested() || !facetSum(o)) return;
+    for (int c = 0; c < 4; ++c) H[4 * o + c] = 0;
+    wave::exactAmplitude(ctx, cell, table, slope, {orders[o].lambda, orders[o].wo, orders[o].transmission}, wi,
+                         fromAbove, media, masked, lit, shadow, &H[4 * o], &orderRays[o]);
+  });
+  for (uint64_t v : orderRays) rays += v;
+  return rays;
+}
+
+// The average over the K incidence samples of the power per (λ, bin) as f (÷ Ω⊥); the error
+// combines the point error and the spread over the samples.
+void averageOverIncidences(const DirectionGrid& grid, int K, const std::vector<std::vector<double>>& p,
+                           const std::vector<std::vector<double>>& v, std::vector<double>& f, std::vector<double>& e) {
+  const int nB = grid.binCount();
+  for (size_t i = 0; i < f.size(); ++i) {
+    const int b = int(i % size_t(nB));
+    if (grid.projectedSolidAngle(b) <= 0) continue;  // disk pixels outside the unit disk
+    const double toF = 1.0 / grid.projectedSolidAngle(b);
+    double mean = 0, var = 0;
+    for (int k = 0; k < K; ++k) mean += p[k][i] / K;
+    for (int k = 0; k < K; ++k) var += v[k][i] / (double(K) * K);
+    if (K > 1) {
+      double spread = 0;
+      for (int k = 0; k < K; ++k) spread += (p[k][i] - mean) * (p[k][i] - mean);
+      var = std::max(var, spread / (K - 1) / K);
+    }
+    f[i] = mean * toF;
+    e[i] = std::sqrt(var) * toF;
+  }
+}
+
 }  // namespace
 
 OrdersWaveEstimator::OrdersWaveEstimator(const WaveContext& ctx, OrderAmplitudes amplitudes)
@@ -346,53 +531,69 @@ std::string OrdersWaveEstimator::name() const {
 // of the coarser, on the safe side). WaveExact.IncidenceBinAverageMatchesDenseCollimatedMean: that
 // grating at 5°, 39.4°, 65° within 0.013–0.019 (L1 per slice) of the mean of 24 × 24 collimated
 // tables over the bin, reported 0.051–0.059; n = 2 and n = 8 differ by 0.0002–0.019.
+namespace {
+
+// Lagrange interpolation weights of the nodes x at t.
+std::vector<double> lagrangeWeights(const std::vector<double>& x, double t) {
+  std::vector<double> w(x.size(), 1.0);
+  for (size_t i = 0; i < x.size(); ++i)
+    for (size_t j = 0; j < x.size(); ++j)
+      if (i != j) w[i] *= (t - x[j]) / (x[i] - x[j]);
+  return w;
+}
+
+// A sub-direction of the incidence bin (binOverIncidenceBin): its place (u, v) in the bin's
+// cosine-weighted square, its direction, its interpolation weights and the lobe offset paired with it.
+struct SubDirection {
+  double u, v;
+  Vec3 wi;
+  std::vector<double> wh, wl;  // interpolation weights of the n² and (n − 1)² nodes
+  double lx, ly;               // the paired lobe offset (units of sd)
+};
+
+// The M × M sub-directions of an incidence bin, each paired with one point of the lobe's M × M
+// stratified pattern by a fixed scrambled permutation; qh, ql: the n- and (n − 1)-node rules.
+std::vector<SubDirection> subDirections(const DirectionGrid& grid, int incidenceBin, const QuadratureRule& qh,
+                                        const QuadratureRule& ql, int M) {
+  const int n = int(qh.x.size());
+  std::vector<SubDirection> v;
+  const std::vector<double>& ln = lobeNodes(M);
+  std::vector<int> perm(size_t(M * M));
+  for (int i = 0; i < M * M; ++i) perm[size_t(i)] = i;
+  Sampler shuffle(0x10BE5EEDu, 0, uint64_t(M), 0);
+  for (int i = M * M - 1; i > 0; --i)
+    std::swap(perm[size_t(i)], perm[size_t(std::min(i, int(shuffle.get1D() * (i + 1))))]);
+  for (int i = 0; i < M; ++i)
+    for (int j = 0; j < M; ++j) {
+      const double u = (i + 0.5) / M, w = (j + 0.5) / M;
+      SubDirection sub;
+      sub.u = u, sub.v = w;
+      sub.wi = grid.sampleCosine(incidenceBin, u, w).w;
+      const std::vector<double> hu = lagrangeWeights(qh.x, u), hv = lagrangeWeights(qh.x, w),
+                                lu = lagrangeWeights(ql.x, u), lv = lagrangeWeights(ql.x, w);
+      for (int a = 0; a < n; ++a)
+        for (int b = 0; b < n; ++b) sub.wh.push_back(hu[size_t(a)] * hv[size_t(b)]);
+      for (int a = 0; a < n - 1; ++a)
+        for (int b = 0; b < n - 1; ++b) sub.wl.push_back(lu[size_t(a)] * lv[size_t(b)]);
+      const int cell = perm[size_t(i * M + j)];
+      sub.lx = ln[size_t(cell / M)];
+      sub.ly = ln[size_t(cell % M)];
+      v.push_back(std::move(sub));
+    }
+  return v;
+}
+
+}  // namespace
+
 static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& grid, int incidenceBin, bool fromAbove,
                                 const wave::Media& media, const std::vector<NodePowers>& nodePower, bool masked,
                                 WaveTileResult* r) {
   const int nB = grid.binCount();
   const int n = incidenceRuleOrder(ctx.settings.incidenceDirections);
   const QuadratureRule qh = gaussLegendre(n, 0.0, 1.0), ql = gaussLegendre(n - 1, 0.0, 1.0);
-  auto lagrange = [](const std::vector<double>& x, double t) {
-    std::vector<double> w(x.size(), 1.0);
-    for (size_t i = 0; i < x.size(); ++i)
-      for (size_t j = 0; j < x.size(); ++j)
-        if (i != j) w[i] *= (t - x[j]) / (x[i] - x[j]);
-    return w;
-  };
-  struct Sub {
-    double u, v;
-    Vec3 wi;
-    std::vector<double> wh, wl;  // interpolation weights of the n² and (n − 1)² nodes
-    double lx, ly;               // the paired lobe offset (units of sd)
-  };
-  auto subDirections = [&](int M) {
-    std::vector<Sub> v;
-    const std::vector<double>& ln = lobeNodes(M);
-    std::vector<int> perm(size_t(M * M));
-    for (int i = 0; i < M * M; ++i) perm[size_t(i)] = i;
-    Sampler shuffle(0x10BE5EEDu, 0, uint64_t(M), 0);
-    for (int i = M * M - 1; i > 0; --i)
-      std::swap(perm[size_t(i)], perm[size_t(std::min(i, int(shuffle.get1D() * (i + 1))))]);
-    for (int i = 0; i < M; ++i)
-      for (int j = 0; j < M; ++j) {
-        const double u = (i + 0.5) / M, w = (j + 0.5) / M;
-        Sub sub;
-        sub.u = u, sub.v = w;
-        sub.wi = grid.sampleCosine(incidenceBin, u, w).w;
-        const std::vector<double> hu = lagrange(qh.x, u), hv = lagrange(qh.x, w), lu = lagrange(ql.x, u),
-                                  lv = lagrange(ql.x, w);
-        for (int a = 0; a < n; ++a)
-          for (int b = 0; b < n; ++b) sub.wh.push_back(hu[size_t(a)] * hv[size_t(b)]);
-        for (int a = 0; a < n - 1; ++a)
-          for (int b = 0; b < n - 1; ++b) sub.wl.push_back(lu[size_t(a)] * lv[size_t(b)]);
-        const int cell = perm[size_t(i * M + j)];
-        sub.lx = ln[size_t(cell / M)];
-        sub.ly = ln[size_t(cell % M)];
-        v.push_back(std::move(sub));
-      }
-    return v;
-  };
-  const std::vector<Sub> fine = subDirections(32), coarse = subDirections(16);
+  using Sub = SubDirection;
+  const std::vector<Sub> fine = subDirections(grid, incidenceBin, qh, ql, 32),
+                         coarse = subDirections(grid, incidenceBin, qh, ql, 16);
   const double Lx = ctx.scene.sizeX(), Ly = ctx.scene.sizeY();
   const int nMsk = masked ? 2 : 1;
   // Per order: (table, msk, λ·nB + bin, value) contributions, accumulated below in order.
@@ -507,7 +708,6 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   // transmitted orders are left out when the mask excludes the whole other hemisphere.
   auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = ctx_.grid;
-  const PeriodicScene& scene = ctx_.scene;
   const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();
   const int N = std::max(2 * kGroups, ctx_.settings.samplesPerBin);
   // Incidence directions: one collimated beam; else K random ones (orders), or the nodes of the
@@ -522,8 +722,6 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   const bool transmissionWanted = wave::otherSideWanted(grid, fromAbove, exitMask);
   const wave::Media media(ctx_);
-  const double Lx = scene.sizeX(), Ly = scene.sizeY(), area = sampler_.totalArea();
-  const double sigma = ctx_.window.sigma();
 
   WaveTileResult r(nL, nB, masked);
   // Per incidence sample k: power per (λ, bin) and its variance; averaged over k at the end.
@@ -543,135 +741,26 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
   };
   for (int k = 0; k < K; ++k) {
     const Vec3 wi = incidence(k);
-    const double cosI = std::abs(wi.z);
-    // Propagating orders of every wavelength on the reflection (and transmission) side.
-    std::vector<Order> orders;
-    for (int l = 0; l < nL; ++l) {
-      const double k0 = 2 * kPi / ctx_.lambda_um[l];
-      // Reflected orders on the incident side; for the masked field of a conductor also the
-      // reflected orders below the horizon (side = false); for a dielectric the transmitted orders.
-      for (int side = 0; side < 3; ++side) {
-        const bool trans = side == 2;
-        if (trans && (media.conductor() || !transmissionWanted)) continue;
-        if (side == 1 && !(masked && media.conductor())) continue;
-        const double nI = media.incident(l, fromAbove), nO = trans ? media.other(l, fromAbove) : nI;
-        const double reach = nO * k0 + nI * k0;  // |G| can be at most this for a propagating order
-        // Only the orders of the cell's lattice carry power (lattice_cell.h): a = nx a', b = ny b'.
-        const long amax = long(std::ceil(reach * cell_.sizeX / (2 * kPi))),
-                   bmax = long(std::ceil(reach * cell_.sizeY / (2 * kPi)));
-        for (long ac = -amax; ac <= amax; ++ac)
-          for (long bc = -bmax; bc <= bmax; ++bc) {
-            const long a = ac * cell_.nx, b = bc * cell_.ny;
-            double x = -(2 * kPi * a / Lx + nI * k0 * wi.x) / (nO * k0);
-            double y = -(2 * kPi * b / Ly + nI * k0 * wi.y) / (nO * k0);
-            double r2 = x * x + y * y;
-            if (r2 >= 1) continue;  // evanescent
-            double cz = std::sqrt(1 - r2);
-            bool up = fromAbove != (trans || side == 1);
-            Order o;
-            o.a = a;
-            o.b = b;
-            o.below = side == 1;
-            o.lambda = l;
-            o.wo = {x, y, up ? cz : -cz};
-            o.transmission = trans;
-            o.scale = 1.0 / (4 * nI * nO * k0 * k0 * Lx * Lx * Ly * Ly * cosI) *
-                      (kPi * sigma * sigma / ctx_.window.w2());  // W2 of the truncated copy sum
-            o.sd = 1.0 / (std::sqrt(2.0) * sigma * nO * k0);
-            orders.push_back(o);
-          }
-      }
-    }
+    const std::vector<Order> orders = propagatingOrders(ctx_, media, cell_, wi, fromAbove, transmissionWanted, masked);
     const size_t nO = orders.size();
     pointOrderPairs += uint64_t(amplitudes_ == OrderAmplitudes::Exact ? cell_.facets.size()
                                 : deterministic                       ? ctx_.geometry.triangles.size()
                                                                       : size_t(N)) *
                        nO;
-    // Accumulators per order, polarisation, group and visible/masked: Σ X.
-    std::vector<Complex> S(nO * 2 * kGroups * 2, 0.0);
-    auto idx = [&](size_t o, int pol, int g, int msk) { return ((o * 2 + pol) * kGroups + g) * 2 + msk; };
-    const int blocks = kGroups;
-    std::vector<uint64_t> blockRays(blocks, 0);
-    // exact: Ĥ_G (s, p; visible, masked) per order, summed over facets in closed form.
+    // Monte Carlo: accumulators per order, polarisation, group and visible/masked (groupSlot).
+    // exact/fft: Ĥ_G (s, p; visible, masked) per order.
+    std::vector<Complex> S(deterministic ? 0 : nO * 2 * kGroups * 2, 0.0);
     std::vector<Complex> H(deterministic ? nO * 4 : 0, 0.0);
-    // exact: every order by facet sums. fft: by the FFT of the facets' fields, except transmitted
-    // orders from the denser medium: their integrand is the reverse path's (wave::integrandAt),
-    // which depends on the order's direction through the facet's Fresnel factor and is no longer
-    // a field shared by all orders; those take the facet sums.
-    auto facetSum = [&](size_t o) {
-      return amplitudes_ == OrderAmplitudes::Exact ||
-             (orders[o].transmission && media.reverseTransmission(orders[o].lambda, fromAbove));
-    };
-    if (amplitudes_ == OrderAmplitudes::Fourier) {
-      uint64_t fourierRays = 0;
-      fourierAmplitudes(ctx_, *spectrum_, orders, wi, fromAbove, media, masked, H.data(), &fourierRays);
-      rays += fourierRays;
-    }
-    bool anyFacetSum = false;
-    for (size_t o = 0; o < nO && deterministic; ++o) anyFacetSum = anyFacetSum || facetSum(o);
-    if (anyFacetSum) {
-      uint64_t shadowRays = 0;
-      const VisibilityTable* table = visibilityTable();
-      const std::vector<uint8_t> lit =
-          wave::firstLevelShadowing(ctx_, cell_, table, slope_, wi, fromAbove, &shadowRays);
-      rays += shadowRays;
-      std::vector<uint64_t> orderRays(nO, 0);
-      wave::ShadowCache shadow(cell_.facets.size());
-      tbb::parallel_for(size_t(0), nO, [&](size_t o) {
-        if (stopRequested() || !facetSum(o)) return;
-        for (int c = 0; c < 4; ++c) H[4 * o + c] = 0;
-        wave::exactAmplitude(ctx_, cell_, table, slope_, {orders[o].lambda, orders[o].wo, orders[o].transmission}, wi,
-                             fromAbove, media, masked, lit, shadow, &H[4 * o], &orderRays[o]);
-      });
-      for (uint64_t v : orderRays) rays += v;
-    } else if (!deterministic) {
-      // Points in parallel blocks, each block accumulating into its own group: deterministic.
-      tbb::parallel_for(0, blocks, [&](int g) {
-        if (stopRequested()) return;
-        const int j0 = g * N / blocks, j1 = (g + 1) * N / blocks;
-        for (int j = j0; j < j1; ++j) {
-          Sampler ps(ctx_.settings.seed, uint32_t(tile), (uint64_t(k) << 32) | uint64_t(j), kOrdersStream + 1);
-          // Stratified over the surface within each group (the groups are independent replicas).
-          const double u1 = (double(j - j0) + ps.get1D()) / double(j1 - j0);
-          SurfaceSample sp = sampler_.sample(u1, ps.get1D(), ps.get1D());
-          const Vec3 m = fromAbove ? sp.n : -sp.n;
-          const double cosLocal = dot(m, wi);
-          if (cosLocal <= 0) continue;
-          ++blockRays[g];
-          if (!wave::escapes(scene, sp.x, m, wi, sp.prim, fromAbove)) continue;
-          for (size_t o = 0; o < nO; ++o) {
-            const Order& ord = orders[o];
-            const ExitVisibility vis =
-                wave::visibleExit(scene, sp.x, m, ord.wo, sp.prim, fromAbove, ord.transmission, &blockRays[g]);
-            if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
-            const bool visible = vis == ExitVisibility::Visible;
-            const int l = ord.lambda;
-            const double k0 = 2 * kPi / ctx_.lambda_um[l];
-            KirchhoffValue kv = wave::integrandAt(media, l, sp.x, m, wi, ord.wo, k0, fromAbove, ord.transmission);
-            // kirchhoffIntegrand's phase is q·x with q_xy = G exactly at the order direction: it is
-            // the e^{i (G·x_xy + q_z z)} of Ĥ_G.
-            const int msk = visible ? 0 : 1;
-            const Complex xs = kv.s * area, xp = kv.p * area;
-            S[idx(o, 0, g, msk)] += xs;
-            S[idx(o, 1, g, msk)] += xp;
-          }
-        }
-      });
-    }
+    std::vector<uint64_t> blockRays(kGroups, 0);
+    if (deterministic)
+      rays += deterministicAmplitudes(
+          ctx_, amplitudes_, spectrum_.get(), cell_, slope_, [this] { return visibilityTable(); }, orders, wi,
+          fromAbove, media, masked, H);
+    else
+      accumulateGroupSums(ctx_, sampler_, orders, tile, k, N, wi, fromAbove, media, masked, S, blockRays);
     for (uint64_t b : blockRays) rays += b;
-    // |Ĥ_G|² per order (pairwise, unbiased) with a delete-a-group jackknife error, then the lobe
-    // is shared among the bins.
-    if (!quadrature) pv[k].assign(size_t(nL) * nB, 0.0), vv[k].assign(size_t(nL) * nB, 0.0);
-    if (masked && !quadrature) {
-      pm[k].assign(size_t(nL) * nB, 0.0);
-      vm[k].assign(size_t(nL) * nB, 0.0);
-    }
     // Per order (in parallel): power, jackknife variance and the lobe's share of each bin; then
     // accumulated into the bins in order (deterministic).
-    struct OrderPower {
-      double P[2] = {0, 0}, var[2] = {0, 0};
-      std::vector<std::pair<int, double>> share;
-    };
     std::vector<OrderPower> op(nO);
     throwIfStopped();
     tbb::parallel_for(size_t(0), nO, [&](size_t o) {
@@ -683,38 +772,9 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
           if (P == 0) continue;
           op[o].P[msk] = P;
           any = true;
-          continue;
+        } else {
+          any = monteCarloPower(S, o, msk, N, ord.scale, &op[o].P[msk], &op[o].var[msk]) || any;
         }
-        // Unbiased |Ĥ|² from the group sums S_g (independent replicas, each stratified):
-        // (|Σ_g S_g|² − Σ_g |S_g|²) / (n_g² G (G − 1)). `skip` leaves one group out (jackknife).
-        auto estimate = [&](int skip) {
-          const double ng = double(N) / kGroups;
-          const int G = skip < 0 ? kGroups : kGroups - 1;
-          double total = 0;
-          for (int pol = 0; pol < 2; ++pol) {
-            Complex sum = 0;
-            double q = 0;
-            for (int g = 0; g < kGroups; ++g)
-              if (g != skip) {
-                sum += S[idx(o, pol, g, msk)];
-                q += std::norm(S[idx(o, pol, g, msk)]);
-              }
-            total += 0.5 * (std::norm(sum) - q) / (ng * ng * G * (G - 1));
-          }
-          return total * ord.scale;
-        };
-        const double P = estimate(-1);
-        if (P == 0) continue;
-        double jk[kGroups], jkMean = 0;
-        for (int g = 0; g < kGroups; ++g) {
-          jk[g] = estimate(g);
-          jkMean += jk[g] / kGroups;
-        }
-        double var = 0;
-        for (double v : jk) var += (v - jkMean) * (v - jkMean);
-        op[o].P[msk] = P;
-        op[o].var[msk] = var * double(kGroups - 1) / kGroups;
-        any = true;
       }
       if (any && !quadrature) lobeBins(grid, ord.wo.x, ord.wo.y, ord.sd, ord.wo.z >= 0 ? 1.0 : -1.0, &op[o].share);
     });
@@ -731,47 +791,28 @@ WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optiona
         np.q[size_t(k) * 2 + 1] = op[o].P[1];
         np.present[size_t(k)] = 1;
       }
-      if (progress) progress(uint64_t(k + 1) * uint64_t(N));
-      continue;
-    }
-    for (size_t o = 0; o < nO; ++o) {
-      const Order& ord = orders[o];
-      for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
-        if (op[o].P[msk] == 0) continue;
-        auto& pt = msk ? pm[k] : pv[k];
-        auto& vt = msk ? vm[k] : vv[k];
-        for (auto [bin, frac] : op[o].share) {
-          pt[size_t(ord.lambda) * nB + bin] += op[o].P[msk] * frac;
-          vt[size_t(ord.lambda) * nB + bin] += op[o].var[msk] * frac * frac;
+    } else {
+      // |Ĥ_G|² per order, its lobe shared among the bins.
+      pv[k].assign(size_t(nL) * nB, 0.0), vv[k].assign(size_t(nL) * nB, 0.0);
+      if (masked) pm[k].assign(size_t(nL) * nB, 0.0), vm[k].assign(size_t(nL) * nB, 0.0);
+      for (size_t o = 0; o < nO; ++o)
+        for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
+          if (op[o].P[msk] == 0) continue;
+          auto& pt = msk ? pm[k] : pv[k];
+          auto& vt = msk ? vm[k] : vv[k];
+          for (auto [bin, frac] : op[o].share) {
+            pt[size_t(orders[o].lambda) * nB + bin] += op[o].P[msk] * frac;
+            vt[size_t(orders[o].lambda) * nB + bin] += op[o].var[msk] * frac * frac;
+          }
         }
-      }
     }
     if (progress) progress(uint64_t(k + 1) * uint64_t(N));
   }
-  // Average over the incidence samples; the error combines the point error and the spread over k.
-  auto combine = [&](const std::vector<std::vector<double>>& p, const std::vector<std::vector<double>>& v,
-                     std::vector<double>& f, std::vector<double>& e) {
-    for (size_t i = 0; i < f.size(); ++i) {
-      const int b = int(i % size_t(nB));
-      if (grid.projectedSolidAngle(b) <= 0) continue;  // disk pixels outside the unit disk
-      const double toF = 1.0 / grid.projectedSolidAngle(b);
-      double mean = 0, var = 0;
-      for (int k = 0; k < K; ++k) mean += p[k][i] / K;
-      for (int k = 0; k < K; ++k) var += v[k][i] / (double(K) * K);
-      if (K > 1) {
-        double spread = 0;
-        for (int k = 0; k < K; ++k) spread += (p[k][i] - mean) * (p[k][i] - mean);
-        var = std::max(var, spread / (K - 1) / K);
-      }
-      f[i] = mean * toF;
-      e[i] = std::sqrt(var) * toF;
-    }
-  };
   if (quadrature) {
     binOverIncidenceBin(ctx_, grid, incidenceBin, fromAbove, media, nodePower, masked, &r);
   } else {
-    combine(pv, vv, r.fws, r.fwsErr);
-    if (masked) combine(pm, vm, r.pmsk, r.pmskErr);
+    averageOverIncidences(grid, K, pv, vv, r.fws, r.fwsErr);
+    if (masked) averageOverIncidences(grid, K, pm, vm, r.pmsk, r.pmskErr);
   }
   // Kirchhoff samples per wavelength: surface point x exit direction (an order).
   r.samples = pointOrderPairs / uint64_t(std::max(1, nL));

@@ -13,6 +13,18 @@ PathTracer::PathTracer(const PeriodicScene& scene, const Material& material, std
   groups_ = wavelengthGroups(int(lambda_um_.size()), material_.directionsIndependentOfLambda());
 }
 
+// Where a path lit from wi starts, at footprint point (px, py). Periodic patch: it enters through
+// the top (bottom) of the slab there; the wrapping makes this uniform over the illuminated
+// projected area. Finite patch: it aims at that point of the mean surface plane, starting outside
+// the geometry.
+static Vec3 pathOrigin(const PeriodicScene& scene, const Vec3& wi, double px, double py) {
+  const bool fromAbove = wi.z >= 0;
+  const double zStart = fromAbove ? scene.zTop() : scene.zBottom();
+  if (scene.periodic()) return {px, py, zStart};
+  const Vec3 base{px, py, scene.zMean()};
+  return base + wi * ((zStart - scene.zMean()) / wi.z);
+}
+
 void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group,
                            PathChunk& out, PathRecord* rec) const {
   const std::vector<int>& lambdas = groups_[group];
@@ -22,15 +34,7 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
   if (exact) wi = DirectionSample{*exact, 1.0};
   double px = (s.get1D() - 0.5) * scene_.sizeX(), py = (s.get1D() - 0.5) * scene_.sizeY();
   bool fromAbove = wi.w.z >= 0;
-  // Periodic patch: enter through the top (bottom) of the slab at a uniform footprint point; the
-  // wrapping makes this uniform over the illuminated projected area. Finite patch: aim at a uniform
-  // point of the footprint on the mean surface plane, starting outside the geometry.
-  Vec3 o{px, py, fromAbove ? scene_.zTop() : scene_.zBottom()};
-  if (!scene_.periodic()) {
-    double zStart = fromAbove ? scene_.zTop() : scene_.zBottom();
-    Vec3 base{px, py, scene_.zMean()};
-    o = base + wi.w * ((zStart - scene_.zMean()) / wi.w.z);
-  }
+  Vec3 o = pathOrigin(scene_, wi.w, px, py);
   Vec3 d = -wi.w;
   bool inUpper = fromAbove;
   double w[64];

@@ -152,6 +152,30 @@ bool FacetSingleScattering::cheaperThan(int incidenceBin, const std::optional<Ve
   return cost(incidenceBin, exactDirection, budget).rays <= budget;
 }
 
+// The blocks' power per (λ, bin) summed in block order (deterministic) and divided by the bins'
+// projected solid angles: f and its uncertainty; the blocks' rays added to *rays.
+static void mergeBlocks(const DirectionGrid& grid, int nL, const std::vector<std::vector<double>>& block,
+                        const std::vector<std::vector<double>>& blockU, const std::vector<uint64_t>& blockRays,
+                        std::vector<double>& out, std::vector<double>& uncertain, uint64_t* rays) {
+  const int nB = grid.binCount();
+  out.assign(size_t(nL) * nB, 0.0);
+  uncertain.assign(size_t(nL) * nB, 0.0);
+  for (int k = 0; k < int(block.size()); ++k) {
+    for (size_t i = 0; i < out.size(); ++i) {
+      out[i] += block[size_t(k)][i];
+      uncertain[i] += blockU[size_t(k)][i];
+    }
+    *rays += blockRays[size_t(k)];
+  }
+  for (int l = 0; l < nL; ++l)
+    for (int bin = 0; bin < nB; ++bin) {
+      const double op = grid.projectedSolidAngle(bin);
+      const size_t i = size_t(l) * nB + bin;
+      out[i] = op > 0 ? out[i] / op : 0.0;
+      uncertain[i] = op > 0 ? uncertain[i] / op : 0.0;
+    }
+}
+
 void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::vector<double>& uncertain,
                                 uint64_t* rays) const {
   const int nL = int(lambda_um_.size()), nB = grid_.binCount();
@@ -261,22 +285,7 @@ void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::ve
     blockRays[size_t(k)] = nRays;
   });
   throwIfStopped();
-  out.assign(size_t(nL) * nB, 0.0);
-  uncertain.assign(size_t(nL) * nB, 0.0);
-  for (int k = 0; k < kBlocks; ++k) {
-    for (size_t i = 0; i < out.size(); ++i) {
-      out[i] += block[size_t(k)][i];
-      uncertain[i] += blockU[size_t(k)][i];
-    }
-    *rays += blockRays[size_t(k)];
-  }
-  for (int l = 0; l < nL; ++l)
-    for (int bin = 0; bin < nB; ++bin) {
-      const double op = grid_.projectedSolidAngle(bin);
-      const size_t i = size_t(l) * nB + bin;
-      out[i] = op > 0 ? out[i] / op : 0.0;
-      uncertain[i] = op > 0 ? uncertain[i] / op : 0.0;
-    }
+  mergeBlocks(grid_, nL, block, blockU, blockRays, out, uncertain, rays);
 }
 
 TileResult FacetSingleScattering::run(int tile, int incidenceIndex, int incidenceBin,

@@ -29,6 +29,8 @@ std::vector<double> TileResult::serialize() const {
   b.push_back(double(int(samplingStop)));
   b.push_back(multipleCheck);
   b.push_back(multipleReenabled ? 1.0 : 0.0);
+  b.push_back(diffractionCheck);
+  b.push_back(diffractionReenabled ? 1.0 : 0.0);
   for (int c = 0; c < kComponentCount; ++c) {
     b.push_back(double(value[c].size()));
     b.insert(b.end(), value[c].begin(), value[c].end());
@@ -68,6 +70,8 @@ TileResult TileResult::deserialize(const std::vector<double>& b) {
   r.samplingStop = SamplingStop(int(next()));
   r.multipleCheck = next();
   r.multipleReenabled = next() != 0;
+  r.diffractionCheck = next();
+  r.diffractionReenabled = next() != 0;
   auto take = [&](std::vector<double>& v, size_t n) {
     if (i + n > b.size()) throw std::runtime_error("truncated TileResult message");
     v.assign(b.begin() + i, b.begin() + i + n);

@@ -43,6 +43,12 @@ struct TileResult {
   // exceeded the tolerance, so that the tile computed it after all.
   double multipleCheck = std::numeric_limits<double>::quiet_NaN();
   bool multipleReenabled = false;
+  // Diffraction the effects planner skipped, verified on this tile: the upper estimate beyond noise
+  // of the slice's WS − GS difference at the renderer's resolution (largest over λ; from the pilot
+  // that covered this incidence, or from the wave term the tile computed; NaN when not verified) and
+  // whether it exceeded the tolerance, so that the slice holds its diffraction after all.
+  double diffractionCheck = std::numeric_limits<double>::quiet_NaN();
+  bool diffractionReenabled = false;
   uint64_t rays = 0;  // ray casts through the scene (for speed figures)
   double seconds = 0;
 

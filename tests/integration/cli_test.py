@@ -334,6 +334,64 @@ def test_effects_skip_verified():
           f"scattering in the full table); every slice within the tolerance {tol} of the full table")
 
 
+def test_effects_diffraction_verified():
+    """A diffraction skip the pilots could not see is caught on the tile: a flat mirror under a 2 mm
+    coherence length lit along eight exact directions at the centres of the azimuthal bins. Seven
+    reflect into the middle of a polar ring, where the window's 0.02 deg lobe stays in one bin as the
+    geometric spike does (WS - GS ~ 3e-8), so the pilots (the budget affords four wave pilots, none
+    at 22.5 deg) turn diffraction off. At 22.5 deg the specular direction lies on the edge between
+    two rings: the lobe splits between them and WS - GS is about 1. The tiles the pilots ran as the
+    job does keep their figure (incoherent stored as 0); every other tile computes its wave term, and
+    the 22.5 deg slice, past the tolerance, keeps it. Per slice and wavelength the auto table is
+    within the tolerance of the full one, auto does no more wave work than the full table, and
+    `info` names the re-enabled slice."""
+    inc = ("[[5.625, 11.25], [10.0, 11.25], [20.0, 11.25], [22.5, 11.25], [30.0, 11.25], [40.0, 11.25], "
+           "[50.0, 11.25], [60.0, 11.25]]")
+    geo, mat = 'kind = "flat"\nsize_um = [10.0, 10.0]', 'name = "mirror"'
+    scene, directions = "coherence_length_um = 2000.0", 'incidence_sampling = "exact"'
+    auto = effects_job(os.path.join(TMP, "edge-auto.toml"), geo, mat, scene, incidence=inc, directions=directions)
+    full = effects_job(os.path.join(TMP, "edge-full.toml"), geo, mat, scene, ["coherent", "incoherent", "multiple"],
+                       incidence=inc, directions=directions)
+    r = run(["run", auto, "-o", "edge-auto.h5"], mpi=2)
+    run(["run", full, "-o", "edge-full.h5"], mpi=2)
+    log = r.stdout + r.stderr
+    assert "incoherent  off" in log, log
+    folder = os.path.join(TMP, "edge-auto.h5.logs")
+    logs = "".join(open(os.path.join(folder, n)).read() for n in sorted(os.listdir(folder)))
+    assert "tile 3 (theta_i 22.5 deg, phi_i 11.2 deg): diffraction changes the slice by up to" in logs + log, logs + log
+    with h5py.File(os.path.join(TMP, "edge-auto.h5"), "r") as a, h5py.File(os.path.join(TMP, "edge-full.h5"), "r") as b:
+        plan = json.loads(a.attrs["effects_plan"])
+        tol = plan["tolerance"]
+        verified = {v["incidence"] for d in plan["decisions"] if d["effect"] == "incoherent"
+                    for v in d["pilot_verified"]}
+        assert 3 not in verified and len(verified) >= 3, plan
+        check = a["/stats/diffraction_check"][:]
+        assert np.all(np.isfinite(check)), check
+        assert list(a["/stats/diffraction_reenabled"][:]) == [int(i == 3) for i in range(8)], check
+        assert check[3] > 0.5, check
+        # Slices a pilot verified hold no incoherent and drew no wave sample; the others drew the full table's.
+        for i in range(8):
+            if i in verified:
+                assert a["/stats/wave_samples"][i] == 0 and not np.any(a["/bsdf/incoherent"][i]), i
+            else:
+                assert a["/stats/wave_samples"][i] == b["/stats/wave_samples"][i], i
+        op = a["/grid/projected_solid_angle"][:]
+        wm = lambda f: sum(f["/bsdf/" + c][:].astype(float) for c in ("coherent", "incoherent", "multiple"))  # noqa: E731
+        fa, fb = wm(a), wm(b)
+        for i in range(fa.shape[0]):
+            for l in range(fa.shape[1]):
+                d = float(np.sum(np.abs(fa[i, l] - fb[i, l]) * op))
+                assert d <= tol, f"slice {i}, λ {l}: auto differs from full by {d:.4f} (tolerance {tol})"
+        incoherent_full = float(np.sum(np.abs(b["/bsdf/incoherent"][3, 0]) * op))
+        samples = [float(np.sum(f["/stats/wave_samples"][:])) for f in (a, b)]
+    info = run(["info", "edge-auto.h5"]).stdout
+    assert "diffraction: skipped by the effects planner, verified on 8 slice(s)" in info, info
+    assert "computed after all, on slice(s) 3" in info, info
+    print(f"flat mirror, exact incidences: diffraction skipped by {len(verified)} pilots; slice 3 (22.5 deg, on a ring "
+          f"edge) re-enabled (check {check[3]:.3f}; the full table's incoherent there: {incoherent_full:.3f}); every "
+          f"slice within {tol} of the full table; wave samples {samples[0]:.3g} against {samples[1]:.3g}")
+
+
 def test_effects_adversarial():
     """Scenes built to fool the effects planner's pilots: an inter-reflection threshold between pilot
     incidences, listed incidences, collimated against bin-averaged incidence on a grating lit along
@@ -482,12 +540,19 @@ def test_effects_auto():
                 f"expected {sorted(expected)}\n{plan}"
             # A skipped `multiple` is verified on every slice: the file holds it (the traced value, or 0
             # where the facet sum computed single scattering and a check bounded it) with the bound.
+            # So is a diffraction skip the pilots decided (one the Kirchhoff estimate decided holds for
+            # every incidence by construction).
+            guarded = {"multiple"} if "multiple" not in expected else set()
+            if "incoherent" not in expected and decisions["incoherent"].get("decided_by") == "pilots":
+                guarded.add("incoherent")
             got = set(a["bsdf"].keys()) - {"done"}
-            assert got == expected | ({"multiple"} if "multiple" not in expected else set()), got
-            if "multiple" not in expected:
-                check = a["/stats/multiple_check"][:]
+            assert got == expected | guarded, got
+            for c, name_ in (("multiple", "multiple"), ("incoherent", "diffraction")):
+                if c not in guarded:
+                    continue
+                check = a[f"/stats/{name_}_check"][:]
                 assert np.all(np.isfinite(check)), check
-                assert np.array_equal(a["/stats/multiple_reenabled"][:] != 0, check > recorded["tolerance"]), check
+                assert np.array_equal(a[f"/stats/{name_}_reenabled"][:] != 0, check > recorded["tolerance"]), check
             brdf_only = 'needs = ["brdf"]' in scene
             assert not decisions["btdf"]["on"], decisions["btdf"]
             assert ("only the BRDF" if brdf_only else "conductor transmits nothing") in decisions["btdf"]["reason"]
