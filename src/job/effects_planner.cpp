@@ -1017,6 +1017,18 @@ WaveSettings pilotWaveSettings(const Job& job, const EffectsPilotOptions& option
   return ws;
 }
 
+// The incidences the renderer looks up ([scene] incidence_max_deg), reported.
+nlohmann::json incidenceDecision(const Job& job, const DirectionGrid& grid) {
+  int candidates = 0;
+  for (int b = 0; b < (job.material.isConductor() ? grid.binsPerHemisphere() : grid.binCount()); ++b)
+    candidates += grid.projectedSolidAngle(b) > 0;
+  return decision(
+      "incidence", true,
+      "the renderer looks up incidences within " + fmt3(job.scene.incidenceMax_deg) +
+          " deg of the normal ([scene] incidence_max_deg): " + std::to_string(job.incidence.size()) +
+          (job.incidenceAll ? " of " + std::to_string(candidates) + " incidence bins" : " listed incidences"));
+}
+
 // Components named beside "auto" are kept whatever the pilots say.
 void keepIfRequested(nlohmann::json& d, const ComponentSet& forced, Component c) {
   if (forced.has(c) && !d["on"].get<bool>()) {
@@ -1051,7 +1063,6 @@ void keepIfVerifyingCostsMore(const Job& job, int computed, nlohmann::json& d) {
 EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
   const auto t0 = Clock::now();
   const DirectionGrid grid(job.gridLayout);
-  const int nB = grid.binCount();
   const double tol = job.scene.tolerance;
   // Components named beside "auto" are kept whatever the pilots say.
   ComponentSet forced;
@@ -1142,19 +1153,7 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
                              pilotProgress("geometric pilot replica", job.incidence[size_t(p)])));
   };
   push(wavelengthDecision(job, grid, geo, chosen, replicate, &plan));
-  if (job.scene.incidenceMax_deg < 90) {
-    const int candidates = [&] {
-      int n = 0;
-      for (int b = 0; b < (job.material.isConductor() ? grid.binsPerHemisphere() : nB); ++b)
-        n += grid.projectedSolidAngle(b) > 0;
-      return n;
-    }();
-    push(decision(
-        "incidence", true,
-        "the renderer looks up incidences within " + fmt3(job.scene.incidenceMax_deg) +
-            " deg of the normal ([scene] incidence_max_deg): " + std::to_string(job.incidence.size()) +
-            (job.incidenceAll ? " of " + std::to_string(candidates) + " incidence bins" : " listed incidences")));
-  }
+  if (job.scene.incidenceMax_deg < 90) push(incidenceDecision(job, grid));
 
   plan.components = chosen;
   plan.tolerance = tol;

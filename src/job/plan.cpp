@@ -329,6 +329,32 @@ std::string slurmHeader(double tileSeconds, double waveSetupSeconds, double core
   return sb.str();
 }
 
+// The share of a tile's wave term the run computes on average: only the tiles no pilot verified
+// where diffraction was skipped (Job::guarded), the reciprocal pairs' fraction where the job halves
+// it by reciprocity (docs/physics.md §8). The plan records which (diffraction_check, reciprocity).
+double waveTermShare(const Job& job, const EffectsPlan* effects, const DirectionGrid& grid, int computedTiles,
+                     double waveSeconds, int cores, nlohmann::json& p) {
+  if (job.guarded.has(Component::Incoherent) && !job.components.has(Component::Lost)) {
+    const EffectDecision* d = effects ? effects->find(Effect::Incoherent) : nullptr;
+    const int verified = d && d->evidence.contains("pilot_verified") ? int(d->evidence["pilot_verified"].size()) : 0;
+    const int checked = std::max(0, computedTiles - verified);
+    p["diffraction_check"] = {{"tiles_checked", checked}, {"tiles_verified_by_pilots", verified}};
+    return double(checked) / std::max(1, computedTiles);
+  }
+  if (!job.components.has(Component::Incoherent)) return 1.0;
+  if (!job.halvesWaveByReciprocity()) {
+    p["reciprocity"] = {{"used", false}, {"reason", job.reciprocityOffReason()}};
+    return 1.0;
+  }
+  const double fraction =
+      ReciprocalPairs(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere()).computedFraction();
+  p["reciprocity"] = {{"used", true},
+                      {"computed_fraction", fraction},
+                      {"wave_seconds_per_tile_without", waveSeconds},
+                      {"core_hours_saved", waveSeconds * (1 - fraction) * computedTiles * cores / 3600.0}};
+  return fraction;
+}
+
 }  // namespace
 
 nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
@@ -343,7 +369,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   }
   const int cores = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
   DirectionGrid grid(job.gridLayout);
-  const int nTiles = int(job.incidence.size()), nL = int(job.lambda_nm.size()), nB = grid.binCount();
+  const int nTiles = int(job.incidence.size()), nL = int(job.lambda_nm.size());
   // Symmetry: one computed tile per θ ring of an isotropic surface (symmetry.h).
   const int computedTiles = job.symmetryReduced() ? AzimuthalSymmetry(job, grid).representativeCount() : nTiles;
   nlohmann::json p = describeJob(job, grid, computedTiles);
@@ -388,27 +414,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   const double waveBytes = wave.bytes, waveSetupSeconds = wave.setupSeconds, waveRate = wave.rate;
   const std::vector<double>& waveRelErrors = wave.relErrors;
   const bool waveDeterministic = wave.deterministic;
-  // Reciprocity (docs/physics.md §8): the wave term of each pair of incidence bins once. The pilot ran
-  // the whole slice; on average a tile computes the pairs' fraction of it.
-  // A skipped diffraction (Job::guarded) costs a wave term only on the tiles no pilot verified.
-  if (job.guarded.has(Component::Incoherent) && !job.components.has(Component::Lost)) {
-    const EffectDecision* d = effects ? effects->find(Effect::Incoherent) : nullptr;
-    const int verified = d && d->evidence.contains("pilot_verified") ? int(d->evidence["pilot_verified"].size()) : 0;
-    const int checked = std::max(0, computedTiles - verified);
-    p["diffraction_check"] = {{"tiles_checked", checked}, {"tiles_verified_by_pilots", verified}};
-    waveSeconds *= double(checked) / std::max(1, computedTiles);
-  } else if (job.components.has(Component::Incoherent)) {
-    if (job.halvesWaveByReciprocity()) {
-      const double fraction = ReciprocalPairs(job.incidenceBins(), nB, grid.binsPerHemisphere()).computedFraction();
-      p["reciprocity"] = {{"used", true},
-                          {"computed_fraction", fraction},
-                          {"wave_seconds_per_tile_without", waveSeconds},
-                          {"core_hours_saved", waveSeconds * (1 - fraction) * computedTiles * cores / 3600.0}};
-      waveSeconds *= fraction;
-    } else {
-      p["reciprocity"] = {{"used", false}, {"reason", job.reciprocityOffReason()}};
-    }
-  }
+  // The pilots ran the whole wave term; on average a tile computes this share of it.
+  waveSeconds *= waveTermShare(job, effects ? &*effects : nullptr, grid, computedTiles, waveSeconds, cores, p);
   const double tileSeconds = pathSeconds + waveSeconds;
   // The model's energy error at the pilots (BsdfFileWriter::writeEnergyBalance): for a lossless
   // material R + T + lost paths − 1, for an absorbing one the excess over 1. Scalar diffraction on
