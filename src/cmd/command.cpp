@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "io/bsdf_file.h"
+#include "io/slice_export.h"
 #include "scattering/components.h"
 
 namespace mbsdf {
@@ -58,6 +59,13 @@ void writeJsonFile(const std::string& path, const nlohmann::json& j, int indent)
   f << j.dump(indent) << "\n";
   f.close();
   if (!f) throw WriteError("cannot write " + path);
+}
+
+std::string modelOrFullest(const BsdfFileReader& f, const std::string& model, const std::string& path) {
+  if (!model.empty()) return model;
+  const std::vector<std::string> models = availableModels(f);
+  if (models.empty()) throw InputError(path + ": no model (GS, GM, WS, WM) can be formed from its components");
+  return models.back();
 }
 
 void addThreadsOption(CLI::App* cmd, int& threads, const std::string& what) {

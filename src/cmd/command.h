@@ -33,6 +33,8 @@ Command addCheckCommand(CLI::App& app);
 Command addKeysCommand(CLI::App& app);
 Command addPlanCommand(CLI::App& app);
 Command addCompareSmithCommand(CLI::App& app);
+Command addExportCommand(CLI::App& app);
+Command addEvalCommand(CLI::App& app);
 
 // Comma-separated lists of the command line. Model names (GS, GM, WS, WM or a component), each
 // checked; empty items are skipped.
@@ -43,6 +45,9 @@ class BsdfFileReader;
 // A warning on stderr when the file's run has not finished: `how` says what the picture shows for
 // the missing slices.
 void warnIfIncomplete(const BsdfFileReader& f, const std::string& how);
+// `model` when given, else the fullest model the file holds (WM, else WS, GM, GS); InputError naming
+// `path` when there is none.
+std::string modelOrFullest(const BsdfFileReader& f, const std::string& model, const std::string& path);
 // Writes j (indented by `indent`) to path; a failed write is a WriteError (exit code 4).
 void writeJsonFile(const std::string& path, const nlohmann::json& j, int indent);
 // "--threads N" shared by the subcommands that compute (0: all cores).

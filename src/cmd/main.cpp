@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
   const std::vector<Command> commands = {addRunCommand(app, argc, argv), addInfoCommand(app),   addSliceCommand(app),
                                          addSheetCommand(app),           addRenderCommand(app), addGeometryCommand(app),
                                          addCheckCommand(app),           addKeysCommand(app),   addPlanCommand(app),
-                                         addCompareSmithCommand(app)};
+                                         addCompareSmithCommand(app),    addExportCommand(app), addEvalCommand(app)};
 
   silenceHdf5Diagnostics();
   try {

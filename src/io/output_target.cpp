@@ -11,6 +11,7 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 
 #include "core/error.h"
 
@@ -82,6 +83,34 @@ void syncPath(const std::string& path) {
     throw WriteError(osErrorMessage("fsync", path, err));
   }
   ::close(fd);
+}
+
+void writeFileAtomically(const std::string& path, const std::string& text) {
+  const std::string partial = path + ".partial";
+  {
+    std::ofstream f(partial, std::ios::binary | std::ios::trunc);
+    f.write(text.data(), std::streamsize(text.size()));
+    f.close();
+    if (!f) {
+      std::error_code ignored;
+      std::filesystem::remove(partial, ignored);
+      throw WriteError("cannot write " + path + " (writing " + partial + " failed: " + std::strerror(errno) + ")");
+    }
+  }
+  try {
+    syncPath(partial);
+  } catch (...) {
+    std::error_code ignored;
+    std::filesystem::remove(partial, ignored);
+    throw;
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial, path, ec);
+  if (ec) {
+    std::error_code ignored;
+    std::filesystem::remove(partial, ignored);
+    throw WriteError("cannot write " + path + ": " + ec.message());
+  }
 }
 
 OutputLock::OutputLock(const std::string& outPath) : path_(outPath + ".lock") {

@@ -22,6 +22,10 @@ double freeBytesAt(const std::string& path);
 // fsync(2) of a file or folder; throws WriteError naming it.
 void syncPath(const std::string& path);
 
+// Writes `text` to `<path>.partial`, syncs it and renames it over `path`: an existing file at `path`
+// is replaced whole or left as it was. Throws WriteError naming the path (the partial file removed).
+void writeFileAtomically(const std::string& path, const std::string& text);
+
 class OutputLock {
  public:
   // Takes the lock of `outPath` or throws OutputBusyError naming the holder (host, PID, start time).

@@ -7,6 +7,7 @@
 
 #include "core/colour.h"
 #include "geometry/embree_scene.h"
+#include "io/bsdf_lookup.h"
 #include "io/bitmap_text.h"
 #include "io/slice_export.h"
 #include "scattering/components.h"
@@ -103,9 +104,11 @@ RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
         bool missing = false;
         if (wi.z > 0) {
           if (int inc = nearestDone(wi); inc >= 0) {
+            // f between the exit bins as every reader of a table sees it (io/bsdf_lookup.h).
             const auto& f = table(inc);
-            const int bin = grid.binOf(wo);
-            for (int l = 0; l < nL; ++l) L[l] += f[size_t(l) * nB + bin] * req.lightIrradiance * wi.z;
+            for (const auto& [bin, weight] : interpolationWeights(grid, wo))
+              for (int l = 0; l < nL; ++l)
+                L[l] += weight * f[size_t(l) * nB + size_t(bin)] * req.lightIrradiance * wi.z;
           } else {
             missing = true;
           }

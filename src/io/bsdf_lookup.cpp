@@ -1,0 +1,118 @@
+#include "io/bsdf_lookup.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "core/error.h"
+#include "io/slice_export.h"
+
+namespace mbsdf {
+
+BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
+    : file_(file), grid_(file.grid()), model_(model) {
+  nL_ = int(file.wavelengths_nm().size());
+  nB_ = grid_.binCount();
+  slices_.resize(size_t(file.incidenceCount()));
+  incidenceOfBin_.assign(size_t(nB_), -1);
+  for (int i = 0; i < file.incidenceCount(); ++i) {
+    if (!file.done(i)) continue;
+    try {
+      slices_[size_t(i)] = modelSlice(file, model, i);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(e.what());
+    }
+    incidenceOfBin_[size_t(file.incidenceBin(i))] = i;
+  }
+  // Every bin with directions in each hemisphere that holds an incidence.
+  bool upper = false, lower = false, complete = true;
+  for (int i = 0; i < file.incidenceCount(); ++i) (grid_.isUpper(file.incidenceBin(i)) ? upper : lower) = true;
+  for (int b = 0; b < nB_; ++b)
+    if (grid_.projectedSolidAngle(b) > 0 && (grid_.isUpper(b) ? upper : lower) && incidenceOfBin_[size_t(b)] < 0)
+      complete = false;
+  allIncidenceBins_ = complete && (upper || lower);
+}
+
+std::vector<std::pair<int, double>> interpolationWeights(const DirectionGrid& grid, const Vec3& wIn) {
+  const Vec3 w = normalize(wIn);
+  const int offset = w.z >= 0 ? 0 : grid.binsPerHemisphere();
+  std::vector<std::pair<int, double>> out;
+  if (const auto* g = std::get_if<ThetaPhiGrid>(&grid.layout())) {
+    // Continuous ring and sector coordinates whose integers are the bins' centres.
+    const double uRaw = safeAcos(std::abs(w.z)) / (0.5 * kPi) * g->nTheta - 0.5;
+    const double u = std::clamp(uRaw, 0.0, g->nTheta - 1.0);
+    const double v = sphericalPhi(w) / (2 * kPi) * g->nPhi - 0.5;
+    const int t0 = std::min(int(std::floor(u)), g->nTheta - 1), t1 = std::min(t0 + 1, g->nTheta - 1);
+    const int p0 = int(std::floor(v)), p1 = p0 + 1;
+    const double fu = u - t0, fv = v - p0;
+    auto bin = [&](int t, int p) { return offset + t * g->nPhi + ((p % g->nPhi) + g->nPhi) % g->nPhi; };
+    // Inside the first ring's centres the value tends to the ring's mean at the pole, where every
+    // azimuth meets (continuous across the pole).
+    const double toPole = uRaw < 0 ? std::min(1.0, -2 * uRaw) : 0.0;
+    out = {{bin(t0, p0), (1 - toPole) * (1 - fu) * (1 - fv)},
+           {bin(t0, p1), (1 - toPole) * (1 - fu) * fv},
+           {bin(t1, p0), (1 - toPole) * fu * (1 - fv)},
+           {bin(t1, p1), (1 - toPole) * fu * fv}};
+    if (toPole > 0)
+      for (int p = 0; p < g->nPhi; ++p) out.emplace_back(bin(0, p), toPole / g->nPhi);
+  } else {
+    const auto& d = std::get<DiskGrid>(grid.layout());
+    const double x = std::clamp((w.x + 1) * 0.5 * d.width - 0.5, 0.0, d.width - 1.0);
+    const double y = std::clamp((w.y + 1) * 0.5 * d.height - 0.5, 0.0, d.height - 1.0);
+    const int i0 = std::min(int(std::floor(x)), d.width - 1), i1 = std::min(i0 + 1, d.width - 1);
+    const int j0 = std::min(int(std::floor(y)), d.height - 1), j1 = std::min(j0 + 1, d.height - 1);
+    const double fx = x - i0, fy = y - j0;
+    auto bin = [&](int i, int j) { return offset + j * d.width + i; };
+    out = {{bin(i0, j0), (1 - fx) * (1 - fy)},
+           {bin(i1, j0), fx * (1 - fy)},
+           {bin(i0, j1), (1 - fx) * fy},
+           {bin(i1, j1), fx * fy}};
+  }
+  // Bins without directions (the disk's corners) carry no value: the others share their weight;
+  // where none is left (outside the disk's last ring of pixels) the bin of w itself stands.
+  double total = 0;
+  for (auto& [b, wt] : out) {
+    if (grid.projectedSolidAngle(b) <= 0) wt = 0;
+    total += wt;
+  }
+  if (total <= 0) return {{grid.binOf(w), 1.0}};
+  for (auto& bw : out) bw.second /= total;
+  return out;
+}
+
+double BsdfLookup::eval(int incidence, const Vec3& wo, int l) const {
+  const std::vector<double>& s = slices_.at(size_t(incidence));
+  if (s.empty()) throw InputError("slice " + std::to_string(incidence) + " of the table is not finished");
+  double f = 0;
+  for (const auto& [b, wt] : interpolationWeights(grid_, wo)) f += wt * s[size_t(l) * size_t(nB_) + size_t(b)];
+  return f;
+}
+
+double BsdfLookup::eval(const Vec3& wi, const Vec3& wo, int l) const {
+  if (allIncidenceBins_) {
+    double f = 0;
+    bool complete = true;
+    for (const auto& [b, wt] : interpolationWeights(grid_, wi)) {
+      const int i = incidenceOfBin_[size_t(b)];
+      if (i < 0 || slices_[size_t(i)].empty()) {
+        complete = false;
+        break;
+      }
+      f += wt * eval(i, wo, l);
+    }
+    if (complete) return f;
+  }
+  const Vec3 n = normalize(wi);
+  return eval(file_.nearestIncidence(degrees(safeAcos(n.z)), degrees(sphericalPhi(n))), wo, l);
+}
+
+double BsdfLookup::hemisphericalIntegral(int incidence, int l, bool upper) const {
+  const std::vector<double>& s = slices_.at(size_t(incidence));
+  double e = 0;
+  for (int b = 0; b < nB_; ++b)
+    if (grid_.isUpper(b) == upper && !s.empty())
+      e += s[size_t(l) * size_t(nB_) + size_t(b)] * grid_.projectedSolidAngle(b);
+  return e;
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,52 @@
+// Values of a stored table between its bins: f(ωi → ωo) of one model (GS, GM, WS, WM or a
+// component) at one wavelength, for the exporters and `microbsdf eval`. The table holds bin averages
+// (docs/output.md); a value between bins is interpolated bilinearly between the centres of the four
+// nearest bins of the exit direction's hemisphere — in (θ, φ) on a theta-phi grid (φ periodic; inside
+// the first ring's centres towards the first ring's mean at the pole, where all azimuths meet; held at
+// the last ring's centres towards the horizon), in (x, y) on the disk grid
+// (pixels outside the disk, which hold no directions, get no weight). Between incidences the same
+// rule applies to the incidence bins when the table holds every bin of the incidence's hemisphere
+// (incidence = "all"), otherwise the nearest incidence in angle is used (`nearestOnly`).
+#pragma once
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/vecmath.h"
+#include "io/bsdf_file.h"
+
+namespace mbsdf {
+
+// The (bin, weight) pairs of the interpolation above at direction w (any length): the weights sum to
+// 1, the bins lie on w's side and hold directions.
+std::vector<std::pair<int, double>> interpolationWeights(const DirectionGrid& grid, const Vec3& w);
+
+class BsdfLookup {
+ public:
+  // Reads every finished slice of `model` (InputError when the file lacks one of its components).
+  BsdfLookup(const BsdfFileReader& file, const std::string& model);
+
+  int wavelengthCount() const { return nL_; }
+  // f of incidence slice `incidence` towards wo (any length, either hemisphere) at wavelength l.
+  double eval(int incidence, const Vec3& wo, int l) const;
+  // f(wi → wo) at wavelength l: between incidences as above. wi points away from the surface
+  // towards the light.
+  double eval(const Vec3& wi, const Vec3& wo, int l) const;
+  // Whether eval(wi, …) falls back to the nearest incidence (the table does not hold every bin).
+  bool nearestOnly() const { return !allIncidenceBins_; }
+  // Σ_b f_b Ω⊥_b over one hemisphere of exit bins (upper: reflected for light from above): the
+  // table's own hemispherical integral of slice `incidence` at wavelength l.
+  double hemisphericalIntegral(int incidence, int l, bool upper) const;
+  const std::string& model() const { return model_; }
+
+ private:
+  const BsdfFileReader& file_;
+  const DirectionGrid& grid_;
+  std::string model_;
+  int nL_ = 0, nB_ = 0;
+  std::vector<std::vector<double>> slices_;  // per incidence: nλ × nBins (empty when not done)
+  std::vector<int> incidenceOfBin_;          // incidence index of each bin, or −1
+  bool allIncidenceBins_ = false;
+};
+
+}  // namespace mbsdf
