@@ -35,11 +35,13 @@ Command addEvalCommand(CLI::App& app) {
     const Vec3 wi = direction(o->wi, "--wi"), wo = direction(o->wo, "--wo");
     const std::string model = modelOrFullest(f, o->model, o->h5Path);
     const BsdfLookup lookup(f, model);
+    std::string rows;  // every value first: an error leaves no half-written table
+    for (int l = 0; l < lookup.wavelengthCount(); ++l)
+      rows += fmt::format("{:g},{:.8g}\n", f.wavelengths_nm()[size_t(l)], lookup.eval(wi, wo, l));
     std::cout << "# " << model << " of " << o->h5Path << ", f in 1/sr; incidence "
               << (lookup.nearestOnly() ? "from the nearest slice" : "interpolated between incidence bins")
-              << ", exit interpolated between bins\nlambda_nm,f\n";
-    for (int l = 0; l < lookup.wavelengthCount(); ++l)
-      std::cout << fmt::format("{:g},{:.8g}\n", f.wavelengths_nm()[size_t(l)], lookup.eval(wi, wo, l));
+              << ", exit interpolated between bins\nlambda_nm,f\n"
+              << rows;
     return 0;
   };
   return c;

@@ -25,7 +25,9 @@ BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
     incidenceOfBin_[size_t(file.incidenceBin(i))] = i;
   }
   // Every bin with directions in each hemisphere that holds an incidence.
-  bool upper = false, lower = false, complete = true;
+  bool& upper = hasUpper_;
+  bool& lower = hasLower_;
+  bool complete = true;
   for (int i = 0; i < file.incidenceCount(); ++i) (grid_.isUpper(file.incidenceBin(i)) ? upper : lower) = true;
   for (int b = 0; b < nB_; ++b)
     if (grid_.projectedSolidAngle(b) > 0 && (grid_.isUpper(b) ? upper : lower) && incidenceOfBin_[size_t(b)] < 0)
@@ -89,6 +91,10 @@ double BsdfLookup::eval(int incidence, const Vec3& wo, int l) const {
 }
 
 double BsdfLookup::eval(const Vec3& wi, const Vec3& wo, int l) const {
+  // The nearest incidence of the other side would be another experiment altogether.
+  if (!(wi.z >= 0 ? hasUpper_ : hasLower_))
+    throw InputError(std::string("the table holds no incidence from ") + (wi.z >= 0 ? "above" : "below") +
+                     " the surface");
   if (allIncidenceBins_) {
     double f = 0;
     bool complete = true;

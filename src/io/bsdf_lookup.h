@@ -30,7 +30,7 @@ class BsdfLookup {
   // f of incidence slice `incidence` towards wo (any length, either hemisphere) at wavelength l.
   double eval(int incidence, const Vec3& wo, int l) const;
   // f(wi → wo) at wavelength l: between incidences as above. wi points away from the surface
-  // towards the light.
+  // towards the light; InputError when the table holds no incidence on wi's side.
   double eval(const Vec3& wi, const Vec3& wo, int l) const;
   // Whether eval(wi, …) falls back to the nearest incidence (the table does not hold every bin).
   bool nearestOnly() const { return !allIncidenceBins_; }
@@ -47,6 +47,7 @@ class BsdfLookup {
   std::vector<std::vector<double>> slices_;  // per incidence: nλ × nBins (empty when not done)
   std::vector<int> incidenceOfBin_;          // incidence index of each bin, or −1
   bool allIncidenceBins_ = false;
+  bool hasUpper_ = false, hasLower_ = false;  // incidences from above, from below
 };
 
 }  // namespace mbsdf
