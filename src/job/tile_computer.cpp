@@ -31,6 +31,12 @@ double multipleBound(const TileResult& r, const DirectionGrid& grid) {
   return bound;
 }
 
+// A skipped component whose check held: the slice stores it as 0 (with no error).
+void zeroComponent(TileResult& r, Component c) {
+  r.value[int(c)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+  r.stdError[int(c)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+}
+
 // The tile computes the planner's components first (a skipped `multiple` lets single scattering come
 // from the facet sum); a guarded skip is then verified on the tile.
 Job withoutGuarded(const Job& job) {
@@ -151,8 +157,7 @@ void TileComputer::verifySkippedMultiple(int t, const std::optional<Vec3>& exact
     r.multipleCheck = multipleBound(r, grid);
   } else if (scattersOnce(job, grid, t, singleBounceLimit)) {
     r.multipleCheck = 0;
-    r.value[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
-    r.stdError[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+    zeroComponent(r, Component::Multiple);
   } else {
     const TileResult checked = check->run(t, t, inc.bin, exact, cb);
     r.multipleCheck = multipleBound(checked, grid);
@@ -163,8 +168,7 @@ void TileComputer::verifySkippedMultiple(int t, const std::optional<Vec3>& exact
       r.rays += spent;
       r.multipleCheck = multipleBound(r, grid);
     } else {
-      r.value[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
-      r.stdError[int(Component::Multiple)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+      zeroComponent(r, Component::Multiple);
     }
   }
   r.multipleReenabled = r.multipleCheck > job.scene.tolerance;
@@ -181,8 +185,7 @@ bool TileComputer::verifySkippedDiffraction(int t, TileResult& r) const {
   if (pilot == pilotDiffraction_.end() || job_.components.has(Component::Lost)) return true;
   r.diffractionCheck = pilot->second;
   r.diffractionReenabled = false;  // the pilot's figure was below the tolerance, or diffraction would be on
-  r.value[int(Component::Incoherent)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
-  r.stdError[int(Component::Incoherent)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+  zeroComponent(r, Component::Incoherent);
   return false;
 }
 
