@@ -64,7 +64,7 @@ std::string zemaxBsdfText(const BsdfFileReader& file, const BsdfLookup& lookup, 
   if (thetas.empty()) throw InputError(source + ": no incidence above the surface: a BRDF file needs one");
   // An isotropic table (the file's `symmetry` attribute) is the same at every incidence azimuth: one
   // sample rotation, the first azimuth, says it all.
-  const bool isotropic = file.hasAttribute("symmetry") && file.attribute("symmetry").rfind("isotropic", 0) == 0;
+  const bool isotropic = tableIsIsotropic(file);
   const std::vector<double> aoi = distinct(thetas);
   std::vector<double> rotation = distinct(phis);
   if (isotropic) rotation.resize(1);

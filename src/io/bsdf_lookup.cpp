@@ -10,7 +10,7 @@
 namespace mbsdf {
 
 BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
-    : file_(file), grid_(file.grid()), model_(model) {
+    : file_(file), grid_(file.grid()), model_(model), isotropic_(tableIsIsotropic(file)) {
   nL_ = int(file.wavelengths_nm().size());
   nB_ = grid_.binCount();
   slices_.resize(size_t(file.incidenceCount()));
@@ -33,6 +33,10 @@ BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
     if (grid_.projectedSolidAngle(b) > 0 && (grid_.isUpper(b) ? upper : lower) && incidenceOfBin_[size_t(b)] < 0)
       complete = false;
   allIncidenceBins_ = complete && (upper || lower);
+}
+
+bool tableIsIsotropic(const BsdfFileReader& file) {
+  return file.hasAttribute("symmetry") && file.attribute("symmetry").rfind("isotropic", 0) == 0;
 }
 
 std::vector<std::pair<int, double>> interpolationWeights(const DirectionGrid& grid, const Vec3& wIn) {
@@ -90,11 +94,41 @@ double BsdfLookup::eval(int incidence, const Vec3& wo, int l) const {
   return f;
 }
 
-double BsdfLookup::eval(const Vec3& wi, const Vec3& wo, int l) const {
+namespace {
+Vec3 turned(const Vec3& w, double angle) {
+  const double c = std::cos(angle), s = std::sin(angle);
+  return {c * w.x - s * w.y, s * w.x + c * w.y, w.z};
+}
+}  // namespace
+
+double BsdfLookup::eval(const Vec3& wiIn, const Vec3& woIn, int l) const {
   // The nearest incidence of the other side would be another experiment altogether.
-  if (!(wi.z >= 0 ? hasUpper_ : hasLower_))
-    throw InputError(std::string("the table holds no incidence from ") + (wi.z >= 0 ? "above" : "below") +
+  if (!(wiIn.z >= 0 ? hasUpper_ : hasLower_))
+    throw InputError(std::string("the table holds no incidence from ") + (wiIn.z >= 0 ? "above" : "below") +
                      " the surface");
+  Vec3 wi = wiIn, wo = woIn;
+  if (isotropic_) {
+    // f(R wi, R wo) = f(wi, wo) for every turn R about the normal: turn the pair so that wi lies at the
+    // azimuth of incidences the table holds, and interpolate over θ only. (Interpolating between
+    // incidence azimuths at a fixed wo would average lobes that point different ways.)
+    const auto* g = std::get_if<ThetaPhiGrid>(&grid_.layout());
+    double toAzimuth = 0;
+    if (allIncidenceBins_ && g) {
+      toAzimuth = kPi / g->nPhi;  // the centre of the first sector
+    } else {
+      const double theta_deg = degrees(safeAcos(normalize(wi).z));
+      int best = -1;
+      for (int i = 0; i < file_.incidenceCount(); ++i)
+        if (!slices_[size_t(i)].empty() && (file_.incidenceTheta(i) < 90) == (wi.z >= 0) &&
+            (best < 0 ||
+             std::abs(file_.incidenceTheta(i) - theta_deg) < std::abs(file_.incidenceTheta(best) - theta_deg)))
+          best = i;
+      if (best >= 0) toAzimuth = radians(file_.incidencePhi(best));
+    }
+    const double angle = toAzimuth - sphericalPhi(wi);
+    wi = turned(wi, angle);
+    wo = turned(wo, angle);
+  }
   if (allIncidenceBins_) {
     double f = 0;
     bool complete = true;

@@ -6,7 +6,10 @@
 // the last ring's centres towards the horizon), in (x, y) on the disk grid
 // (pixels outside the disk, which hold no directions, get no weight). Between incidences the same
 // rule applies to the incidence bins when the table holds every bin of the incidence's hemisphere
-// (incidence = "all"), otherwise the nearest incidence in angle is used (`nearestOnly`).
+// (incidence = "all"), otherwise the nearest incidence in angle is used (`nearestOnly`). An isotropic
+// table (tableIsIsotropic) first turns the pair of directions about the normal so that ωi lies at the
+// azimuth of the incidences it holds — exact for such a table — and so interpolates over θi only (or
+// takes the incidence of nearest θi).
 #pragma once
 #include <string>
 #include <utility>
@@ -20,6 +23,10 @@ namespace mbsdf {
 // The (bin, weight) pairs of the interpolation above at direction w (any length): the weights sum to
 // 1, the bins lie on w's side and hold directions.
 std::vector<std::pair<int, double>> interpolationWeights(const DirectionGrid& grid, const Vec3& w);
+
+// Whether the table is the same at every incidence azimuth (the file's `symmetry` attribute says
+// isotropic): its exporters then write one azimuth.
+bool tableIsIsotropic(const BsdfFileReader& file);
 
 class BsdfLookup {
  public:
@@ -47,6 +54,7 @@ class BsdfLookup {
   std::vector<std::vector<double>> slices_;  // per incidence: nλ × nBins (empty when not done)
   std::vector<int> incidenceOfBin_;          // incidence index of each bin, or −1
   bool allIncidenceBins_ = false;
+  bool isotropic_ = false;
   bool hasUpper_ = false, hasLower_ = false;  // incidences from above, from below
 };
 
