@@ -88,8 +88,7 @@ Command addEvalCommand(CLI::App& app) {
         rows += "\n";
       }
     }
-    std::cout << "# " << model << " of " << o->h5Path << ", f in 1/sr; incidence "
-              << (lookup.nearestOnly() ? "from the nearest slice" : "interpolated between incidence bins")
+    std::cout << "# " << model << " of " << o->h5Path << ", f in 1/sr; incidence " << lookup.incidenceRule()
               << ", exit interpolated between bins\n";
     if (o->pairs.empty()) {
       std::cout << "lambda_nm,f\n" << rows;

@@ -1,7 +1,8 @@
-// `microbsdf export OUT.h5 --format zemax|rgl -o FILE [--model WM] [--lambda-nm NM] [--colour C]`: a
-// stored table in a format other tools read (export/zemax_bsdf.h, export/rgl_bsdf.h). Zemax: one file
-// per wavelength ("_<λ>nm" before FILE's extension when there are several); RGL: one file with every
-// chosen wavelength, or linear sRGB. Every file is written whole or not at all (an existing one is
+// `microbsdf export OUT.h5 --format zemax|rgl|mbsdf -o FILE [--model WM] [--lambda-nm NM] [--colour C]`:
+// a stored table in a format other tools read (export/zemax_bsdf.h, export/rgl_bsdf.h,
+// export/mdl_mbsdf.h). Zemax and spectral MBSDF: one file per wavelength ("_<λ>nm" before FILE's
+// extension when there are several); RGL: one file with every chosen wavelength; RGL and MBSDF
+// --colour rgb: one linear sRGB file. Every file is written whole or not at all (an existing one is
 // replaced only by a complete file).
 #include <fmt/format.h>
 
@@ -10,6 +11,7 @@
 
 #include "cmd/command.h"
 #include "core/error.h"
+#include "export/mdl_mbsdf.h"
 #include "export/rgl_bsdf.h"
 #include "export/zemax_bsdf.h"
 #include "io/bsdf_file.h"
@@ -26,6 +28,56 @@ std::string perWavelengthPath(const std::string& path, double lambda_nm, bool se
   return (p.parent_path() / (p.stem().string() + fmt::format("_{:g}nm", lambda_nm) + p.extension().string())).string();
 }
 
+// Indices of the table's wavelengths named by --lambda-nm (all when none is named).
+std::vector<int> wavelengthIndices(const BsdfFileReader& f, const std::vector<double>& lambda_nm,
+                                   const std::string& h5Path) {
+  const std::vector<double>& table = f.wavelengths_nm();
+  std::vector<int> which;
+  for (double l : lambda_nm) {
+    int k = -1;
+    for (size_t i = 0; i < table.size(); ++i)
+      if (std::abs(table[i] - l) < 1e-6) k = int(i);
+    if (k < 0)
+      throw InputError("--lambda-nm " + fmt::format("{:g}", l) + ": not a wavelength of " + h5Path + " (" +
+                       fmt::format("{}", fmt::join(table, ", ")) + " nm)");
+    which.push_back(k);
+  }
+  if (which.empty())
+    for (size_t i = 0; i < table.size(); ++i) which.push_back(int(i));
+  return which;
+}
+
+void noteClamped(int clamped, int values) {
+  if (clamped > 0)
+    std::cerr << "note: " << clamped << " of " << values
+              << " values were below 0 (Monte Carlo noise, or colours outside sRGB) and are stored as 0\n";
+}
+
+// What the file holds and what it approximates, quantified.
+void reportMbsdf(const std::string& path, const std::string& model, const MbsdfFile& m) {
+  std::cerr << "wrote " << path << " (model " << model
+            << (m.transmission ? ", reflection and transmission" : ", reflection") << ", "
+            << (m.bytes.size() + 512) / 1024 << " KiB)\n";
+  std::cerr << fmt::format("note: each incidence's row is scaled to the table's albedo: by {:.2f} % at most\n",
+                           100 * m.energyCorrection);
+  if (m.anisotropic && m.azimuths_deg.size() == 1)
+    std::cerr << fmt::format(
+        "warning: the table is anisotropic but holds incidences at one azimuth ({:g} deg): the isotropic MBSDF "
+        "takes that plane of incidence for every one; how much anisotropy that loses is not measured\n",
+        m.azimuths_deg[0]);
+  else if (m.anisotropic)
+    std::cerr << fmt::format(
+        "warning: the table is anisotropic; the isotropic MBSDF holds its mean over the incidence azimuth, "
+        "{:.1f} % of the table's L1 norm away from it\n",
+        100 * m.anisotropyL1);
+  if (m.transmission)
+    std::cerr << fmt::format(
+        "note: MDL runtimes use (f(ti,to) + f(to,ti)) / 2; for this BTDF that changes it by {:.1f} % of its L1 norm "
+        "(docs/export.md)\n",
+        100 * m.btdfSymmetrisationL1);
+  noteClamped(m.negativeClamped, m.values);
+}
+
 }  // namespace
 
 Command addExportCommand(CLI::App& app) {
@@ -40,13 +92,17 @@ Command addExportCommand(CLI::App& app) {
   cmd->add_option("file", o->h5Path, "output HDF5 file")->required();
   cmd->add_option("--format", o->format,
                   "zemax: OpticStudio's tabular BSDF (BRDF, one wavelength per file); rgl: the RGL database's "
-                  ".bsdf (Mitsuba 3, pbrt-v4; reflection)")
-      ->check(CLI::IsMember({"zemax", "rgl"}))
+                  ".bsdf (Mitsuba 3, pbrt-v4; reflection); mbsdf: MDL's measured BSDF (reflection and "
+                  "transmission, isotropic)")
+      ->check(CLI::IsMember({"zemax", "rgl", "mbsdf"}))
       ->capture_default_str();
-  cmd->add_option("--colour", o->colour, "rgl: spectral (the table's wavelengths) or rgb (linear sRGB)")
+  cmd->add_option("--colour", o->colour,
+                  "rgl, mbsdf: spectral (rgl: the table's wavelengths; mbsdf: one file per wavelength) or rgb "
+                  "(linear sRGB)")
       ->check(CLI::IsMember({"spectral", "rgb"}))
       ->capture_default_str();
-  cmd->add_option("--side", o->side, "reflection or transmission (no format written yet holds a BTDF)")
+  cmd->add_option("--side", o->side,
+                  "reflection, or transmission (refused by zemax and rgl, which hold a BRDF; an mbsdf file holds both)")
       ->check(CLI::IsMember({"reflection", "transmission"}))
       ->capture_default_str();
   cmd->add_option("--model", o->model,
@@ -57,45 +113,46 @@ Command addExportCommand(CLI::App& app) {
     BsdfFileReader f(o->h5Path);
     const std::string model = modelOrFullest(f, o->model, o->h5Path);
     const BsdfLookup lookup(f, model);
-    const std::vector<double>& table = f.wavelengths_nm();
-    std::vector<int> which;
-    for (double l : o->lambda_nm) {
-      int k = -1;
-      for (size_t i = 0; i < table.size(); ++i)
-        if (std::abs(table[i] - l) < 1e-6) k = int(i);
-      if (k < 0)
-        throw InputError("--lambda-nm " + fmt::format("{:g}", l) + ": not a wavelength of " + o->h5Path + " (" +
-                         fmt::format("{}", fmt::join(table, ", ")) + " nm)");
-      which.push_back(k);
-    }
-    if (which.empty())
-      for (size_t i = 0; i < table.size(); ++i) which.push_back(int(i));
+    const std::vector<int> which = wavelengthIndices(f, o->lambda_nm, o->h5Path);
     if (o->side == "transmission")
-      throw InputError("--side transmission: the " + o->format +
-                       " format as written here holds reflection only (a BRDF); transmission is not exported");
-    if (o->colour == "rgb" && o->format != "rgl") throw InputError("--colour rgb: only the rgl format writes colours");
+      throw InputError(
+          o->format == "mbsdf"
+              ? "--side transmission: an mbsdf file holds both sides of the table already; leave out --side"
+              : "--side transmission: the " + o->format +
+                    " format as written here holds reflection only (a BRDF); transmission is not exported");
+    const bool rgb = o->colour == "rgb";
+    if (rgb && o->format == "zemax") throw InputError("--colour rgb: the zemax format holds one wavelength per file");
+    if (rgb && !o->lambda_nm.empty())
+      throw InputError("--colour rgb uses every wavelength of the table: leave out --lambda-nm");
     warnIfIncomplete(f, "unfinished slices make the export fail");
+    const std::string description = "microbsdf " + model + " of " + o->h5Path;
     if (o->format == "rgl") {
       RglExport e;
       e.wavelengths = which;
-      e.colour = o->colour == "rgb" ? RglExport::Colour::rgb : RglExport::Colour::spectral;
-      if (e.colour == RglExport::Colour::rgb && !o->lambda_nm.empty())
-        throw InputError("--colour rgb uses every wavelength of the table: leave out --lambda-nm");
-      const RglFile rgl = rglBsdfFile(f, lookup, e, "microbsdf " + model + " of " + o->h5Path);
+      e.colour = rgb ? RglExport::Colour::rgb : RglExport::Colour::spectral;
+      const RglFile rgl = rglBsdfFile(f, lookup, e, description);
       writeFileAtomically(o->outPath, rgl.bytes);
       std::cerr << "wrote " << o->outPath << " (model " << model << ", " << (rgl.bytes.size() + 512) / 1024
                 << " KiB)\n";
-      if (rgl.negativeClamped > 0)
-        std::cerr << "note: " << rgl.negativeClamped << " of " << rgl.nodes
-                  << " values were below 0 (Monte Carlo noise, or colours outside sRGB) and are stored as 0\n";
+      noteClamped(rgl.negativeClamped, rgl.nodes);
       return 0;
     }
-    for (int k : which) {
-      ZemaxExport e = defaultZemaxExport();
+    const std::vector<int> files = rgb ? std::vector<int>{0} : which;
+    for (int k : files) {
+      const std::string path = perWavelengthPath(o->outPath, f.wavelengths_nm()[size_t(k)], files.size() > 1);
+      if (o->format == "zemax") {
+        ZemaxExport e = defaultZemaxExport();
+        e.wavelength = k;
+        writeFileAtomically(path, zemaxBsdfText(f, lookup, e, o->h5Path));
+        std::cerr << "wrote " << path << " (model " << model << ", " << f.wavelengths_nm()[size_t(k)] << " nm)\n";
+        continue;
+      }
+      MbsdfExport e;
       e.wavelength = k;
-      const std::string path = perWavelengthPath(o->outPath, table[size_t(k)], which.size() > 1);
-      writeFileAtomically(path, zemaxBsdfText(f, lookup, e, o->h5Path));
-      std::cerr << "wrote " << path << " (model " << model << ", " << table[size_t(k)] << " nm)\n";
+      e.colour = rgb ? MbsdfExport::Colour::rgb : MbsdfExport::Colour::scalar;
+      const MbsdfFile m = mbsdfFile(f, lookup, e, description);
+      writeFileAtomically(path, m.bytes);
+      reportMbsdf(path, model, m);
     }
     return 0;
   };

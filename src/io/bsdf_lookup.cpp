@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 
 #include "core/error.h"
@@ -33,6 +34,21 @@ BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
     if (grid_.projectedSolidAngle(b) > 0 && (grid_.isUpper(b) ? upper : lower) && incidenceOfBin_[size_t(b)] < 0)
       complete = false;
   allIncidenceBins_ = complete && (upper || lower);
+  // An isotropic table's rings: one finished incidence per distinct θ on each side (the first).
+  for (int i = 0; i < file.incidenceCount(); ++i) {
+    if (slices_[size_t(i)].empty()) continue;
+    const bool fromAbove = file.incidenceTheta(i) < 90;
+    const double theta = radians(fromAbove ? file.incidenceTheta(i) : 180 - file.incidenceTheta(i));
+    std::vector<Ring>& rings = fromAbove ? ringsUpper_ : ringsLower_;
+    if (std::none_of(rings.begin(), rings.end(), [&](const Ring& r) { return std::abs(r.theta - theta) < 1e-12; }))
+      rings.push_back({theta, radians(file.incidencePhi(i)), i});
+  }
+  for (auto* rings : {&ringsUpper_, &ringsLower_})
+    std::sort(rings->begin(), rings->end(), [](const Ring& a, const Ring& b) { return a.theta < b.theta; });
+  if (isotropic_) {
+    hasUpper_ = !ringsUpper_.empty();
+    hasLower_ = !ringsLower_.empty();
+  }
 }
 
 bool tableIsIsotropic(const BsdfFileReader& file) {
@@ -101,33 +117,36 @@ Vec3 turned(const Vec3& w, double angle) {
 }
 }  // namespace
 
-double BsdfLookup::eval(const Vec3& wiIn, const Vec3& woIn, int l) const {
+double BsdfLookup::eval(const Vec3& wi, const Vec3& wo, int l) const {
+  return acrossIncidences(wi, wo, [&](int i, const Vec3& w) { return eval(i, w, l); });
+}
+
+double BsdfLookup::hemisphericalIntegral(const Vec3& wi, int l, bool upper) const {
+  return acrossIncidences(wi, wi, [&](int i, const Vec3&) { return hemisphericalIntegral(i, l, upper); });
+}
+
+double BsdfLookup::acrossIncidences(const Vec3& wi, const Vec3& wo,
+                                    const std::function<double(int, const Vec3&)>& value) const {
   // The nearest incidence of the other side would be another experiment altogether.
-  if (!(wiIn.z >= 0 ? hasUpper_ : hasLower_))
-    throw InputError(std::string("the table holds no incidence from ") + (wiIn.z >= 0 ? "above" : "below") +
+  if (!(wi.z >= 0 ? hasUpper_ : hasLower_))
+    throw InputError(std::string("the table holds no incidence from ") + (wi.z >= 0 ? "above" : "below") +
                      " the surface");
-  Vec3 wi = wiIn, wo = woIn;
   if (isotropic_) {
-    // f(R wi, R wo) = f(wi, wo) for every turn R about the normal: turn the pair so that wi lies at the
-    // azimuth of incidences the table holds, and interpolate over θ only. (Interpolating between
-    // incidence azimuths at a fixed wo would average lobes that point different ways.)
-    const auto* g = std::get_if<ThetaPhiGrid>(&grid_.layout());
-    double toAzimuth = 0;
-    if (allIncidenceBins_ && g) {
-      toAzimuth = kPi / g->nPhi;  // the centre of the first sector
-    } else {
-      const double theta_deg = degrees(safeAcos(normalize(wi).z));
-      int best = -1;
-      for (int i = 0; i < file_.incidenceCount(); ++i)
-        if (!slices_[size_t(i)].empty() && (file_.incidenceTheta(i) < 90) == (wi.z >= 0) &&
-            (best < 0 ||
-             std::abs(file_.incidenceTheta(i) - theta_deg) < std::abs(file_.incidenceTheta(best) - theta_deg)))
-          best = i;
-      if (best >= 0) toAzimuth = radians(file_.incidencePhi(best));
-    }
-    const double angle = toAzimuth - sphericalPhi(wi);
-    wi = turned(wi, angle);
-    wo = turned(wo, angle);
+    // f(R wi, R wo) = f(wi, wo) for every turn R about the normal: each ring of incidences is taken at
+    // the pair turned so that wi lies at the azimuth of the ring's incidence, and the rings on either
+    // side of θi are blended linearly in θi (held beyond the first and last). Interpolating between
+    // incidence azimuths at a fixed wo instead would average lobes that point different ways.
+    const std::vector<Ring>& rings = wi.z >= 0 ? ringsUpper_ : ringsLower_;
+    const Vec3 n = normalize(wi);
+    const double theta = safeAcos(std::abs(n.z)), phi = sphericalPhi(n);
+    auto ringValue = [&](const Ring& r) { return value(r.incidence, turned(wo, r.phi - phi)); };
+    const auto above =
+        std::lower_bound(rings.begin(), rings.end(), theta, [](const Ring& r, double t) { return r.theta < t; });
+    if (above == rings.begin()) return ringValue(rings.front());
+    if (above == rings.end()) return ringValue(rings.back());
+    const Ring& below = *(above - 1);
+    const double w = (theta - below.theta) / (above->theta - below.theta);
+    return (1 - w) * ringValue(below) + w * ringValue(*above);
   }
   if (allIncidenceBins_) {
     double f = 0;
@@ -138,12 +157,12 @@ double BsdfLookup::eval(const Vec3& wiIn, const Vec3& woIn, int l) const {
         complete = false;
         break;
       }
-      f += wt * eval(i, wo, l);
+      f += wt * value(i, wo);
     }
     if (complete) return f;
   }
   const Vec3 n = normalize(wi);
-  return eval(file_.nearestIncidence(degrees(safeAcos(n.z)), degrees(sphericalPhi(n))), wo, l);
+  return value(file_.nearestIncidence(degrees(safeAcos(n.z)), degrees(sphericalPhi(n))), wo);
 }
 
 double BsdfLookup::hemisphericalIntegral(int incidence, int l, bool upper) const {

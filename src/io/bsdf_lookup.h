@@ -7,10 +7,11 @@
 // (pixels outside the disk, which hold no directions, get no weight). Between incidences the same
 // rule applies to the incidence bins when the table holds every bin of the incidence's hemisphere
 // (incidence = "all"), otherwise the nearest incidence in angle is used (`nearestOnly`). An isotropic
-// table (tableIsIsotropic) first turns the pair of directions about the normal so that ωi lies at the
-// azimuth of the incidences it holds — exact for such a table — and so interpolates over θi only (or
-// takes the incidence of nearest θi).
+// table (tableIsIsotropic) instead turns the pair of directions about the normal so that ωi lies at
+// the azimuth of an incidence it holds at each θ — exact for such a table — and interpolates linearly
+// in θi between the two nearest such rings of incidences (held beyond the first and last).
 #pragma once
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -39,11 +40,19 @@ class BsdfLookup {
   // f(wi → wo) at wavelength l: between incidences as above. wi points away from the surface
   // towards the light; InputError when the table holds no incidence on wi's side.
   double eval(const Vec3& wi, const Vec3& wo, int l) const;
-  // Whether eval(wi, …) falls back to the nearest incidence (the table does not hold every bin).
-  bool nearestOnly() const { return !allIncidenceBins_; }
+  // Whether eval(wi, …) falls back to the nearest incidence (an anisotropic table without every bin).
+  bool nearestOnly() const { return !allIncidenceBins_ && !isotropic_; }
+  // How eval(wi, …) finds values between incidences, in words.
+  const char* incidenceRule() const {
+    return isotropic_          ? "turned onto the table's incidences and interpolated in theta (isotropic)"
+           : allIncidenceBins_ ? "interpolated between incidence bins"
+                               : "from the nearest slice";
+  }
   // Σ_b f_b Ω⊥_b over one hemisphere of exit bins (upper: reflected for light from above): the
   // table's own hemispherical integral of slice `incidence` at wavelength l.
   double hemisphericalIntegral(int incidence, int l, bool upper) const;
+  // The same for light from wi, between incidences as eval(wi, …) is.
+  double hemisphericalIntegral(const Vec3& wi, int l, bool upper) const;
   const std::string& model() const { return model_; }
 
  private:
@@ -55,6 +64,13 @@ class BsdfLookup {
   std::vector<int> incidenceOfBin_;          // incidence index of each bin, or −1
   bool allIncidenceBins_ = false;
   bool isotropic_ = false;
+  struct Ring {
+    double theta, phi;  // the incidence's angle from the normal of its side, and its azimuth (radians)
+    int incidence;
+  };
+  std::vector<Ring> ringsUpper_, ringsLower_;  // ascending θ
+  // value(incidence, wo as seen from that incidence) blended over the incidences around wi (the rule above).
+  double acrossIncidences(const Vec3& wi, const Vec3& wo, const std::function<double(int, const Vec3&)>& value) const;
   bool hasUpper_ = false, hasLower_ = false;  // incidences from above, from below
 };
 
