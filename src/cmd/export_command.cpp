@@ -134,6 +134,16 @@ Command addExportCommand(CLI::App& app) {
       writeFileAtomically(o->outPath, rgl.bytes);
       std::cerr << "wrote " << o->outPath << " (model " << model << ", " << (rgl.bytes.size() + 512) / 1024
                 << " KiB)\n";
+      std::cerr << fmt::format("note: each incidence scaled to the table's albedo: by {:.2f} % at most\n",
+                               100 * rgl.energyCorrection);
+      for (size_t i = 0; i < std::min<size_t>(rgl.unresolved.size(), 5); ++i) {
+        const auto& u = rgl.unresolved[i];
+        std::cerr << fmt::format(
+            "warning: at theta_i {:g} deg, phi_i {:g} deg, {:g} nm the file reflects {:.3g} where the table reflects "
+            "{:.3g}: the format's nodes do not resolve this lobe (left unscaled)\n",
+            u.theta_deg, u.phi_deg, u.lambda_nm, u.fileAlbedo, u.tableAlbedo);
+      }
+      if (rgl.unresolved.size() > 5) std::cerr << "warning: " << rgl.unresolved.size() - 5 << " more such incidences\n";
       noteClamped(rgl.negativeClamped, rgl.nodes);
       return 0;
     }

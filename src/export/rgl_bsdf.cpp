@@ -57,6 +57,11 @@ struct Reflectance {
   bool isotropic = true;
 
   Vec3 wi(int k, int l) const { return sphericalDirection(theta[size_t(k)], isotropic ? 0.0 : phi[size_t(l)]); }
+  // The table's hemispherical integral of the reflected side at node (k, l).
+  double integral(int k, int l, int lambda) const {
+    return isotropic ? lookup.hemisphericalIntegral(incidenceOfTheta[size_t(k)], lambda, true)
+                     : lookup.hemisphericalIntegral(wi(k, l), lambda, true);
+  }
   double f(int k, int l, const Vec3& wo, int lambda) const {
     if (!isotropic) return lookup.eval(wi(k, l), wo, lambda);
     const double c = std::cos(phiOfTheta[size_t(k)]), s = std::sin(phiOfTheta[size_t(k)]);
@@ -182,9 +187,9 @@ TensorField floats(std::string name, std::vector<uint64_t> shape, std::vector<fl
 // Per incidence node: the table on the warp's n × n grid (values[λ][node]) — f cos θi 4σ / D at the
 // half vector the node maps to, 0 where the reflected direction leaves the upper hemisphere.
 std::vector<std::vector<double>> spectraSlice(const Reflectance& r, int k, int l, const UGrid& d, double sigma,
-                                              const std::vector<int>& lambdas, int n) {
+                                              const PiecewiseBilinearWarp& warp, const std::vector<int>& lambdas,
+                                              int n) {
   const Vec3 wi = r.wi(k, l);
-  const PiecewiseBilinearWarp warp(vndfSlice(d, wi, sigma), d.nx, d.ny);
   std::vector<std::vector<double>> values(lambdas.size(), std::vector<double>(size_t(n) * size_t(n), 0.0));
   for (int b = 0; b < n; ++b)
     for (int a = 0; a < n; ++a) {
@@ -197,6 +202,50 @@ std::vector<std::vector<double>> spectraSlice(const Reflectance& r, int k, int l
       for (size_t q = 0; q < lambdas.size(); ++q) values[q][size_t(b * n + a)] = r.f(k, l, wo, lambdas[q]) * scale;
     }
   return values;
+}
+
+// Scales one incidence's values (per wavelength) so that the file's albedo there — ∫ f cos θo dωo as a
+// renderer evaluates f, by the midpoint rule on the warp's unit square, where dωo = ds / pdf — is the
+// table's hemispherical integral: sampling a lobe narrower than the table's bins at the nodes (a flat
+// mirror's specular bin) would otherwise become light a renderer gains or loses. A mismatch beyond a
+// factor 2 is not scaled away: the nodes do not resolve that lobe, and `out` lists it.
+void conserveEnergy(std::vector<std::vector<double>>& values, const Reflectance& r, int k, int l, const UGrid& d,
+                    double sigma, const PiecewiseBilinearWarp& warp, const std::vector<int>& lambdas,
+                    const std::vector<double>& nm, int n, RglFile& out) {
+  const Vec3 wi = r.wi(k, l);
+  const int q = 2 * n;  // quadrature points per axis
+  std::vector<double> albedo(lambdas.size(), 0.0);
+  for (int b = 0; b < q; ++b)
+    for (int a = 0; a < q; ++a) {
+      const double sx = (a + 0.5) / q, sy = (b + 0.5) / q;
+      const WarpSample p = warp.sample(sx, sy);
+      const Vec3 m = directionOfU(p.x, p.y);
+      const double c = dot(wi, m);
+      const Vec3 wo = m * (2 * c) - wi;
+      const double jacobian = 2 * kPi * kPi * p.x * std::sin(u2theta(p.x)) * 4 * c;  // dωo per unit u
+      if (c <= 0 || wo.z <= 0 || !(p.pdf > 0) || !(jacobian > 1e-12)) continue;
+      const double x = sx * (n - 1), y = sy * (n - 1);
+      const int i = std::min(int(x), n - 2), j = std::min(int(y), n - 2);
+      const double tx = x - i, ty = y - j;
+      const double fScale = d.at(p.x, p.y) / (4 * sigma * wi.z) * wo.z * jacobian / p.pdf / (q * q);
+      for (size_t w = 0; w < lambdas.size(); ++w) {
+        const std::vector<double>& v = values[w];
+        const double spec = (1 - ty) * ((1 - tx) * v[size_t(j * n + i)] + tx * v[size_t(j * n + i + 1)]) +
+                            ty * ((1 - tx) * v[size_t((j + 1) * n + i)] + tx * v[size_t((j + 1) * n + i + 1)]);
+        albedo[w] += spec * fScale;
+      }
+    }
+  for (size_t w = 0; w < lambdas.size(); ++w) {
+    const double target = r.integral(k, l, lambdas[w]);
+    if (!(target > 1e-12)) continue;
+    if (!(albedo[w] > 0) || target / albedo[w] < 0.5 || target / albedo[w] > 2) {
+      out.unresolved.push_back(
+          {degrees(r.theta[size_t(k)]), degrees(r.isotropic ? 0.0 : r.phi[size_t(l)]), nm[w], albedo[w], target});
+      continue;
+    }
+    out.energyCorrection = std::max(out.energyCorrection, std::abs(target / albedo[w] - 1));
+    for (double& x : values[w]) x *= target / albedo[w];
+  }
 }
 
 }  // namespace
@@ -233,7 +282,9 @@ RglFile rglBsdfFile(const BsdfFileReader& file, const BsdfLookup& lookup, const 
       const double sigma = s.at(theta2u(std::acos(std::clamp(wi.z, -1.0, 1.0))), phi2u(r.phi[l]));
       const std::vector<float> slice = vndfSlice(d, wi, sigma);
       vndf.insert(vndf.end(), slice.begin(), slice.end());
-      const auto spectra = spectraSlice(r, int(k), int(l), d, sigma, lambdas, o.nSample);
+      const PiecewiseBilinearWarp warp(slice, d.nx, d.ny);
+      auto spectra = spectraSlice(r, int(k), int(l), d, sigma, warp, lambdas, o.nSample);
+      conserveEnergy(spectra, r, int(k), int(l), d, sigma, warp, lambdas, nm, o.nSample, out);
       std::vector<double> lum(n2, 0.0);
       std::vector<std::vector<double>> stored(channels, std::vector<double>(n2));
       for (size_t node = 0; node < n2; ++node) {

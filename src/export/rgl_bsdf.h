@@ -21,7 +21,9 @@
 // vector, the largest f(ωi, ωo) 4 cos θi cos θo over the table's incidences (for a microfacet surface
 // F G D, for a grating its orders), floored at `ndfFloor` of its maximum so that light outside a
 // narrow lobe (diffraction, multiple scattering) keeps nodes of its own (D > 0 wherever f > 0), and
-// normalised so that ∫ D cos θm dωm = 1.
+// normalised so that ∫ D cos θm dωm = 1. Each incidence's values are then scaled so that the file's
+// albedo there, as a renderer integrates it, is the table's hemispherical integral (the resampling
+// would otherwise gain or lose the light of lobes narrower than the table's bins).
 //
 // The format holds reflection only. An isotropic table (the file's `symmetry` attribute) writes one
 // φi node; an anisotropic one needs every incidence bin (incidence = "all") and writes φi nodes over
@@ -46,8 +48,13 @@ struct RglExport {
 
 struct RglFile {
   std::string bytes;
-  int negativeClamped = 0;  // spectra or rgb nodes below 0 (noise, or colours outside sRGB) stored as 0
-  int nodes = 0;            // spectra or rgb nodes in all
+  struct Unresolved {  // an incidence whose albedo the file misses by more than a factor 2 (left unscaled)
+    double theta_deg, phi_deg, lambda_nm, fileAlbedo, tableAlbedo;
+  };
+  std::vector<Unresolved> unresolved;
+  double energyCorrection = 0;  // the largest relative scale that made an incidence's albedo the table's
+  int negativeClamped = 0;      // spectra or rgb nodes below 0 (noise, or colours outside sRGB) stored as 0
+  int nodes = 0;                // spectra or rgb nodes in all
 };
 
 // Throws InputError when the table holds no incidence above the surface, an anisotropic table lacks

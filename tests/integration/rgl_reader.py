@@ -84,6 +84,30 @@ class Marginal2D:
         return ((1 - ty) * ((1 - tx) * data[j, i] + tx * data[j, i + 1]) +
                 ty * ((1 - tx) * data[j + 1, i] + tx * data[j + 1, i + 1])) * (self.nx - 1) * (self.ny - 1)
 
+    def sample(self, u, v, param=()):
+        """The point a uniform sample (u, v) maps to, and the density there: the row from the
+        marginal (linear between the rows' integrals), then the column from the conditional
+        interpolated between the two rows; each step inverts a linear density in closed form."""
+        data, cond, marg = self._blend(param)
+        eps = float(np.finfo(np.float32).eps)
+        u, v = min(max(u, eps), 1 - eps), min(max(v, eps), 1 - eps)
+
+        def linear_root(a, b, area):  # a t + (b - a) t^2 / 2 = area on [0, 1]
+            den = a + math.sqrt(max(0.0, a * a + 2 * area * (b - a)))
+            return 2 * area / den if den > 0 else 0.0
+
+        j = int(np.clip(np.searchsorted(marg, v, side="left") - 1, 0, self.ny - 2))
+        r0, r1 = cond[j, -1], cond[j + 1, -1]
+        ty = linear_root(r0, r1, v - marg[j])
+        target = u * ((1 - ty) * r0 + ty * r1)
+        running = (1 - ty) * cond[j] + ty * cond[j + 1]
+        i = int(np.clip(np.searchsorted(running, target, side="left") - 1, 0, self.nx - 2))
+        c0 = (1 - ty) * data[j, i] + ty * data[j + 1, i]
+        c1 = (1 - ty) * data[j, i + 1] + ty * data[j + 1, i + 1]
+        tx = linear_root(c0, c1, target - running[i])
+        pdf = ((1 - tx) * c0 + tx * c1) * (self.nx - 1) * (self.ny - 1)
+        return (i + tx) / (self.nx - 1), (j + ty) / (self.ny - 1), pdf
+
     def invert(self, x, y, param=()):
         """The unit-square sample that the warp maps to the point (x, y)."""
         data, cond, marg = self._blend(param)
@@ -154,6 +178,26 @@ class RglBsdf:
         self.vndf = Marginal2D(f["vndf"], params)
         self.luminance = Marginal2D(f["luminance"], params)
         self.values = Marginal2D(values, params + [self.wavelengths], normalize=False)
+
+    def albedo(self, wi, n=64):
+        """Integral of f cos(theta_o) over the upper hemisphere for light from wi, estimated as a
+        renderer would: stratified samples of the vndf warp (n x n), each reflected about its half
+        vector, weighted by f cos / pdf with pdf = vndf pdf / (2 pi^2 u sin(theta_m) 4 wi.m)."""
+        wi = np.asarray(wi, float)
+        theta_i, phi_i = math.acos(min(1.0, wi[2])), math.atan2(wi[1], wi[0])
+        total = np.zeros(len(self.wavelengths))
+        for a in range(n):
+            for b in range(n):
+                x, y, pdf = self.vndf.sample((b + 0.5) / n, (a + 0.5) / n, (phi_i, theta_i))
+                theta_m, phi_m = x * x * math.pi / 2, (2 * y - 1) * math.pi + (phi_i if self.isotropic else 0)
+                m = np.array([math.sin(theta_m) * math.cos(phi_m), math.sin(theta_m) * math.sin(phi_m), math.cos(theta_m)])
+                c = float(np.dot(wi, m))
+                wo = 2 * c * m - wi
+                jac = 2 * math.pi ** 2 * x * math.sin(theta_m) * 4 * c
+                if c <= 0 or wo[2] <= 0 or pdf <= 0 or jac <= 1e-12:
+                    continue
+                total += self.f(wi, wo) * wo[2] * jac / pdf
+        return total / (n * n)
 
     def f(self, wi, wo):
         """f(wi -> wo) per wavelength (or RGB channel), wi towards the light; 0 below the horizon."""
