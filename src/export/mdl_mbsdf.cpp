@@ -4,23 +4,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 #include "core/colour.h"
 #include "core/error.h"
+#include "export/little_endian.h"
 
 namespace mbsdf {
 namespace {
-
-template <typename T>
-void putLittleEndian(std::string& out, T value) {
-  for (size_t i = 0; i < sizeof(T); ++i) out.push_back(char((uint64_t(value) >> (8 * i)) & 0xff));
-}
-void putFloat(std::string& out, float v) {
-  uint32_t bits;
-  std::memcpy(&bits, &v, 4);
-  putLittleEndian(out, bits);
-}
 
 // The incidence azimuths an anisotropic table is averaged over (an isotropic one needs one).
 std::vector<double> incidenceAzimuths(const BsdfFileReader& file, const BsdfLookup& lookup) {
@@ -175,7 +165,7 @@ MbsdfFile mbsdfFile(const BsdfFileReader& file, const BsdfLookup& lookup, const 
     for (double v : part.values) {
       out.negativeClamped += v < 0;
       ++out.values;
-      putFloat(data, float(std::max(0.0, v)));
+      putFloat32(data, float(std::max(0.0, v)));
     }
   }
   out.anisotropyL1 = tableL1 > 0 ? differenceL1 / tableL1 : 0.0;

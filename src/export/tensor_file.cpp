@@ -1,15 +1,11 @@
 #include "export/tensor_file.h"
 
-#include <cstring>
 #include <stdexcept>
+
+#include "export/little_endian.h"
 
 namespace mbsdf {
 namespace {
-
-template <typename T>
-void putLittleEndian(std::string& out, T value) {
-  for (size_t i = 0; i < sizeof(T); ++i) out.push_back(char((uint64_t(value) >> (8 * i)) & 0xff));
-}
 
 uint64_t elementCount(const TensorField& f) {
   uint64_t n = 1;
@@ -41,11 +37,7 @@ std::string tensorFileBytes(const std::vector<TensorField>& fields) {
     putLittleEndian(header, uint64_t(offset + data.size()));
     for (uint64_t s : f.shape) putLittleEndian(header, s);
     if (isFloat) {
-      for (float v : f.floats) {
-        uint32_t bits;
-        std::memcpy(&bits, &v, 4);
-        putLittleEndian(data, bits);
-      }
+      for (float v : f.floats) putFloat32(data, v);
     } else {
       data.append(reinterpret_cast<const char*>(f.bytes.data()), f.bytes.size());
     }
