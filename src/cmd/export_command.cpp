@@ -17,6 +17,7 @@
 #include "io/bsdf_file.h"
 #include "io/bsdf_lookup.h"
 #include "io/output_target.h"
+#include "job/job.h"
 
 namespace mbsdf {
 namespace {
@@ -45,6 +46,21 @@ std::vector<int> wavelengthIndices(const BsdfFileReader& f, const std::vector<do
   if (which.empty())
     for (size_t i = 0; i < table.size(); ++i) which.push_back(int(i));
   return which;
+}
+
+// The lower medium's index over the upper's (real parts) at wavelength index k, from the table's own
+// job text; k < 0: at the table's wavelength nearest 555 nm (an XYZ file shares one refracted centre).
+double relativeIndex(const BsdfFileReader& f, int k, const std::string& h5Path) {
+  const std::vector<double>& nm = f.wavelengths_nm();
+  if (k < 0) {
+    k = 0;
+    for (size_t i = 0; i < nm.size(); ++i)
+      if (std::abs(nm[i] - 555) < std::abs(nm[size_t(k)] - 555)) k = int(i);
+  }
+  if (!f.hasAttribute("job_text")) throw InputError(h5Path + ": the file holds no job text to take the material from");
+  const Material m = loadMaterialFromString(f.attribute("job_text"), h5Path + " (job_text)");
+  if (m.isConductor()) throw InputError(h5Path + ": a conductor transmits nothing: no BTDF to write");
+  return m.ior(nm[size_t(k)] * 1e-3).real() / m.outsideIor;
 }
 
 void noteClamped(int clamped, int values) {
@@ -97,12 +113,12 @@ Command addExportCommand(CLI::App& app) {
       ->check(CLI::IsMember({"zemax", "rgl", "mbsdf"}))
       ->capture_default_str();
   cmd->add_option("--colour", o->colour,
-                  "rgl, mbsdf: spectral (rgl: the table's wavelengths; mbsdf: one file per wavelength) or rgb "
-                  "(linear sRGB)")
-      ->check(CLI::IsMember({"spectral", "rgb"}))
+                  "spectral (zemax, mbsdf: one file per wavelength; rgl: the table's wavelengths), rgb (rgl, "
+                  "mbsdf: linear sRGB) or xyz (zemax: CIE tristimulus)")
+      ->check(CLI::IsMember({"spectral", "rgb", "xyz"}))
       ->capture_default_str();
   cmd->add_option("--side", o->side,
-                  "reflection, or transmission (refused by zemax and rgl, which hold a BRDF; an mbsdf file holds both)")
+                  "reflection, or transmission (zemax: a BTDF file; rgl holds a BRDF only; an mbsdf file holds both)")
       ->check(CLI::IsMember({"reflection", "transmission"}))
       ->capture_default_str();
   cmd->add_option("--model", o->model,
@@ -114,16 +130,17 @@ Command addExportCommand(CLI::App& app) {
     const std::string model = modelOrFullest(f, o->model, o->h5Path);
     const BsdfLookup lookup(f, model);
     const std::vector<int> which = wavelengthIndices(f, o->lambda_nm, o->h5Path);
-    if (o->side == "transmission")
+    const bool transmission = o->side == "transmission";
+    if (transmission && o->format != "zemax")
       throw InputError(
           o->format == "mbsdf"
               ? "--side transmission: an mbsdf file holds both sides of the table already; leave out --side"
-              : "--side transmission: the " + o->format +
-                    " format as written here holds reflection only (a BRDF); transmission is not exported");
-    const bool rgb = o->colour == "rgb";
-    if (rgb && o->format == "zemax") throw InputError("--colour rgb: the zemax format holds one wavelength per file");
-    if (rgb && !o->lambda_nm.empty())
-      throw InputError("--colour rgb uses every wavelength of the table: leave out --lambda-nm");
+              : "--side transmission: the rgl format holds reflection only (a BRDF)");
+    const bool rgb = o->colour == "rgb", xyz = o->colour == "xyz";
+    if (rgb && o->format == "zemax") throw InputError("--colour rgb: the zemax format holds one wavelength or XYZ");
+    if (xyz && o->format != "zemax") throw InputError("--colour xyz: only the zemax format holds tristimulus values");
+    if ((rgb || xyz) && !o->lambda_nm.empty())
+      throw InputError("--colour " + o->colour + " uses every wavelength of the table: leave out --lambda-nm");
     warnIfIncomplete(f, "unfinished slices make the export fail");
     const std::string description = "microbsdf " + model + " of " + o->h5Path;
     if (o->format == "rgl") {
@@ -147,14 +164,21 @@ Command addExportCommand(CLI::App& app) {
       noteClamped(rgl.negativeClamped, rgl.nodes);
       return 0;
     }
-    const std::vector<int> files = rgb ? std::vector<int>{0} : which;
+    const std::vector<int> files = rgb || xyz ? std::vector<int>{0} : which;
     for (int k : files) {
       const std::string path = perWavelengthPath(o->outPath, f.wavelengths_nm()[size_t(k)], files.size() > 1);
       if (o->format == "zemax") {
         ZemaxExport e = defaultZemaxExport();
         e.wavelength = k;
+        e.xyz = xyz;
+        e.transmission = transmission;
+        if (transmission) e.eta = relativeIndex(f, xyz ? -1 : k, o->h5Path);
         writeFileAtomically(path, zemaxBsdfText(f, lookup, e, o->h5Path));
-        std::cerr << "wrote " << path << " (model " << model << ", " << f.wavelengths_nm()[size_t(k)] << " nm)\n";
+        std::cerr << "wrote " << path << " (model " << model << ", "
+                  << (xyz ? std::string("CIE XYZ") : fmt::format("{:g} nm", f.wavelengths_nm()[size_t(k)]))
+                  << (transmission ? fmt::format(", BTDF about the refracted direction, relative index {:.5g}", e.eta)
+                                   : std::string(", BRDF"))
+                  << ")\n";
         continue;
       }
       MbsdfExport e;

@@ -16,9 +16,14 @@
 // its specular lobe included (the table holds no separate specular ray). f between the table's bins
 // comes from BsdfLookup (bilinear between bin centres).
 //
-// One file holds one wavelength (SpectralContent Monochrome) and the reflected side (ScatterType
-// BRDF); the table's incidences must form a θ × φ grid (every listed θ at every listed φ, as
-// incidence = "all" on a theta-phi grid does).
+// One file holds one wavelength (SpectralContent Monochrome) or the CIE tristimulus values of all of
+// them (SpectralContent XYZ: a TristimulusX, TristimulusY and TristimulusZ data set, each weighted as
+// `slice`'s colours are, Y of a flat spectrum 1), and one side: reflected (ScatterType BRDF) or
+// transmitted (BTDF). For a BTDF the format's centre is the direct transmission — here the refracted
+// direction t of Snell's law with `eta` — and AngleOfIncidence holds its angle from the opposite
+// normal θt (the format's "specular transmitted angle"); azimuth 0 points from t towards that
+// normal, e2 = t × e1. The table's incidences must form a θ × φ grid (every listed θ at every listed
+// φ, as incidence = "all" on a theta-phi grid does).
 #pragma once
 #include <string>
 #include <vector>
@@ -29,7 +34,10 @@
 namespace mbsdf {
 
 struct ZemaxExport {
-  int wavelength = 0;               // index into the table's wavelengths
+  int wavelength = 0;               // index into the table's wavelengths (Monochrome)
+  bool xyz = false;                 // SpectralContent XYZ: CIE X, Y, Z of every wavelength, three data sets
+  bool transmission = false;        // ScatterType BTDF: the transmitted side
+  double eta = 1.0;                 // BTDF: the lower medium's index over the upper's (real parts), for Snell
   std::vector<double> radial_deg;   // scatter radial angles, ascending from 0
   std::vector<double> azimuth_deg;  // scatter azimuths, ascending in [0, 360)
 };
@@ -37,8 +45,8 @@ struct ZemaxExport {
 // The default angles: radial 0, 0.25, 0.5, 0.75, 1, 2, …, 180 degrees; azimuth every 5 degrees.
 ZemaxExport defaultZemaxExport();
 
-// The file's text. Throws InputError when the incidences are not a θ × φ grid above the surface or
-// a slice is unfinished.
+// The file's text. Throws InputError when the incidences are not a θ × φ grid above the surface, a
+// slice is unfinished, or (BTDF) an incidence is totally reflected.
 std::string zemaxBsdfText(const BsdfFileReader& file, const BsdfLookup& lookup, const ZemaxExport& options,
                           const std::string& source);
 

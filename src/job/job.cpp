@@ -473,6 +473,11 @@ void checkWaveTerm(const ParamDict& samp, Job& job) {
 
 }  // namespace
 
+Material loadMaterialFromString(const std::string& text, const std::string& sourceName) {
+  std::string name;
+  return parseMaterial(ParamDict::parseString(text, sourceName).table("material"), &name);
+}
+
 Job loadJobFromString(const std::string& text, const std::string& sourceName, const std::string& baseDir) {
   ParamDict root = ParamDict::parseString(text, sourceName);
   Job job;

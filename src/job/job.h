@@ -159,5 +159,8 @@ struct Job {
 // Parse and validate a job file. Relative file names in it are relative to the job file.
 Job loadJob(const std::string& path);
 Job loadJobFromString(const std::string& text, const std::string& sourceName, const std::string& baseDir);
+// The [material] section of a job's text alone (a stored table's `job_text`, whose geometry files
+// may no longer exist): what an exporter needs to place a refracted direction.
+Material loadMaterialFromString(const std::string& text, const std::string& sourceName);
 
 }  // namespace mbsdf

@@ -404,7 +404,11 @@ def test_export_zemax():
     resampling's own error on the coarse test grids); at random scatter directions of every block,
     placed by the format's definition of radial and azimuth, the reader's bilinear lookup agrees with
     `microbsdf eval` on the table (within 3 % of the slice's peak).
-    Incidences that are not a theta x phi grid are refused with exit 2 and the reason."""
+    Incidences that are not a theta x phi grid are refused with exit 2 and the reason.
+    A BTDF (rough glass of index 1.5): AngleOfIncidence the refracted angles of Snell's law, TIS the
+    table's transmitted integral (0.5 %), the lookup about the refracted direction against `eval`
+    (3 % of the peak); a conductor's BTDF refused. XYZ of a mirror (spectrally flat): each
+    tristimulus set is the monochrome f times one constant, 1 for Y."""
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from zemax_reader import ZemaxBsdf
     ggx = os.path.join(TMP, "ggx.toml")
@@ -473,6 +477,75 @@ def test_export_zemax():
     assert "not a theta x phi grid" in r.stderr, r.stderr
     assert not os.path.exists(os.path.join(TMP, "bad.bsdf"))
     print("listed incidences off a grid: refused (exit 2) and nothing written")
+    # A BTDF about the refracted direction: glass of constant index 1.5, so that Snell is checked here.
+    glass = os.path.join(TMP, "glass.toml")
+    with open(glass, "w") as f:
+        f.write("""[geometry]\nkind = "statistical"\nndf = "ggx"\nalpha = 0.3\n[material]\nkind = "dielectric"\nior = 1.5
+[spectrum]\nwavelengths_nm = [550.0]\n[directions]\nn_theta = 12\nn_phi = 24\nincidence = "all"
+[effects]\ncomponents = ["coherent", "multiple"]\n[sampling]\npaths_per_slice = 30000\nseed = 3
+[output]\npath = "glass.h5"\n""")
+    run(["run", glass, "-o", "glass.h5"], mpi=2)
+    run(["export", "glass.h5", "--format", "zemax", "--side", "transmission", "-o", "glass-btdf.bsdf"])
+    z = ZemaxBsdf(os.path.join(TMP, "glass-btdf.bsdf"))
+    assert z.keys["ScatterType"] == "BTDF", z.keys
+    with h5py.File(os.path.join(TMP, "glass.h5"), "r") as h:
+        op = h["/grid/projected_solid_angle"][:]
+        nh = len(op) // 2
+        table = sum(h["/bsdf/" + c][:, 0, :].astype(float) for c in ("coherent", "multiple"))
+        th, ph = h["/incidence/theta_deg"][:], h["/incidence/phi_deg"][:]
+    thetas = np.unique(th[th < 90])
+    snell = np.degrees(np.arcsin(np.sin(np.radians(thetas)) / 1.5))
+    assert np.allclose(z.enums["AngleOfIncidence"], snell, atol=1e-4), (z.enums["AngleOfIncidence"], snell)
+    worst_tis = worst_lookup = 0.0
+    rot = z.enums["SampleRotation"][0]
+    for k, theta in enumerate(thetas):
+        i = int(np.argmin(np.abs(th - theta) + np.abs(ph - rot)))
+        tis_h5 = float(np.sum(table[i, nh:] * op[nh:]))
+        worst_tis = max(worst_tis, abs(z.tis[0, k] - tis_h5) / tis_h5)
+        tt, p = np.radians(z.enums["AngleOfIncidence"][k]), np.radians(rot)
+        t = np.array([-np.sin(tt) * np.cos(p), -np.sin(tt) * np.sin(p), -np.cos(tt)])
+        e1 = np.array([0, 0, -1.0]) - t * (-t[2])
+        e1 = e1 / np.linalg.norm(e1) if np.linalg.norm(e1) > 1e-9 else np.array([np.cos(p), np.sin(p), 0.0])
+        e2 = np.cross(t, e1)
+        peak = float(np.max(z.data[0][k]))
+        for _ in range(3):
+            r, a = rng.uniform(0, 40), rng.uniform(0, 360)
+            wo = np.cos(np.radians(r)) * t + np.sin(np.radians(r)) * (np.cos(np.radians(a)) * e1 + np.sin(np.radians(a)) * e2)
+            if wo[2] >= -0.05:
+                continue
+            to, po = np.degrees(np.arccos(wo[2])), np.degrees(np.arctan2(wo[1], wo[0])) % 360
+            out = run(["eval", "glass.h5", "--wi", f"{theta},{rot}", "--wo", f"{to},{po}"]).stdout
+            f_eval = float([ln for ln in out.splitlines() if ln.startswith("550,")][0].split(",")[1])
+            worst_lookup = max(worst_lookup, abs(z.lookup(0, k, r, a) - f_eval) / peak)
+    print(f"BTDF (index 1.5): AngleOfIncidence = Snell's refracted angles; TIS vs the table's transmitted "
+          f"integral {worst_tis:.2e}; lookup about the refracted direction vs eval {worst_lookup:.2%} of the peak")
+    assert worst_tis < 0.005 and worst_lookup < 0.03, (worst_tis, worst_lookup)
+    r = run(["export", "grating.h5", "--format", "zemax", "--side", "transmission", "-o", "al.bsdf"], expect=2)
+    assert "conductor transmits nothing" in r.stderr, r.stderr
+    # XYZ of a spectrally flat table (a mirror: every wavelength takes the same paths): each
+    # tristimulus set is the monochrome f times one constant, Y's being 1 (Y of a flat spectrum 1).
+    mirror = os.path.join(TMP, "mirror.toml")
+    with open(ggx) as f:
+        text = f.read()
+    with open(mirror, "w") as f:
+        f.write(text.replace('name = "Al"', 'name = "mirror"').replace("[500.0, 600.0]", "[450.0, 550.0, 650.0]")
+                .replace("100000", "20000").replace('"ggx.h5"', '"mirror.h5"'))
+    run(["run", mirror, "-o", "mirror.h5"], mpi=2)
+    run(["export", "mirror.h5", "--format", "zemax", "--colour", "xyz", "-o", "mirror-xyz.bsdf"])
+    run(["export", "mirror.h5", "--format", "zemax", "--lambda-nm", "550", "-o", "mirror-550.bsdf"])
+    x, m = ZemaxBsdf(os.path.join(TMP, "mirror-xyz.bsdf")), ZemaxBsdf(os.path.join(TMP, "mirror-550.bsdf"))
+    assert x.keys["SpectralContent"] == "XYZ" and len(x.data_sets) == 3, x.keys
+    mono = np.array(m.data[0])
+    factors = []
+    for c in range(3):
+        block = np.array(x.data_sets[c][0])
+        big = mono > 1e-3 * mono.max()
+        ratio = block[big] / mono[big]
+        assert np.ptp(ratio) < 2e-5 * np.mean(ratio), (c, np.ptp(ratio))
+        assert np.allclose(x.tis_sets[c][0], np.mean(ratio) * m.tis[0], rtol=2e-5), c
+        factors.append(float(np.mean(ratio)))
+    assert abs(factors[1] - 1) < 2e-5, factors
+    print(f"XYZ of a mirror: each set the monochrome f times {np.round(factors, 5)} (TIS likewise)")
 
 
 def rgl_ggx_closed_form(alpha_x, alpha_y, wi, wo):
