@@ -16,13 +16,11 @@ BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
   nB_ = grid_.binCount();
   slices_.resize(size_t(file.incidenceCount()));
   incidenceOfBin_.assign(size_t(nB_), -1);
+  bool checked = false;
   for (int i = 0; i < file.incidenceCount(); ++i) {
     if (!file.done(i)) continue;
-    try {
-      slices_[size_t(i)] = modelSlice(file, model, i);
-    } catch (const std::invalid_argument& e) {
-      throw InputError(e.what());
-    }
+    if (!checked) slice(i);  // the model's components exist (InputError otherwise); the rest on demand
+    checked = true;
     incidenceOfBin_[size_t(file.incidenceBin(i))] = i;
   }
   // Every bin with directions in each hemisphere that holds an incidence.
@@ -36,7 +34,7 @@ BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
   allIncidenceBins_ = complete && (upper || lower);
   // An isotropic table's rings: one finished incidence per distinct θ on each side (the first).
   for (int i = 0; i < file.incidenceCount(); ++i) {
-    if (slices_[size_t(i)].empty()) continue;
+    if (!file.done(i)) continue;
     const bool fromAbove = file.incidenceTheta(i) < 90;
     const double theta = radians(fromAbove ? file.incidenceTheta(i) : 180 - file.incidenceTheta(i));
     std::vector<Ring>& rings = fromAbove ? ringsUpper_ : ringsLower_;
@@ -102,9 +100,21 @@ std::vector<std::pair<int, double>> interpolationWeights(const DirectionGrid& gr
   return out;
 }
 
+const std::vector<double>& BsdfLookup::slice(int incidence) const {
+  if (!file_.done(incidence)) throw InputError("slice " + std::to_string(incidence) + " of the table is not finished");
+  std::vector<double>& s = slices_.at(size_t(incidence));
+  if (s.empty()) {
+    try {
+      s = modelSlice(file_, model_, incidence);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(e.what());
+    }
+  }
+  return s;
+}
+
 double BsdfLookup::eval(int incidence, const Vec3& wo, int l) const {
-  const std::vector<double>& s = slices_.at(size_t(incidence));
-  if (s.empty()) throw InputError("slice " + std::to_string(incidence) + " of the table is not finished");
+  const std::vector<double>& s = slice(incidence);
   double f = 0;
   for (const auto& [b, wt] : interpolationWeights(grid_, wo)) f += wt * s[size_t(l) * size_t(nB_) + size_t(b)];
   return f;
@@ -153,7 +163,7 @@ double BsdfLookup::acrossIncidences(const Vec3& wi, const Vec3& wo,
     bool complete = true;
     for (const auto& [b, wt] : interpolationWeights(grid_, wi)) {
       const int i = incidenceOfBin_[size_t(b)];
-      if (i < 0 || slices_[size_t(i)].empty()) {
+      if (i < 0 || !file_.done(i)) {
         complete = false;
         break;
       }
@@ -166,11 +176,11 @@ double BsdfLookup::acrossIncidences(const Vec3& wi, const Vec3& wo,
 }
 
 double BsdfLookup::hemisphericalIntegral(int incidence, int l, bool upper) const {
-  const std::vector<double>& s = slices_.at(size_t(incidence));
+  if (!file_.done(incidence)) return 0;
+  const std::vector<double>& s = slice(incidence);
   double e = 0;
   for (int b = 0; b < nB_; ++b)
-    if (grid_.isUpper(b) == upper && !s.empty())
-      e += s[size_t(l) * size_t(nB_) + size_t(b)] * grid_.projectedSolidAngle(b);
+    if (grid_.isUpper(b) == upper) e += s[size_t(l) * size_t(nB_) + size_t(b)] * grid_.projectedSolidAngle(b);
   return e;
 }
 

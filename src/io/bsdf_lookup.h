@@ -31,7 +31,8 @@ bool tableIsIsotropic(const BsdfFileReader& file);
 
 class BsdfLookup {
  public:
-  // Reads every finished slice of `model` (InputError when the file lacks one of its components).
+  // Reads the finished slices of `model` as they are needed (InputError at once when the file lacks
+  // one of its components). Not for use from several threads at once.
   BsdfLookup(const BsdfFileReader& file, const std::string& model);
 
   int wavelengthCount() const { return nL_; }
@@ -60,8 +61,10 @@ class BsdfLookup {
   const DirectionGrid& grid_;
   std::string model_;
   int nL_ = 0, nB_ = 0;
-  std::vector<std::vector<double>> slices_;  // per incidence: nλ × nBins (empty when not done)
-  std::vector<int> incidenceOfBin_;          // incidence index of each bin, or −1
+  // Per incidence: nλ × nBins, read when first needed (a large table's eval touches a few slices).
+  mutable std::vector<std::vector<double>> slices_;
+  const std::vector<double>& slice(int incidence) const;
+  std::vector<int> incidenceOfBin_;  // incidence index of each bin, or −1
   bool allIncidenceBins_ = false;
   bool isotropic_ = false;
   struct Ring {
