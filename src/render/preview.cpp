@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "core/colour.h"
+#include "core/error.h"
 #include "geometry/embree_scene.h"
 #include "io/bsdf_lookup.h"
 #include "io/bitmap_text.h"
@@ -41,9 +42,8 @@ Microgeometry unitSphere(int nLat, int nLon) {
 RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
   const std::vector<std::string> models = req.models.empty() ? availableModels(file) : req.models;
   if (models.empty()) throw std::runtime_error("the file holds no complete model");
-  const DirectionGrid& grid = file.grid();
   const auto& lambda = file.wavelengths_nm();
-  const int nL = int(lambda.size()), nB = grid.binCount();
+  const int nL = int(lambda.size());
   std::optional<SpectrumToColour> colour;
   try {
     colour.emplace(lambda);
@@ -60,12 +60,9 @@ RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
   img.height = S + top;
   img.rgb.assign(size_t(img.width) * img.height * 3, 0);
   for (size_t mi = 0; mi < models.size(); ++mi) {
-    std::map<int, std::vector<double>> slices;  // incidence index -> model table (nλ x nBins)
-    auto table = [&](int inc) -> const std::vector<double>& {
-      auto it = slices.find(inc);
-      if (it == slices.end()) it = slices.emplace(inc, modelSlice(file, models[mi], inc)).first;
-      return it->second;
-    };
+    // f between bins and incidences as every reader of a table sees it (io/bsdf_lookup.h); its slices
+    // are read as pixels need them.
+    const BsdfLookup lookup(file, models[mi]);
     // Directional albedo a(λ) of the model: the file's per-component energy_reflected of the slice
     // (no need to read the whole table for the environment term).
     const std::vector<Component> comps = *modelComponents(models[mi]);
@@ -103,13 +100,9 @@ RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
         // and black checker, never as a dark surface.
         bool missing = false;
         if (wi.z > 0) {
-          if (int inc = nearestDone(wi); inc >= 0) {
-            // f between the exit bins as every reader of a table sees it (io/bsdf_lookup.h).
-            const auto& f = table(inc);
-            for (const auto& [bin, weight] : interpolationWeights(grid, wo))
-              for (int l = 0; l < nL; ++l)
-                L[l] += weight * f[size_t(l) * nB + size_t(bin)] * req.lightIrradiance * wi.z;
-          } else {
+          try {
+            for (int l = 0; l < nL; ++l) L[l] += lookup.eval(wi, wo, l) * req.lightIrradiance * wi.z;
+          } catch (const InputError&) {  // a slice the interpolation needs is not finished yet
             missing = true;
           }
         }

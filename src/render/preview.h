@@ -3,7 +3,7 @@
 // with Embree), lit by a directional light and a uniform environment, one sphere per model side by
 // side. Shading at a point with normal n uses the local frame (t, b, n), t ⟂ n in the plane of +y:
 //   L = f(ωi → ωo) E cos θi + L_env a(ωo)
-// with f looked up in the slice nearest to ωi (between the exit bins around ωo, io/bsdf_lookup.h) and a(ωo) the
+// with f between the table's bins and incidences as every reader of a table sees it (io/bsdf_lookup.h) and a(ωo) the
 // directional albedo of the slice nearest to ωo (by reciprocity, ∫ f(ωi → ωo) cos θi dωi = a(ωo) for a constant
 // environment). Spectra → sRGB through CIE 1931 when a wavelength is visible, else grey.
 #pragma once
