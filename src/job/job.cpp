@@ -420,10 +420,14 @@ void decideSymmetry(const ParamDict& dirs, const std::string& symmetry, Job& job
         symmetry == "auto" && !job.statistical && reducible ? patchSymmetryOf(job.geometry) : PatchSymmetry{};
     const int order = ps.rotationOrder;
     const bool found = order > 1 || ps.mirror;
+    // The table is isotropic whether or not the run can use it: say so first (the exporters write
+    // one incidence azimuth for a `symmetry` that starts with "isotropic").
     if (wanted && !tp)
-      job.symmetryReason = "not used: needs a theta-phi grid (its rings map onto themselves under rotation)";
+      job.symmetryReason =
+          "isotropic surface; the reduction is not used: needs a theta-phi grid (its rings map onto themselves "
+          "under rotation)";
     else if (wanted && !job.incidenceAll)
-      job.symmetryReason = "not used: needs incidence = \"all\"";
+      job.symmetryReason = "isotropic surface; the reduction is not used: needs incidence = \"all\"";
     else if (symmetry == "auto" && !job.statistical && !reducible)
       job.symmetryReason = "not checked: needs a theta-phi grid and incidence = \"all\"";
     else if (wanted)
