@@ -725,7 +725,8 @@ def test_export_mbsdf():
       median (L1 within 5 %), its transmitted albedo within 1 % of the table's, and the figure the
       exporter prints for what a symmetrising runtime changes equal to the reader's own;
     - an anisotropic table: the warning with the anisotropy lost, and the file holding the mean over
-      the table's incidence azimuths of `eval` (times its row's scale), checked at random nodes.
+      the table's incidence azimuths of `eval` (times its row's scale), checked at random nodes;
+    - an isotropic surface the run cannot reduce (disk grid, listed incidences): isotropic in the file.
     One scalar file per wavelength; --colour rgb writes one RGB file."""
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from mbsdf_reader import Mbsdf
@@ -842,6 +843,21 @@ def test_export_mbsdf():
     print(f"anisotropic GGX (0.25, 0.6): warned of {lost} % lost; the file holds the azimuthal mean of eval times "
           f"{np.mean(ratios):.4f} on its 21 deg row (spread {np.ptp(ratios):.1e}; printed correction {correction:.2%})")
     assert np.ptp(ratios) < 1e-5 * np.mean(ratios) and abs(np.mean(ratios) - 1) <= correction + 1e-4, ratios
+    # An isotropic surface the run cannot reduce (disk grid, listed incidences) is still isotropic for
+    # the exporters: one azimuth, no anisotropy warning.
+    with open(os.path.join(TMP, "disk.toml"), "w") as f:
+        f.write("""[geometry]\nkind = "statistical"\nndf = "ggx"\nalpha = 0.4\n[material]\nname = "Au"
+[spectrum]\nwavelengths_nm = [550.0]\n[directions]\ngrid = "disk"\nwidth = 17\nheight = 17
+incidence = [[0.0, 0.0], [30.0, 0.0], [60.0, 0.0]]\n[effects]\ncomponents = ["coherent", "multiple"]
+[sampling]\npaths_per_slice = 10000\nseed = 3\n[output]\npath = "disk.h5"\n""")
+    run(["run", "disk.toml", "-o", "disk.h5"], mpi=2)
+    with h5py.File(os.path.join(TMP, "disk.h5"), "r") as h:
+        symmetry = h.attrs["symmetry"]
+        symmetry = symmetry.decode() if isinstance(symmetry, bytes) else str(symmetry)
+        assert symmetry.startswith("isotropic"), symmetry
+    r = run(["export", "disk.h5", "--format", "mbsdf", "-o", "disk.mbsdf"])
+    assert "anisotropic" not in r.stderr, r.stderr
+    print("isotropic surface on a disk grid, listed incidences: exported as isotropic, no warning")
     assert lost > 5, r.stderr
 
 
