@@ -12,21 +12,32 @@
 namespace mbsdf {
 namespace {
 
-// The incidence azimuths an anisotropic table is averaged over (an isotropic one needs one).
+// The incidence azimuths an anisotropic table is averaged over (an isotropic one needs one): with
+// every incidence bin, evenly spread ones (the table interpolates between its bins); with listed
+// incidences, their one azimuth. Listed incidences at several azimuths are refused: between them the
+// table takes the nearest incidence in angle, which may lie at another azimuth, so an average over
+// them would not be the azimuthal mean it is reported as.
 std::vector<double> incidenceAzimuths(const BsdfFileReader& file, const BsdfLookup& lookup) {
   if (tableIsIsotropic(file)) return {0.0};
-  const auto* g = std::get_if<ThetaPhiGrid>(&file.grid().layout());
-  std::vector<double> phi;
-  if (!lookup.nearestOnly() && g) {
-    for (int k = 0; k < g->nPhi; ++k) phi.push_back((k + 0.5) * 2 * kPi / g->nPhi);
+  if (!lookup.nearestOnly()) {
+    const auto* g = std::get_if<ThetaPhiGrid>(&file.grid().layout());
+    const int n = g ? g->nPhi : 24;
+    std::vector<double> phi;
+    for (int k = 0; k < n; ++k) phi.push_back((k + 0.5) * 2 * kPi / n);
     return phi;
   }
+  std::vector<double> phi;
   for (int i = 0; i < file.incidenceCount(); ++i) {
     const double p = radians(file.incidencePhi(i));
     if (file.incidenceTheta(i) < 90 &&
         std::none_of(phi.begin(), phi.end(), [&](double x) { return std::abs(x - p) < 1e-9; }))
       phi.push_back(p);
   }
+  if (phi.size() > 1)
+    throw InputError(fmt::format(
+        "the table is anisotropic and lists incidences at {} azimuths: the isotropic MBSDF needs its mean over "
+        "the incidence azimuth, which listed incidences do not give (use incidence = \"all\", or list one azimuth)",
+        phi.size()));
   return phi;
 }
 

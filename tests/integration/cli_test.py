@@ -726,6 +726,7 @@ def test_export_mbsdf():
       exporter prints for what a symmetrising runtime changes equal to the reader's own;
     - an anisotropic table: the warning with the anisotropy lost, and the file holding the mean over
       the table's incidence azimuths of `eval` (times its row's scale), checked at random nodes;
+    - an anisotropic table of listed incidences at two azimuths: refused (no azimuthal mean);
     - an isotropic surface the run cannot reduce (disk grid, listed incidences): isotropic in the file.
     One scalar file per wavelength; --colour rgb writes one RGB file."""
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -843,6 +844,14 @@ def test_export_mbsdf():
     print(f"anisotropic GGX (0.25, 0.6): warned of {lost} % lost; the file holds the azimuthal mean of eval times "
           f"{np.mean(ratios):.4f} on its 21 deg row (spread {np.ptp(ratios):.1e}; printed correction {correction:.2%})")
     assert np.ptp(ratios) < 1e-5 * np.mean(ratios) and abs(np.mean(ratios) - 1) <= correction + 1e-4, ratios
+    # Listed incidences of an anisotropic table at several azimuths give no azimuthal mean: refused.
+    with open(os.path.join(TMP, "aniso.toml")) as f:
+        text_listed = f.read().replace('incidence = "all"', "incidence = [[10.0, 0.0], [40.0, 30.0]]")
+    with open(os.path.join(TMP, "listed.toml"), "w") as f:
+        f.write(text_listed.replace('"aniso.h5"', '"listed.h5"'))
+    run(["run", "listed.toml", "-o", "listed.h5"], mpi=2)
+    r = run(["export", "listed.h5", "--format", "mbsdf", "-o", "listed.mbsdf"], expect=2)
+    assert "lists incidences at 2 azimuths" in r.stderr and not os.path.exists(os.path.join(TMP, "listed.mbsdf")), r.stderr
     # An isotropic surface the run cannot reduce (disk grid, listed incidences) is still isotropic for
     # the exporters: one azimuth, no anisotropy warning.
     with open(os.path.join(TMP, "disk.toml"), "w") as f:
