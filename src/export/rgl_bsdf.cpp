@@ -46,54 +46,34 @@ struct UGrid {
   }
 };
 
-// The table's reflectance at the file's incidence nodes. An isotropic table's node k is the first of
-// its incidences at θk, its exit directions given relative to that incidence's azimuth (the format's
-// isotropic frame); an anisotropic table's nodes sit on a θ × φ grid between its incidence bins.
+// The table's reflectance at the file's incidence nodes, through BsdfLookup (an isotropic table's
+// nodes are its rings of incidences, exit directions relative to the incidence azimuth: the format's
+// isotropic frame; an anisotropic table's nodes sit on a θ × φ grid between its incidence bins).
 struct Reflectance {
   const BsdfLookup& lookup;
   std::vector<double> theta, phi;  // the nodes (radians)
-  std::vector<int> incidenceOfTheta;
-  std::vector<double> phiOfTheta;  // isotropic: the azimuth of that incidence
   bool isotropic = true;
 
   Vec3 wi(int k, int l) const { return sphericalDirection(theta[size_t(k)], isotropic ? 0.0 : phi[size_t(l)]); }
   // The table's hemispherical integral of the reflected side at node (k, l).
-  double integral(int k, int l, int lambda) const {
-    return isotropic ? lookup.hemisphericalIntegral(incidenceOfTheta[size_t(k)], lambda, true)
-                     : lookup.hemisphericalIntegral(wi(k, l), lambda, true);
-  }
-  double f(int k, int l, const Vec3& wo, int lambda) const {
-    if (!isotropic) return lookup.eval(wi(k, l), wo, lambda);
-    const double c = std::cos(phiOfTheta[size_t(k)]), s = std::sin(phiOfTheta[size_t(k)]);
-    return lookup.eval(incidenceOfTheta[size_t(k)], Vec3{c * wo.x - s * wo.y, s * wo.x + c * wo.y, wo.z}, lambda);
-  }
+  double integral(int k, int l, int lambda) const { return lookup.hemisphericalIntegral(wi(k, l), lambda, true); }
+  double f(int k, int l, const Vec3& wo, int lambda) const { return lookup.eval(wi(k, l), wo, lambda); }
 };
 
 Reflectance reflectanceNodes(const BsdfFileReader& file, const BsdfLookup& lookup) {
-  Reflectance r{lookup, {}, {}, {}, {}, tableIsIsotropic(file)};
+  Reflectance nodes{lookup, {}, {}, tableIsIsotropic(file)};
   for (int i = 0; i < file.incidenceCount(); ++i) {
     if (file.incidenceTheta(i) >= 90) continue;
     if (!file.done(i)) throw InputError(fmt::format("incidence {} is unfinished: finish the run first", i));
     const double t = radians(file.incidenceTheta(i));
-    if (std::none_of(r.theta.begin(), r.theta.end(), [&](double x) { return std::abs(x - t) < 1e-9; })) {
-      r.theta.push_back(t);
-      r.incidenceOfTheta.push_back(i);
-      r.phiOfTheta.push_back(radians(file.incidencePhi(i)));
-    }
+    if (std::none_of(nodes.theta.begin(), nodes.theta.end(), [&](double x) { return std::abs(x - t) < 1e-9; }))
+      nodes.theta.push_back(t);
   }
-  if (r.theta.empty()) throw InputError("the table holds no incidence above the surface: nothing to reflect");
-  std::vector<size_t> order(r.theta.size());
-  for (size_t k = 0; k < order.size(); ++k) order[k] = k;
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return r.theta[a] < r.theta[b]; });
-  Reflectance sorted = r;
-  for (size_t k = 0; k < order.size(); ++k) {
-    sorted.theta[k] = r.theta[order[k]];
-    sorted.incidenceOfTheta[k] = r.incidenceOfTheta[order[k]];
-    sorted.phiOfTheta[k] = r.phiOfTheta[order[k]];
-  }
-  if (sorted.isotropic) {
-    sorted.phi = {0.0};
-    return sorted;
+  if (nodes.theta.empty()) throw InputError("the table holds no incidence above the surface: nothing to reflect");
+  std::sort(nodes.theta.begin(), nodes.theta.end());
+  if (nodes.isotropic) {
+    nodes.phi = {0.0};
+    return nodes;
   }
   if (lookup.nearestOnly())
     throw InputError(
@@ -103,8 +83,8 @@ Reflectance reflectanceNodes(const BsdfFileReader& file, const BsdfLookup& looku
   // Nodes at twice the table's incidence azimuths: between them the format interpolates in its warped
   // coordinates, which follow a lobe as it turns, where the table's own rule blends two lobes.
   const int nPhi = g ? g->nPhi : 24;
-  for (int l = 0; l <= 2 * nPhi; ++l) sorted.phi.push_back(-kPi + kPi * l / nPhi);
-  return sorted;
+  for (int l = 0; l <= 2 * nPhi; ++l) nodes.phi.push_back(-kPi + kPi * l / nPhi);
+  return nodes;
 }
 
 // D from the table: the largest f 4 cos θi cos θo at each half vector, floored and normalised.

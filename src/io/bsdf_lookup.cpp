@@ -155,6 +155,9 @@ double BsdfLookup::acrossIncidences(const Vec3& wi, const Vec3& wo,
     if (above == rings.begin()) return ringValue(rings.front());
     if (above == rings.end()) return ringValue(rings.back());
     const Ring& below = *(above - 1);
+    // On a ring (an exporter's node, up to rounding): that ring alone, not a blend read from two slices.
+    if (above->theta - theta < 1e-9) return ringValue(*above);
+    if (theta - below.theta < 1e-9) return ringValue(below);
     const double w = (theta - below.theta) / (above->theta - below.theta);
     return (1 - w) * ringValue(below) + w * ringValue(*above);
   }
