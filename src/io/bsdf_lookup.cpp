@@ -32,6 +32,7 @@ BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
     if (grid_.projectedSolidAngle(b) > 0 && (grid_.isUpper(b) ? upper : lower) && incidenceOfBin_[size_t(b)] < 0)
       complete = false;
   allIncidenceBins_ = complete && (upper || lower);
+  if (!isotropic_) return;
   // An isotropic table's rings: one finished incidence per distinct θ on each side (the first).
   for (int i = 0; i < file.incidenceCount(); ++i) {
     if (!file.done(i)) continue;
@@ -43,10 +44,8 @@ BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
   }
   for (auto* rings : {&ringsUpper_, &ringsLower_})
     std::sort(rings->begin(), rings->end(), [](const Ring& a, const Ring& b) { return a.theta < b.theta; });
-  if (isotropic_) {
-    hasUpper_ = !ringsUpper_.empty();
-    hasLower_ = !ringsLower_.empty();
-  }
+  hasUpper_ = !ringsUpper_.empty();
+  hasLower_ = !ringsLower_.empty();
 }
 
 bool tableIsIsotropic(const BsdfFileReader& file) {
