@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <numeric>
+#include <deque>
 #include <optional>
 #include <set>
 
@@ -218,6 +219,11 @@ class TileServer {
     // Most expensive first: grazing incidence bounces and wraps more.
     auto cost = [&](int t) { return 1.0 / (std::abs(std::cos(radians(job.incidence[size_t(t)].theta_deg))) + 0.05); };
     std::stable_sort(queue_.begin(), queue_.end(), [&](int a, int b) { return cost(a) > cost(b); });
+    // Tiles whose pilot paths this rank holds (the effects planner's) are its own first: elsewhere
+    // they would be traced again. Workers get them only when nothing else is left.
+    for (int t : queue_)
+      if (own_.tiles.holdsPilot(t)) reserved_.push_back(t);
+    std::erase_if(queue_, [&](int t) { return own_.tiles.holdsPilot(t); });
   }
 
   // Computes and serves until every tile is written or the run stops.
@@ -228,7 +234,7 @@ class TileServer {
     };
     while (true) {
       serveAll();
-      const int t = takeTile();
+      const int t = takeTile(true);
       if (t < 0) break;
       try {
         const TileResult r = own_.compute(t, serveAll);
@@ -259,15 +265,26 @@ class TileServer {
     const double mean = own_.done ? own_.tileSeconds / own_.done : 0.0;
     return since(t0_) + 1.5 * mean > options_.maxHours * 3600.0;
   }
-  int takeTile() {
+  // The next tile for rank 0 itself (own) or for a worker; -1 when none is left or the run stops.
+  int takeTile(bool own) {
     if (stopRequested()) noteStop("signal received");
     if (writeFailure_.empty() && !logWriteFailure().empty()) {
       writeFailure_ = "log write failed: " + logWriteFailure();
       noteStop("the log could not be written");
     }
     if (!stopAssigning_ && outOfTime()) noteStop("--max-hours reached");
-    if (stopAssigning_ || next_ >= queue_.size()) return -1;
-    return queue_[next_++];
+    if (stopAssigning_) return -1;
+    std::optional<int> t;
+    if (own && !reserved_.empty()) {
+      t = reserved_.front();
+      reserved_.pop_front();
+    } else if (next_ < queue_.size()) {
+      t = queue_[next_++];
+    } else if (!reserved_.empty()) {
+      t = reserved_.back();
+      reserved_.pop_back();
+    }
+    return t.value_or(-1);
   }
   void noteEnergyBalance(const TileResult& r, const BsdfFileWriter::EnergyBalance& b);
   void writeOne(const TileResult& r);
@@ -286,6 +303,7 @@ class TileServer {
   std::optional<AzimuthalSymmetry> symmetry_;
   std::vector<int> queue_;
   size_t next_ = 0;
+  std::deque<int> reserved_;  // rank 0's own first (TileComputer::holdsPilot)
   bool stopAssigning_ = false, lostTiles_ = false;
   ProgressReporter progress_;
   int written_ = 0, activeWorkers_ = 0;
@@ -373,7 +391,7 @@ bool TileServer::serveOne(bool blocking) {
       noteStop("a rank was stopped");
     }
   }
-  const int t = takeTile();
+  const int t = takeTile(false);
   MPI_Send(&t, 1, MPI_INT, st.MPI_SOURCE, kTagAssign, MPI_COMM_WORLD);
   if (t < 0) --activeWorkers_;
   return true;
@@ -447,7 +465,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   const std::string outPath = options.outputPath.empty() ? job.outputPath : options.outputPath;
   DirectionGrid grid(job.gridLayout);
   // What a tile is (job/tile_computer.h); this file only hands tiles out and writes them.
-  const TileComputer tiles(job, grid);
+  const TileComputer tiles(job, grid, options.pilotTiles);
   if (std::string shortfall = memoryShortfall(job, tiles.wave()); mpi.anyRank(!shortfall.empty())) {
     RunSummary refused;
     refused.exit = ExitCode::BadInput;

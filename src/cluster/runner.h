@@ -11,11 +11,13 @@
 // abandoned at their next batch). A clean stop closes the partial file and returns stoppedEarly;
 // the same command with --resume completes it.
 #pragma once
+#include <map>
 #include <string>
 
 #include "core/error.h"
 #include "cluster/mpi_session.h"
 #include "job/job.h"
+#include "scattering/tile_result.h"
 
 namespace mbsdf {
 
@@ -24,6 +26,9 @@ struct RunOptions {
   int threads = 0;         // 0: all cores
   bool resume = false;
   double maxHours = 0;  // 0: no limit
+  // The effects planner's geometric pilots held by this rank (planEffects): tiles it need not
+  // trace again.
+  std::map<int, TileResult> pilotTiles;
 };
 
 struct RunSummary {

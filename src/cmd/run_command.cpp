@@ -48,15 +48,16 @@ std::string failure(ExitCode c, const std::string& msg) {
   return std::to_string(exitCode(c)) + " " + msg;
 }
 
-// components = "auto": rank 0 runs the effects planner's pilots, every rank applies the same plan.
-// Returns the exit code when a stop arrived during the pilots.
-std::optional<int> planComponents(MpiSession& mpi, Job& job, int threads) {
+// components = "auto": rank 0 runs the effects planner's pilots, every rank applies the same plan;
+// rank 0 keeps the pilots' tiles in *pilotTiles. Returns the exit code when a stop arrived during
+// the pilots.
+std::optional<int> planComponents(MpiSession& mpi, Job& job, int threads, std::map<int, TileResult>* pilotTiles) {
   std::string planText, stopped;
   if (mpi.rank() == 0) {
     std::optional<tbb::global_control> limit;
     if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
     try {
-      const EffectsPlan p = planEffects(job);
+      const EffectsPlan p = planEffects(job, {}, pilotTiles);
       for (std::istringstream lines(formatEffects(p)); std::getline(lines, planText);) spdlog::info("{}", planText);
       planText = p.toJson().dump();
     } catch (const StopRequested&) {
@@ -132,9 +133,9 @@ int runCommand(int argc, char** argv, RunArgs a) {
     }
   }
   try {
-    if (job->autoComponents)
-      if (auto code = planComponents(mpi, *job, a.threads)) return *code;
     RunOptions opt;
+    if (job->autoComponents)
+      if (auto code = planComponents(mpi, *job, a.threads, &opt.pilotTiles)) return *code;
     opt.outputPath = out;
     opt.threads = a.threads;
     opt.resume = a.resume;

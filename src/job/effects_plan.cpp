@@ -80,6 +80,7 @@ nlohmann::json EffectsPlan::toJson() const {
                          {"path_tiles_spent", pilotBudget->pathTilesSpent},
                          {"wave_tiles_spent", pilotBudget->waveTilesSpent}};
   j["pilot_paths"] = pilotPaths;
+  j["pilot_tiles_kept"] = pilotTilesKept;
   j["pilot_seconds"] = pilotSeconds;
   if (waveTransmission) j["wave_transmission"] = *waveTransmission;
   if (lambda_nm) j["lambda_nm"] = *lambda_nm;
@@ -113,6 +114,7 @@ EffectsPlan EffectsPlan::fromJson(const nlohmann::json& j) {
                                    required<double>(b, "wave_tiles_spent")};
   }
   if (j.contains("pilot_paths")) p.pilotPaths = required<uint64_t>(j, "pilot_paths");
+  if (j.contains("pilot_tiles_kept")) p.pilotTilesKept = required<bool>(j, "pilot_tiles_kept");
   p.pilotSeconds = required<double>(j, "pilot_seconds");
   if (j.contains("wave_transmission")) p.waveTransmission = required<bool>(j, "wave_transmission");
   if (j.contains("lambda_nm")) p.lambda_nm = required<std::vector<double>>(j, "lambda_nm");

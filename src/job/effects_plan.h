@@ -49,6 +49,10 @@ struct EffectsPlan {
   std::vector<int> pilots, pilotsPlanned;     // incidence indices run, and those planned before the budget
   std::optional<PilotBudgetUse> pilotBudget;  // (none in files written before the budget existed)
   uint64_t pilotPaths = 0;
+  // Whether the geometric pilots traced their incidences as the job does (its exact directions or
+  // averaged over its bins, its seed): each is then the first pilotPaths paths of that tile, which
+  // the run keeps instead of tracing them again (tile_computer.h). False in older files.
+  bool pilotTilesKept = false;
   double pilotSeconds = 0;
   // What the run changes besides its components.
   std::optional<bool> waveTransmission;          // false: the wave term skips the transmitted bins

@@ -557,6 +557,22 @@ struct PilotContext {
     const IncidenceDirection& inc = job.incidence[size_t(p)];
     return job.exactIncidence ? sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg)) : grid.centre(inc.bin);
   }
+  // The incidence of tile p as the job traces it: its exact direction, or none (averaged over the
+  // bin). The geometric pilots (multiple scattering, wavelengths) use it, so that they see what the
+  // job's tiles see (a groove's inter-reflection that begins inside an incidence bin but not at its
+  // centre) and are the first paths of those tiles.
+  std::optional<Vec3> jobBeam(int p) const {
+    if (job.exactIncidence) return beam(p);
+    return std::nullopt;
+  }
+  // The geometric single scattering along beam(p) that a diffraction pilot compares with: the
+  // geometric pilot where that is the same beam, else a pilot of its own.
+  TileResult beamGeometry(size_t k) const {
+    if (job.exactIncidence) return geo[k];
+    const int p = pilots[k];
+    return transport.run(p, p, job.incidence[size_t(p)].bin, beam(p),
+                         pilotProgress("geometric pilot at the bin centre", job.incidence[size_t(p)]));
+  }
 };
 
 // Σ f Ω⊥ of a component at wavelength l and its standard error (root-sum-square over bins).
@@ -692,45 +708,62 @@ int cellCount(const std::vector<int>& cellOf) {
   return cellOf.empty() ? 0 : *std::max_element(cellOf.begin(), cellOf.end()) + 1;
 }
 
-DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpentOut) {
+// The diffraction pilots' wave estimator and, where they can be averaged over the incidence bins
+// without noise, the facet sum of single scattering they compare with. Bin-averaged, noise-free
+// pilots where the job averages over incidence bins, the wave pilot is deterministic, the facet sum
+// costs at most the geometric pilot's rays at every pilot bin, and the renderer resolves the job's
+// bins (a lobe's spill across bin edges is a difference there). Pooled into coarser cells their
+// per-bin error bounds, which carry no sign, would add up where the binning errors of neighbouring
+// bins cancel (a flat mirror pooled to 30°: difference 3e-10, bounds 0.045); the beams' pilots
+// judge those cells, whose edges a lobe rarely meets.
+struct DiffractionPilotSetup {
+  std::unique_ptr<WaveEstimator> est;
+  std::unique_ptr<FacetSingleScattering> facetGs;
+  // Whether the pilots at these incidences are bin-averaged (no geometric pilot at the bins' centres).
+  bool binAveraged(const Job& job, const std::vector<int>& pilots, uint64_t paths) const {
+    if (!facetGs) return false;
+    const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(job.lambda_nm.size());
+    for (int p : pilots)
+      if (!facetGs->cheaperThan(job.incidence[size_t(p)].bin, std::nullopt, 2.0 * double(paths) * groups)) return false;
+    return true;
+  }
+};
+
+DiffractionPilotSetup diffractionPilotSetup(const Job& job, const DirectionGrid& grid, const PeriodicScene& scene,
+                                            const WaveSettings& ws) {
+  DiffractionPilotSetup s;
+  s.est = makeJobWaveEstimator(job, grid, scene, ws);
+  if (s.est->deterministic() && !job.exactIncidence && job.geometry.periodic && job.scene.angularResolution_deg <= 0)
+    s.facetGs = std::make_unique<FacetSingleScattering>(job.geometry, scene, job.material, job.lambda_um(), grid);
+  return s;
+}
+
+DiffractionPilots runDiffractionPilots(const PilotContext& ctx, DiffractionPilotSetup& setup, double* waveSpentOut,
+                                       double* beamPathTiles) {
   const Job& job = ctx.job;
   const DirectionGrid& grid = ctx.grid;
   const GeometricTransport& transport = ctx.transport;
   const WaveSettings& ws = ctx.ws;
   const std::vector<int>& pilots = ctx.pilots;
-  const std::vector<TileResult>& geo = ctx.geo;
   const int nL = int(job.lambda_nm.size());
   const double tol = ctx.tol, budgetTiles = ctx.budgetTiles;
   const uint64_t paths = ctx.paths;
   auto beam = [&](int p) { return ctx.beam(p); };
   double& waveSpent = *waveSpentOut;
   DiffractionPilots out;
-  auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
-  // Bin-averaged, noise-free pilots where the job averages over incidence bins, the wave pilot is
-  // deterministic, the facet sum costs at most the geometric pilot's rays at every pilot bin, and
-  // the renderer resolves the job's bins (a lobe's spill across bin edges is a difference there).
-  // Pooled into coarser cells their per-bin error bounds, which carry no sign, would add up where
-  // the binning errors of neighbouring bins cancel (a flat mirror pooled to 30°: difference
-  // 3e-10, bounds 0.045); the beams' pilots judge those cells, whose edges a lobe rarely meets.
-  std::optional<FacetSingleScattering> facetGs;
+  std::unique_ptr<WaveEstimator>& est = setup.est;
+  const FacetSingleScattering* facetGs = setup.facetGs.get();
   bool& binAveraged = out.binAveraged;
-  if (est->deterministic() && !job.exactIncidence && job.geometry.periodic && job.scene.angularResolution_deg <= 0) {
-    facetGs.emplace(job.geometry, *transport.scene(), job.material, job.lambda_um(), grid);
-    const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
-    binAveraged = true;
-    for (int p : pilots)
-      binAveraged =
-          binAveraged && facetGs->cheaperThan(job.incidence[size_t(p)].bin, std::nullopt, 2.0 * double(paths) * groups);
-    if (binAveraged) {
-      // One node order more than the job's incidence rule: the wave pilot's error estimate is
-      // then the distance to the job's own rule (at the default 2 x 2 nodes the job's estimate,
-      // against 1 x 1, is several times its error: a flat Al mirror's 67-79 deg bin reports
-      // 0.045 for a table within 0.002 of the facet sum).
-      WaveSettings finer = ws;
-      const int n = incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1;
-      finer.incidenceDirections = std::max(finer.incidenceDirections, n * n);
-      est = makeJobWaveEstimator(job, grid, *transport.scene(), finer);
-    }
+  binAveraged = setup.binAveraged(job, pilots, paths);
+  if (binAveraged) {
+    // One node order more than the job's incidence rule: the wave pilot's error estimate is then
+    // the distance to the job's own rule (at the default 2 x 2 nodes the job's estimate, against
+    // 1 x 1, is several times its error: a flat Al mirror's 67-79 deg bin reports 0.045 for a
+    // table within 0.002 of the facet sum).
+    WaveSettings finer = ws;
+    const int n = incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1;
+    finer.incidenceDirections = std::max(finer.incidenceDirections, n * n);
+    est = makeJobWaveEstimator(job, grid, *transport.scene(), finer);
   }
   // Per pilot and wavelength: the L1 difference and its noise at the renderer's angular
   // resolution (bins pooled into cells of that size, resolutionCells()); the decision uses the
@@ -758,7 +791,8 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, double* waveSpen
     const auto& inc = job.incidence[size_t(pilots[k])];
     const std::optional<Vec3> dir = binAveraged ? std::nullopt : std::optional<Vec3>(beam(pilots[k]));
     const WaveTileResult w = est->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot", inc));
-    const TileResult r = binAveraged ? facetGs->run(pilots[k], pilots[k], inc.bin, std::nullopt) : geo[k];
+    const TileResult r = binAveraged ? facetGs->run(pilots[k], pilots[k], inc.bin, std::nullopt) : ctx.beamGeometry(k);
+    if (!binAveraged && !job.exactIncidence) *beamPathTiles += double(paths) / double(job.pathsPerSlice);
     auto figures = [&](int l, const WaveTileResult* w2) { return cellDifference(grid, cellOf, nCells, w, w2, r, l); };
     std::vector<DiffractionFigures> fig;
     bool marginal = false;
@@ -1060,7 +1094,7 @@ void keepIfVerifyingCostsMore(const Job& job, int computed, nlohmann::json& d) {
                 " tiles no pilot covered would cost more than the wave term the job halves by reciprocity: kept on";
 }
 
-EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
+EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, std::map<int, TileResult>* pilotTiles) {
   const auto t0 = Clock::now();
   const DirectionGrid grid(job.gridLayout);
   const double tol = job.scene.tolerance;
@@ -1073,6 +1107,8 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
   pilotJob.components = ComponentSet{};
   pilotJob.components.add(Component::Coherent);
   pilotJob.components.add(Component::Multiple);
+  // The job's tallies, so that a pilot tile is the job's own (a requested `lost` tallies one more).
+  if (forced.has(Component::Lost)) pilotJob.components.add(Component::Lost);
   const uint64_t paths = std::min<uint64_t>(options.paths, job.pathsPerSlice);
   GeometricTransport transport(pilotJob, grid, paths);
   // The pilot budget (Job::pilotBudget), in tiles' work: the job computes `computed` tiles of
@@ -1080,18 +1116,24 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
   // a tile's paths, a wave pilot its samples against the job's (wavePilotCost below). The pilots run
   // in priority order (pilotIncidences): the budget keeps the first ones.
   const std::vector<int> planned = pilotIncidences(job);
+  const WaveSettings ws = pilotWaveSettings(job, options);
   const int computed =
       job.symmetryReduced() ? AzimuthalSymmetry(job, grid).representativeCount() : int(job.incidence.size());
   const double budgetTiles = job.pilotBudget * computed;
+  // A job that averages over its incidence bins has its diffraction pilots compared with beams
+  // through the bins' centres (PilotContext::beam): room is left for one such geometric pilot each.
+  std::optional<DiffractionPilotSetup> diffractionSetup;
+  if (!job.statistical) diffractionSetup = diffractionPilotSetup(job, grid, *transport.scene(), ws);
+  const bool beams = !job.statistical && !job.exactIncidence && !diffractionSetup->binAveraged(job, planned, paths);
+  const double pathsPerPilot = double(paths) * (beams ? 2.0 : 1.0);
   std::vector<int> pilots = planned;
   pilots.resize(
       std::min(planned.size(),
-               size_t(std::max(0.0, std::floor(budgetTiles * double(job.pathsPerSlice) / double(paths) + 1e-9)))));
-  const WaveSettings ws = pilotWaveSettings(job, options);
+               size_t(std::max(0.0, std::floor(budgetTiles * double(job.pathsPerSlice) / pathsPerPilot + 1e-9)))));
 
   PilotContext ctx{job, grid, transport, ws, planned, pilots, {}, paths, computed, budgetTiles, tol};
   for (int p : pilots)
-    ctx.geo.push_back(transport.run(p, p, job.incidence[size_t(p)].bin, ctx.beam(p),
+    ctx.geo.push_back(transport.run(p, p, job.incidence[size_t(p)].bin, ctx.jobBeam(p),
                                     pilotProgress("geometric pilot", job.incidence[size_t(p)])));
   const std::vector<TileResult>& geo = ctx.geo;
 
@@ -1112,12 +1154,14 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
   }
 
   // Diffraction.
-  double waveSpent = 0;  // wave pilots' work, in the job's wave terms
+  double waveSpent = 0;      // wave pilots' work, in the job's wave terms
+  double beamPathTiles = 0;  // geometric pilots at bin centres for the diffraction pilots, in tiles' paths
   {
-    nlohmann::json d = job.statistical
-                           ? decision("incoherent", false,
-                                      "a statistical surface has no explicit geometry to diffract (microflake model)")
-                           : diffractionVerdict(ctx, runDiffractionPilots(ctx, &waveSpent));
+    nlohmann::json d =
+        job.statistical
+            ? decision("incoherent", false,
+                       "a statistical surface has no explicit geometry to diffract (microflake model)")
+            : diffractionVerdict(ctx, runDiffractionPilots(ctx, *diffractionSetup, &waveSpent, &beamPathTiles));
     keepIfRequested(d, forced, Component::Incoherent);
     keepIfVerifyingCostsMore(job, computed, d);
     push(d);
@@ -1149,7 +1193,7 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
     other.seed = job.seed ^ 0x9E3779B97F4A7C15ull;
     GeometricTransport t2(other, grid, paths);
     for (int p : pilots)
-      geo2->push_back(t2.run(p, p, job.incidence[size_t(p)].bin, ctx.beam(p),
+      geo2->push_back(t2.run(p, p, job.incidence[size_t(p)].bin, ctx.jobBeam(p),
                              pilotProgress("geometric pilot replica", job.incidence[size_t(p)])));
   };
   push(wavelengthDecision(job, grid, geo, chosen, replicate, &plan));
@@ -1162,9 +1206,18 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options) {
   if (job.scene.sourceAngularDiameter_deg > 0) plan.sourceAngularDiameter_deg = job.scene.sourceAngularDiameter_deg;
   plan.pilots = pilots;
   plan.pilotsPlanned = planned;
-  plan.pilotBudget = PilotBudgetUse{job.pilotBudget, computed, budgetTiles,
-                                    double(pilots.size()) * double(paths) / double(job.pathsPerSlice), waveSpent};
   plan.pilotPaths = paths;
+  // A pilot is the job's tile unless the run computes other wavelengths than the pilots traced.
+  plan.pilotTilesKept = !plan.lambda_nm;
+  // Kept pilots cost the job nothing when it traces paths on every tile (with `multiple`, or a
+  // statistical surface); where it may take single scattering from the facet sum instead, they count.
+  const bool pilotsFree = plan.pilotTilesKept && (job.statistical || chosen.has(Component::Multiple));
+  plan.pilotBudget = PilotBudgetUse{
+      job.pilotBudget, computed, budgetTiles,
+      (pilotsFree ? 0.0 : double(pilots.size()) * double(paths) / double(job.pathsPerSlice)) + beamPathTiles,
+      waveSpent};
+  if (pilotTiles && plan.pilotTilesKept)
+    for (size_t k = 0; k < pilots.size(); ++k) (*pilotTiles)[pilots[k]] = std::move(ctx.geo[k]);
   plan.pilotSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return plan;
 }
@@ -1199,6 +1252,9 @@ std::string formatEffects(const EffectsPlan& plan) {
     o << "  pilot budget " << fmt3(b->fraction) << " of " << b->computedTiles << " computed tiles: spent "
       << fmt3(b->pathTilesSpent) << " (paths) and " << fmt3(b->waveTilesSpent) << " (wave terms) of " << fmt3(b->tiles)
       << " tiles' work\n";
+  if (plan.pilotTilesKept && !plan.pilots.empty())
+    o << "  the geometric pilots traced their tiles as the job does: the run keeps them as the first "
+      << plan.pilotPaths << " paths of tiles " << nlohmann::json(plan.pilots).dump() << "\n";
   for (const auto& d : plan.decisions) {
     std::string e = effectName(d.effect);
     e.resize(12, ' ');

@@ -34,6 +34,8 @@
 #pragma once
 #include <nlohmann/json.hpp>
 
+#include <map>
+
 #include "core/direction_grid.h"
 #include "job/effects_plan.h"
 #include "job/job.h"
@@ -83,8 +85,11 @@ std::optional<double> steepestFacet_deg(const Job& job);
 // direction), so that its `multiple` is zero by the geometry.
 bool scattersOnce(const Job& job, const DirectionGrid& grid, int t, const std::optional<double>& limit_deg);
 
-// The decisions (effects_plan.h).
-EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options = {});
+// The decisions (effects_plan.h). The geometric pilots trace their tiles as the job does, so their
+// results are the first plan.pilotPaths paths of those tiles: given pilotTiles, they are handed
+// over (incidence → result) for the run to keep (TileComputer).
+EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options = {},
+                        std::map<int, TileResult>* pilotTiles = nullptr);
 // Sets job.components, its guarded components, wavelengths, wave estimator and job.effectsPlan
 // (the plan's JSON) from a plan (the same on every rank).
 void applyEffectsPlan(Job& job, const EffectsPlan& plan);

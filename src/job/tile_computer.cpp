@@ -47,8 +47,20 @@ Job withoutGuarded(const Job& job) {
 
 }  // namespace
 
-TileComputer::TileComputer(const Job& job, const DirectionGrid& grid)
+TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, std::map<int, TileResult> pilotTiles)
     : job_(job), grid_(grid), planned_(withoutGuarded(job)), transport_(planned_, grid, job.pathsPerSlice) {
+  if (!job.effectsPlan.empty()) {
+    const EffectsPlan plan = EffectsPlan::fromJson(nlohmann::json::parse(job.effectsPlan));
+    if (plan.pilotTilesKept && plan.pilotPaths > 0 && plan.pilotPaths <= job.pathsPerSlice) {
+      pilotIncidences_.insert(plan.pilots.begin(), plan.pilots.end());
+      pilotPaths_ = plan.pilotPaths;
+      // A result that is not this job's first round (another wavelength set or path count) is dropped.
+      for (auto& [t, r] : pilotTiles)
+        if (pilotIncidences_.count(t) && r.samples == pilotPaths_ && r.nLambda == int(job.lambda_nm.size()) &&
+            r.nBins == grid.binCount())
+          keptPilots_.emplace(t, std::move(r));
+    }
+  }
   if (job.guarded.has(Component::Multiple)) singleBounceLimit_ = singleBounceLimit_deg(job);
   if (job.guarded.has(Component::Multiple) && transport_.mayUseFacetSum()) {
     checkTransport_ =
@@ -75,7 +87,7 @@ TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb,
   std::optional<Vec3> exact;
   if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
   auto ts = Clock::now();
-  TileResult r = transport_.run(t, t, inc.bin, exact, cb);
+  TileResult r = firstRound(t, exact, cb);
   if (job.targetRelError > 0 && r.samples > 0) {  // a facet-sum tile is deterministic
     // Progressive sampling: more rounds of fresh paths (the next path indices, so the result is
     // the same estimator as one run of all of them) until the path-traced table (coherent +
@@ -109,6 +121,18 @@ TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb,
     *waveSeconds += since(tw);
   }
   r.seconds = since(ts);
+  return r;
+}
+
+TileResult TileComputer::firstRound(int t, const std::optional<Vec3>& exact,
+                                    const std::function<void(uint64_t)>& cb) const {
+  const int bin = job_.incidence[size_t(t)].bin;
+  if (!pilotIncidences_.count(t) || transport_.facetSum(bin, exact)) return transport_.run(t, t, bin, exact, cb);
+  const auto kept = keptPilots_.find(t);
+  TileResult r = kept != keptPilots_.end() ? kept->second : transport_.run(t, t, bin, exact, cb, 0, pilotPaths_);
+  if (kept != keptPilots_.end() && cb) cb(0);
+  if (pilotPaths_ < job_.pathsPerSlice)
+    r.poolPaths(transport_.run(t, t, bin, exact, cb, pilotPaths_, job_.pathsPerSlice - pilotPaths_));
   return r;
 }
 

@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 
 #include "core/direction_grid.h"
 #include "job/job.h"
@@ -21,7 +22,11 @@ namespace mbsdf {
 
 class TileComputer {
  public:
-  TileComputer(const Job& job, const DirectionGrid& grid);
+  // pilotTiles: the effects planner's geometric pilots (effects_planner.h planEffects), which are
+  // the first paths of their tiles; where the plan says so, every rank traces those tiles in the
+  // same two rounds (the pilot's paths, then the rest), and a rank that holds the pilot's result
+  // keeps it instead of tracing its paths again. The table does not depend on which rank did.
+  TileComputer(const Job& job, const DirectionGrid& grid, std::map<int, TileResult> pilotTiles = {});
   // Tile t (an index into job.incidence). progress(done) is called from the inner loops and may
   // throw to abandon the tile; the seconds spent on paths and on the wave term are added to the
   // counters given.
@@ -32,8 +37,13 @@ class TileComputer {
   const WaveEstimator* wave() const { return wave_.get(); }
   // The reciprocal bin pairs when the job halves its wave term by reciprocity, else none.
   const std::optional<ReciprocalPairs>& pairs() const { return pairs_; }
+  // Whether this computer holds tile t's pilot paths (so computing t costs less here).
+  bool holdsPilot(int t) const { return keptPilots_.count(t) > 0; }
 
  private:
+  // The tile's first round of paths (or its facet sum): as one run, or, for a tile an effects pilot
+  // traced, the pilot's paths (kept, or traced again) and then the rest.
+  TileResult firstRound(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& progress) const;
   void verifySkippedMultiple(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& progress,
                              TileResult& r) const;
   void addWaveTerm(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& progress,
@@ -55,6 +65,9 @@ class TileComputer {
   std::optional<ReciprocalPairs> pairs_;
   std::map<int, double> pilotDiffraction_;  // incidence → upper estimate of the pilot run as the job does
   std::vector<int> cellOf_;                 // the renderer's cells (effects_planner.h resolutionCells)
+  std::set<int> pilotIncidences_;           // tiles whose first paths an effects pilot traced
+  uint64_t pilotPaths_ = 0;                 // how many
+  std::map<int, TileResult> keptPilots_;    // those pilots' results held by this rank
 };
 
 }  // namespace mbsdf

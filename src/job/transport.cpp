@@ -41,15 +41,16 @@ bool GeometricTransport::facetSum(int incidenceBin, const std::optional<Vec3>& e
 }
 
 TileResult GeometricTransport::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                                   const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
-  if (walk_) return walk_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath);
+                                   const std::function<void(uint64_t)>& progress, uint64_t firstPath,
+                                   uint64_t paths) const {
+  if (walk_) return walk_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath, paths);
   // A deterministic tile has nothing to add in later rounds (progressive sampling asks with firstPath > 0).
   if (firstPath == 0 && facetSum(incidenceBin, exactDirection)) {
     TileResult r = facets_->run(tile, incidenceIndex, incidenceBin, exactDirection);
     if (progress) progress(0);
     return r;
   }
-  return tracer_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath);
+  return tracer_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath, paths);
 }
 
 std::string GeometricTransport::describe() const {

@@ -28,8 +28,9 @@ class GeometricTransport {
  public:
   // `paths` per wavelength group (the job's paths_per_slice, or a pilot budget).
   GeometricTransport(const Job& job, const DirectionGrid& grid, uint64_t paths);
+  // Paths firstPath … firstPath + paths − 1 (paths 0: the transport's count), as PathTracer::run.
   TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0) const;
+                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0, uint64_t paths = 0) const;
   // The Embree scene of explicit geometry (null for a statistical surface).
   const PeriodicScene* scene() const { return scene_.get(); }
   std::string describe() const;

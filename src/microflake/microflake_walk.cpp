@@ -125,7 +125,8 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
 }
 
 TileResult MicroflakeWalk::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                               const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
+                               const std::function<void(uint64_t)>& progress, uint64_t firstPath,
+                               uint64_t paths) const {
   if (exactDirection) exactDirection = normalize(*exactDirection);
   const PathTallyPlan plan{tile,
                            incidenceIndex,
@@ -133,7 +134,7 @@ TileResult MicroflakeWalk::run(int tile, int incidenceIndex, int incidenceBin, s
                            &grid_,
                            int(lambda_um_.size()),
                            groups_,
-                           settings_.paths,
+                           paths > 0 ? paths : settings_.paths,
                            firstPath,
                            {Component::Coherent, Component::Multiple}};
   return runPaths(

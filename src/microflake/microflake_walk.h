@@ -48,7 +48,7 @@ class MicroflakeWalk {
 
   // Same contract as PathTracer::run.
   TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection = std::nullopt,
-                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0) const;
+                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0, uint64_t paths = 0) const;
 
   struct PathRecord {
     Vec3 wi, wo;

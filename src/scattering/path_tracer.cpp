@@ -140,7 +140,7 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
 }
 
 TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                           const std::function<void(uint64_t)>& progress, uint64_t firstPath) const {
+                           const std::function<void(uint64_t)>& progress, uint64_t firstPath, uint64_t paths) const {
   if (exactDirection) exactDirection = normalize(*exactDirection);
   PathTallyPlan plan{tile,
                      incidenceIndex,
@@ -148,7 +148,7 @@ TileResult PathTracer::run(int tile, int incidenceIndex, int incidenceBin, std::
                      &grid_,
                      int(lambda_um_.size()),
                      groups_,
-                     settings_.paths,
+                     paths > 0 ? paths : settings_.paths,
                      firstPath,
                      {Component::Coherent, Component::Multiple}};
   if (settings_.tallyGeoMasked) plan.components.push_back(Component::GeoMasked);

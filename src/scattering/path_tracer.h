@@ -45,9 +45,10 @@ class PathTracer {
   // Traces the paths of one tile; `progress(pathsDone)` is called from the calling thread between
   // batches (may be empty).
   // `exactDirection`: trace a collimated beam from exactly this direction (pointing away from the
-  // surface) instead of averaging over the incidence bin.
+  // surface) instead of averaging over the incidence bin. Paths firstPath … firstPath + paths − 1
+  // (paths 0: the settings' count), so a tile traced in two runs holds the paths of one.
   TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection = std::nullopt,
-                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0) const;
+                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0, uint64_t paths = 0) const;
 
   // Replays a single path (for debugging a failing sample): returns its exit bin (or -1) and depth.
   struct PathRecord {

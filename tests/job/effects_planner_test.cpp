@@ -301,6 +301,7 @@ TEST(EffectsPlan, JsonRoundTrip) {
   p.pilotsPlanned = {3, 0, 7};
   p.pilotBudget = PilotBudgetUse{0.5, 9, 4.5, 1.2, 2.0};
   p.pilotPaths = 20000;
+  p.pilotTilesKept = true;
   p.pilotSeconds = 1.5;
   p.waveTransmission = false;
   p.lambda_nm = std::vector<double>{450, 550, 650};
@@ -319,6 +320,8 @@ TEST(EffectsPlan, JsonRoundTrip) {
   ASSERT_TRUE(q.pilotBudget);
   EXPECT_EQ(q.pilotBudget->computedTiles, 9);
   EXPECT_EQ(q.pilotBudget->waveTilesSpent, 2.0);
+  EXPECT_EQ(q.pilotPaths, 20000u);
+  EXPECT_TRUE(q.pilotTilesKept);
   EXPECT_EQ(q.waveTransmission, false);
   EXPECT_EQ(q.lambda_nm, p.lambda_nm);
   EXPECT_EQ(q.waveEstimator, WaveEstimatorKind::Exact);
