@@ -83,11 +83,10 @@ TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb,
                                  double* waveSeconds) const {
   const Job& job = job_;
   const DirectionGrid& grid = grid_;
-  const auto& inc = job.incidence[size_t(t)];
-  std::optional<Vec3> exact;
-  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  const TileRequest request = requestOf(t);
+  const std::optional<Vec3>& exact = request.exactDirection;
   auto ts = Clock::now();
-  TileResult r = firstRound(t, exact, cb);
+  TileResult r = firstRound(request, cb);
   if (job.targetRelError > 0 && r.samples > 0) {  // a facet-sum tile is deterministic
     // Progressive sampling: more rounds of fresh paths (the next path indices, so the result is
     // the same estimator as one run of all of them) until the path-traced table (coherent +
@@ -109,10 +108,12 @@ TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb,
         r.samplingStop = TileResult::SamplingStop::BudgetExhausted;
         break;
       }
-      r.poolPaths(transport_.run(t, t, inc.bin, exact, cb, r.samples));
+      TileRequest more = request;
+      more.firstPath = r.samples;
+      r.poolPaths(transport_.run(more, cb));
     }
   }
-  if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(t, exact, cb, r);
+  if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(t, cb, r);
   *pathSeconds += since(ts);
   if (wave_ && (!job.guarded.has(Component::Incoherent) || verifySkippedDiffraction(t, r))) {
     auto tw = Clock::now();
@@ -124,15 +125,25 @@ TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb,
   return r;
 }
 
-TileResult TileComputer::firstRound(int t, const std::optional<Vec3>& exact,
-                                    const std::function<void(uint64_t)>& cb) const {
-  const int bin = job_.incidence[size_t(t)].bin;
-  if (!pilotIncidences_.count(t) || transport_.facetSum(bin, exact)) return transport_.run(t, t, bin, exact, cb);
-  const auto kept = keptPilots_.find(t);
-  TileResult r = kept != keptPilots_.end() ? kept->second : transport_.run(t, t, bin, exact, cb, 0, pilotPaths_);
+TileRequest TileComputer::requestOf(int t) const {
+  const IncidenceDirection& inc = job_.incidence[size_t(t)];
+  TileRequest q{t, t, inc.bin, std::nullopt};
+  if (job_.exactIncidence) q.exactDirection = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  return q;
+}
+
+TileResult TileComputer::firstRound(const TileRequest& q, const std::function<void(uint64_t)>& cb) const {
+  if (!pilotIncidences_.count(q.tile) || transport_.estimatorFor(q).deterministic()) return transport_.run(q, cb);
+  const auto kept = keptPilots_.find(q.tile);
+  TileRequest pilot = q, rest = q;
+  pilot.paths = pilotPaths_;
+  TileResult r = kept != keptPilots_.end() ? kept->second : transport_.run(pilot, cb);
   if (kept != keptPilots_.end() && cb) cb(0);
-  if (pilotPaths_ < job_.pathsPerSlice)
-    r.poolPaths(transport_.run(t, t, bin, exact, cb, pilotPaths_, job_.pathsPerSlice - pilotPaths_));
+  if (pilotPaths_ < job_.pathsPerSlice) {
+    rest.firstPath = pilotPaths_;
+    rest.paths = job_.pathsPerSlice - pilotPaths_;
+    r.poolPaths(transport_.run(rest, cb));
+  }
   return r;
 }
 
@@ -169,8 +180,7 @@ void TileComputer::addWaveTerm(int t, const std::optional<Vec3>& exact, const st
 // tile is traced in full after all, otherwise its `multiple` is stored as zero (within the
 // tolerance by the bound). Either way the slice records the bound and whether it was re-enabled.
 // An incidence below the geometry's single-bounce limit (effects_planner.h) has none: its check is 0.
-void TileComputer::verifySkippedMultiple(int t, const std::optional<Vec3>& exact,
-                                         const std::function<void(uint64_t)>& cb, TileResult& r) const {
+void TileComputer::verifySkippedMultiple(int t, const std::function<void(uint64_t)>& cb, TileResult& r) const {
   const Job& job = job_;
   const DirectionGrid& grid = grid_;
   const GeometricTransport* check = checkTransport_.get();
@@ -183,12 +193,12 @@ void TileComputer::verifySkippedMultiple(int t, const std::optional<Vec3>& exact
     r.multipleCheck = 0;
     zeroComponent(r, Component::Multiple);
   } else {
-    const TileResult checked = check->run(t, t, inc.bin, exact, cb);
+    const TileResult checked = check->run(requestOf(t), cb);
     r.multipleCheck = multipleBound(checked, grid);
     r.rays += checked.rays;  // the check is the tile's work too
     if (r.multipleCheck > job.scene.tolerance) {
       const uint64_t spent = r.rays;
-      r = full->run(t, t, inc.bin, exact, cb);
+      r = full->run(requestOf(t), cb);
       r.rays += spent;
       r.multipleCheck = multipleBound(r, grid);
     } else {

@@ -13,7 +13,7 @@ GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid
     s.seed = job.seed;
     s.flakes = job.statistical->flakes;
     s.flakeAlbedo = job.statistical->flakeAlbedo;
-    walk_ = std::make_unique<MicroflakeWalk>(*flakes_, job.material, job.lambda_um(), grid, s);
+    paths_ = std::make_unique<MicroflakeWalk>(*flakes_, job.material, job.lambda_um(), grid, s);
   } else {
     scene_ = std::make_unique<PeriodicScene>(job.geometry);
     PathTracerSettings s;
@@ -21,7 +21,7 @@ GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid
     s.maxDepth = job.maxDepth;
     s.seed = job.seed;
     s.tallyGeoMasked = job.components.has(Component::Lost);
-    tracer_ = std::make_unique<PathTracer>(*scene_, job.material, job.lambda_um(), grid, s);
+    paths_ = std::make_unique<PathTracer>(*scene_, job.material, job.lambda_um(), grid, s);
     // The facet sum assumes every ray meets the surface; a patch with holes takes paths, which
     // count the light through them as missed.
     if (job.geometry.periodic && job.closure.closed() && job.singleScattering != Job::SingleScatteringMode::Paths &&
@@ -40,17 +40,17 @@ bool GeometricTransport::facetSum(int incidenceBin, const std::optional<Vec3>& e
   return facets_->cheaperThan(incidenceBin, exactDirection, pathRays_);
 }
 
-TileResult GeometricTransport::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                                   const std::function<void(uint64_t)>& progress, uint64_t firstPath,
-                                   uint64_t paths) const {
-  if (walk_) return walk_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath, paths);
-  // A deterministic tile has nothing to add in later rounds (progressive sampling asks with firstPath > 0).
-  if (firstPath == 0 && facetSum(incidenceBin, exactDirection)) {
-    TileResult r = facets_->run(tile, incidenceIndex, incidenceBin, exactDirection);
-    if (progress) progress(0);
-    return r;
-  }
-  return tracer_->run(tile, incidenceIndex, incidenceBin, exactDirection, progress, firstPath, paths);
+const GeometricEstimator& GeometricTransport::estimatorFor(const TileRequest& q) const {
+  if (q.firstPath == 0 && facetSum(q.incidenceBin, q.exactDirection)) return *facets_;
+  return *paths_;
+}
+
+TileResult GeometricTransport::run(const TileRequest& q, const std::function<void(uint64_t)>& progress) const {
+  return estimatorFor(q).run(q, progress);
+}
+
+bool GeometricTransport::deterministic() const {
+  return facets_ && singleScattering_ == Job::SingleScatteringMode::Facets;
 }
 
 std::string GeometricTransport::describe() const {

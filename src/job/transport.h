@@ -18,19 +18,26 @@
 #include "geometry/embree_scene.h"
 #include "job/job.h"
 #include "microflake/microflake_walk.h"
+#include "scattering/geometric_estimator.h"
 #include "scattering/path_tracer.h"
 #include "scattering/single_scattering.h"
 #include "scattering/wave_estimator.h"
 
 namespace mbsdf {
 
-class GeometricTransport {
+class GeometricTransport : public GeometricEstimator {
  public:
   // `paths` per wavelength group (the job's paths_per_slice, or a pilot budget).
   GeometricTransport(const Job& job, const DirectionGrid& grid, uint64_t paths);
-  // Paths firstPath … firstPath + paths − 1 (paths 0: the transport's count), as PathTracer::run.
-  TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0, uint64_t paths = 0) const;
+  // The tile from the estimator that computes it (estimatorFor).
+  using GeometricEstimator::run;
+  TileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress) const override;
+  // Whether every tile comes from the facet sum.
+  bool deterministic() const override;
+  // The path tracer or the microflake walk, or for a tile the facet sum computes, that: a
+  // deterministic estimator has nothing to add in later rounds (progressive sampling asks with
+  // firstPath > 0), so those always go to the paths.
+  const GeometricEstimator& estimatorFor(const TileRequest& request) const;
   // The Embree scene of explicit geometry (null for a statistical surface).
   const PeriodicScene* scene() const { return scene_.get(); }
   std::string describe() const;
@@ -41,12 +48,11 @@ class GeometricTransport {
 
  private:
   std::unique_ptr<PeriodicScene> scene_;
-  std::unique_ptr<PathTracer> tracer_;
+  std::unique_ptr<MicroflakeDistribution> flakes_;
+  std::unique_ptr<GeometricEstimator> paths_;  // the path tracer, or the microflake walk
   std::unique_ptr<FacetSingleScattering> facets_;
   Job::SingleScatteringMode singleScattering_ = Job::SingleScatteringMode::Auto;
   double pathRays_ = 0;  // rays of the path tracer per tile at the job's paths_per_slice
-  std::unique_ptr<MicroflakeDistribution> flakes_;
-  std::unique_ptr<MicroflakeWalk> walk_;
 };
 
 // The job's wave-optics settings ([sampling] estimator, samples, points, incidence directions,

@@ -124,18 +124,18 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
   }
 }
 
-TileResult MicroflakeWalk::run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection,
-                               const std::function<void(uint64_t)>& progress, uint64_t firstPath,
-                               uint64_t paths) const {
+TileResult MicroflakeWalk::run(const TileRequest& q, const std::function<void(uint64_t)>& progress) const {
+  const int tile = q.tile, incidenceBin = q.incidenceBin;
+  std::optional<Vec3> exactDirection = q.exactDirection;
   if (exactDirection) exactDirection = normalize(*exactDirection);
   const PathTallyPlan plan{tile,
-                           incidenceIndex,
+                           q.incidenceIndex,
                            incidenceBin,
                            &grid_,
                            int(lambda_um_.size()),
                            groups_,
-                           paths > 0 ? paths : settings_.paths,
-                           firstPath,
+                           q.paths > 0 ? q.paths : settings_.paths,
+                           q.firstPath,
                            {Component::Coherent, Component::Multiple}};
   return runPaths(
       plan, [&](uint64_t p, int g, PathChunk& c) { walk(tile, incidenceBin, exactDirection, p, g, c, nullptr); },

@@ -26,6 +26,7 @@
 #include "core/direction_grid.h"
 #include "microflake/ndf.h"
 #include "optics/material.h"
+#include "scattering/geometric_estimator.h"
 #include "scattering/path_tally.h"
 #include "scattering/tile_result.h"
 
@@ -41,14 +42,15 @@ struct MicroflakeSettings {
   double flakeAlbedo = 1.0;
 };
 
-class MicroflakeWalk {
+class MicroflakeWalk : public GeometricEstimator {
  public:
   MicroflakeWalk(const MicroflakeDistribution& dist, const Material& material, std::vector<double> lambda_um,
                  const DirectionGrid& grid, MicroflakeSettings settings);
 
   // Same contract as PathTracer::run.
-  TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection = std::nullopt,
-                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0, uint64_t paths = 0) const;
+  using GeometricEstimator::run;
+  TileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress) const override;
+  bool deterministic() const override { return false; }
 
   struct PathRecord {
     Vec3 wi, wo;

@@ -25,6 +25,7 @@
 #include "geometry/embree_scene.h"
 #include "optics/material.h"
 #include "scattering/components.h"
+#include "scattering/geometric_estimator.h"
 #include "scattering/path_tally.h"
 #include "scattering/tile_result.h"
 
@@ -37,18 +38,16 @@ struct PathTracerSettings {
   bool tallyGeoMasked = false;
 };
 
-class PathTracer {
+class PathTracer : public GeometricEstimator {
  public:
   PathTracer(const PeriodicScene& scene, const Material& material, std::vector<double> lambda_um,
              const DirectionGrid& grid, PathTracerSettings settings);
 
-  // Traces the paths of one tile; `progress(pathsDone)` is called from the calling thread between
-  // batches (may be empty).
-  // `exactDirection`: trace a collimated beam from exactly this direction (pointing away from the
-  // surface) instead of averaging over the incidence bin. Paths firstPath … firstPath + paths − 1
-  // (paths 0: the settings' count), so a tile traced in two runs holds the paths of one.
-  TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection = std::nullopt,
-                 const std::function<void(uint64_t)>& progress = {}, uint64_t firstPath = 0, uint64_t paths = 0) const;
+  // Traces the paths of one tile (geometric_estimator.h; paths 0: the settings' count);
+  // `progress(pathsDone)` is called from the calling thread between batches.
+  using GeometricEstimator::run;
+  TileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress) const override;
+  bool deterministic() const override { return false; }
 
   // Replays a single path (for debugging a failing sample): returns its exit bin (or -1) and depth.
   struct PathRecord {

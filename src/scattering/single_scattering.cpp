@@ -288,8 +288,9 @@ void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::ve
   mergeBlocks(grid_, nL, block, blockU, blockRays, out, uncertain, rays);
 }
 
-TileResult FacetSingleScattering::run(int tile, int incidenceIndex, int incidenceBin,
-                                      const std::optional<Vec3>& exactDirection) const {
+TileResult FacetSingleScattering::run(const TileRequest& q, const std::function<void(uint64_t)>& progress) const {
+  const int tile = q.tile, incidenceIndex = q.incidenceIndex, incidenceBin = q.incidenceBin;
+  const std::optional<Vec3>& exactDirection = q.exactDirection;
   const auto t0 = std::chrono::steady_clock::now();
   TileResult res;
   res.tile = tile;
@@ -311,6 +312,7 @@ TileResult FacetSingleScattering::run(int tile, int incidenceIndex, int incidenc
   res.value[int(Component::Coherent)] = std::move(fine);
   res.samples = 0;  // deterministic: no paths
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (progress) progress(0);
   return res;
 }
 

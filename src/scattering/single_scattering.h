@@ -39,11 +39,12 @@
 #include "geometry/embree_scene.h"
 #include "geometry/microgeometry.h"
 #include "optics/material.h"
+#include "scattering/geometric_estimator.h"
 #include "scattering/tile_result.h"
 
 namespace mbsdf {
 
-class FacetSingleScattering {
+class FacetSingleScattering : public GeometricEstimator {
  public:
   static constexpr int kSubdirections = 32;   // S
   static constexpr int kVisibilityDepth = 5;  // splitting levels of a partly visible facet
@@ -67,7 +68,10 @@ class FacetSingleScattering {
             double stopAbove = std::numeric_limits<double>::infinity()) const;
   // Whether the tile's counted work, pairs / kPairsPerRay + rays, is at most `rays` ray casts.
   bool cheaperThan(int incidenceBin, const std::optional<Vec3>& exactDirection, double rays) const;
-  TileResult run(int tile, int incidenceIndex, int incidenceBin, const std::optional<Vec3>& exactDirection) const;
+  // The tile's single scattering (geometric_estimator.h; paths are not asked for: it has none).
+  using GeometricEstimator::run;
+  TileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress) const override;
+  bool deterministic() const override { return true; }
 
   // The steepest facet slope |∇h| of a periodic heightfield (directions above it need no ray); none
   // for another mesh.

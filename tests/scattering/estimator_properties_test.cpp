@@ -111,21 +111,20 @@ TEST(EstimatorProperties, GeometricEstimators) {
       if (conductor && theta > 90) continue;
       const int bin = sc.grid.binOfAngles(theta, 10.0);
       const std::string where = std::string(conductor ? "Al" : "glass") + " θ " + std::to_string(int(theta));
-      const std::vector<std::pair<std::string, std::function<TileResult()>>> estimators = {
-          {"path tracer", [&] { return sc.tracer->run(3, 0, bin, std::nullopt); }},
-          {"facet sum", [&] { return facets.run(3, 0, bin, std::nullopt); }},
-          {"microflake walk", [&] { return walk.run(3, 0, bin, std::nullopt); }},
-      };
-      for (const auto& [name, compute] : estimators) {
+      // Every geometric estimator through the one interface the run uses.
+      const std::vector<std::pair<std::string, const GeometricEstimator*>> estimators = {
+          {"path tracer", sc.tracer.get()}, {"facet sum", &facets}, {"microflake walk", &walk}};
+      for (const auto& [name, estimator] : estimators) {
         const std::string what = name + ", " + where;
         // The facet sum's visibility rays make grazing bins its costly case (seconds each): one
         // conductor at 75° stands for them.
-        if (name == "facet sum" && (theta == 89.0 || (theta == 75.0 && !conductor))) continue;
-        const TileResult r = deterministic<TileResult>(compute, flatTile, what);
+        if (estimator->deterministic() && (theta == 89.0 || (theta == 75.0 && !conductor))) continue;
+        const TileRequest request{3, 0, bin, std::nullopt};
+        const TileResult r = deterministic<TileResult>([&] { return estimator->run(request, {}); }, flatTile, what);
         expectFinite(flatTile(r), what);
         for (int l = 0; l < r.nLambda; ++l) {
           const auto [e, se] = geometricEnergy(r, sc.grid, l);
-          if (name == "facet sum") {
+          if (estimator->deterministic()) {
             EXPECT_LE(e, 1 + 1e-6) << what;  // single scattering only: at most what arrives
           } else if (conductor) {
             EXPECT_LE(e, 1 + 4 * se + 1e-12) << what;
