@@ -287,7 +287,6 @@ class TileServer {
     return t.value_or(-1);
   }
   void noteEnergyBalance(const TileResult& r, const BsdfFileWriter::EnergyBalance& b);
-  void writeOne(const TileResult& r);
   void writeResult(const TileResult& r);
   bool serveOne(bool blocking);
 
@@ -311,6 +310,7 @@ class TileServer {
   // dropped (the journal lists only slices whose data reached the disk).
   std::string writeFailure_;
   int unbalanced_ = 0;
+  double writeSeconds_ = 0;  // rank 0's time in the writer (slices, their flags, the journal)
   double worstBalance_ = 0;
   std::map<std::string, double> energySum_;  // Σ over the slices written now of each component's Σ f Ω⊥
 };
@@ -333,26 +333,32 @@ void TileServer::noteEnergyBalance(const TileResult& r, const BsdfFileWriter::En
   }
 }
 
-void TileServer::writeOne(const TileResult& r) {
-  if (finished_.count(r.incidenceIndex) || !writeFailure_.empty()) return;
+// A tile's slice and the slices symmetry maps it to, committed together (one sync for all).
+void TileServer::writeResult(const TileResult& r) {
+  if (!writeFailure_.empty()) return;
+  std::vector<int> written;
   try {
-    noteEnergyBalance(r, writer_.writeTile(r));
+    const auto t = Clock::now();
+    auto write = [&](const TileResult& slice) {
+      if (finished_.count(slice.incidenceIndex)) return;
+      noteEnergyBalance(slice, writer_.writeSlice(slice));
+      written.push_back(slice.incidenceIndex);
+    };
+    write(r);
+    if (symmetry_)
+      for (int m : symmetry_->members(r.incidenceIndex))
+        if (m != r.incidenceIndex && !finished_.count(m))
+          write(symmetry_->mappedSlice(r, m, job_.incidence[size_t(m)].bin));
+    if (!written.empty()) writer_.commitSlices(written);
+    writeSeconds_ += since(t);
   } catch (const WriteError& e) {
     writeFailure_ = e.what();
     noteStop("the output could not be written");
     return;
   }
-  finished_.insert(r.incidenceIndex);
-  ++written_;
+  finished_.insert(written.begin(), written.end());
+  written_ += int(written.size());
   progress_.update(uint64_t(written_));
-}
-
-// A tile's slice, and the slices symmetry maps it to.
-void TileServer::writeResult(const TileResult& r) {
-  writeOne(r);
-  if (symmetry_)
-    for (int m : symmetry_->members(r.incidenceIndex))
-      if (m != r.incidenceIndex) writeOne(symmetry_->mappedSlice(r, m, job_.incidence[size_t(m)].bin));
   for (Component c : job_.components.list()) {
     if (own_.tiles.pairs() && c == Component::Incoherent) continue;  // complete only after the reciprocity fill
     double e = 0;
@@ -423,9 +429,11 @@ void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
     if (filledIncoherent)
       energies += fmt::format(", incoherent {:.4f} (all slices, after the fill)", *filledIncoherent);
     spdlog::info(
-        "summary: {} tiles computed now, {} slices resumed; {:.1f} s wall; tile time summed over ranks: "
-        "path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
-        summary_.computed, summary_.resumed, since(t0_), total[0], total[1], summary_.paths, energies);
+        "summary: {} tiles computed now, {} slices resumed; {:.1f} s wall, of which rank 0 wrote slices for "
+        "{:.2f} s ({:.0f} %); tile time summed over ranks: path tracing {:.1f} s, scalar diffraction {:.1f} s; {} "
+        "paths; mean energy per slice: {}",
+        summary_.computed, summary_.resumed, since(t0_), writeSeconds_, 100.0 * writeSeconds_ / since(t0_), total[0],
+        total[1], summary_.paths, energies);
   }
   if (unbalanced_)
     spdlog::warn(

@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
+#include <tbb/parallel_for.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cctype>
@@ -74,7 +76,7 @@ H5Dataset create3D(hid_t loc, const std::string& name, hid_t type, hsize_t n0, h
   h5check(H5Pset_chunk(p, 3, chunk), "H5Pset_chunk");
   if (compress) {
     h5check(H5Pset_shuffle(p), "H5Pset_shuffle");
-    h5check(H5Pset_deflate(p, 4), "H5Pset_deflate");
+    h5check(H5Pset_deflate(p, 1), "H5Pset_deflate");
   }
   if (H5Tequal(type, H5T_NATIVE_FLOAT) > 0) {
     float f = float(fill);
@@ -86,9 +88,11 @@ H5Dataset create3D(hid_t loc, const std::string& name, hid_t type, hsize_t n0, h
   return H5Dataset(H5Dcreate2(loc, name.c_str(), type, s, H5P_DEFAULT, p, H5P_DEFAULT), "create " + name);
 }
 
-// Writes row `i` (all of dims 1..2) of a 2D or 3D dataset from doubles, converting on the fly.
-void writeRow(hid_t file, const std::string& path, int i, const std::vector<double>& v, hid_t memType) {
-  H5Dataset d(H5Dopen2(file, path.c_str(), H5P_DEFAULT), "open " + path);
+// Writes row `i` (all of dims 1..2) of an open 2D or 3D dataset from values of memType, which HDF5
+// converts on the fly where the dataset's type differs. The chunk cache writes the chunk when the
+// dataset closes or the file is flushed.
+template <class T>
+void writeRowTo(hid_t d, const std::string& path, int i, const std::vector<T>& v, hid_t memType) {
   H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
   int rank = H5Sget_simple_extent_ndims(fs);
   hsize_t dims[3] = {0, 0, 0};
@@ -97,15 +101,39 @@ void writeRow(hid_t file, const std::string& path, int i, const std::vector<doub
   h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
   hsize_t n = count[1] * count[2];
   if (v.size() != n) throw std::runtime_error("HDF5: row size mismatch for " + path);
-  H5Dataspace ms(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
+  // The memory space has the selection's shape: HDF5 then maps it to chunks block by block
+  // (a flat one is mapped element by element, which cost more than the write).
+  H5Dataspace ms(H5Screate_simple(rank, count, nullptr), "H5Screate_simple");
   h5check(H5Dwrite(d, memType, ms, fs, H5P_DEFAULT, v.data()), "write " + path);
+}
+
+// Writes row `i` of the dataset at `path`.
+void writeRow(hid_t file, const std::string& path, int i, const std::vector<double>& v, hid_t memType) {
+  H5Dataset d(H5Dopen2(file, path.c_str(), H5P_DEFAULT), "open " + path);
+  writeRowTo(d, path, i, v, memType);
   // The chunk cache writes the chunk when the dataset closes: an error there (disk full) is only
   // seen by a checked close.
   d.close("write " + path);
 }
 
-std::vector<double> readRowImpl(hid_t file, const std::string& path, int i) {
-  H5Dataset d(H5Dopen2(file, path.c_str(), H5P_DEFAULT), "open " + path);
+// The chunk as HDF5's shuffle and deflate filters store it: the values' bytes regrouped by
+// significance (byte k of every value, then byte k + 1, …), then zlib's deflate at `level`.
+std::vector<unsigned char> shuffleDeflate(const std::vector<float>& v, int level) {
+  const size_t n = v.size(), s = sizeof(float);
+  const auto* in = reinterpret_cast<const unsigned char*>(v.data());
+  std::vector<unsigned char> shuffled(n * s);
+  for (size_t i = 0; i < n; ++i)
+    for (size_t b = 0; b < s; ++b) shuffled[b * n + i] = in[i * s + b];
+  uLongf size = compressBound(uLong(shuffled.size()));
+  std::vector<unsigned char> out(size);
+  if (compress2(out.data(), &size, shuffled.data(), uLong(shuffled.size()), level) != Z_OK)
+    throw std::runtime_error("zlib: deflating a chunk failed");
+  out.resize(size);
+  return out;
+}
+
+// Row `i` of an open dataset, as doubles.
+std::vector<double> readRowFrom(hid_t d, const std::string& path, int i) {
   H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
   int rank = H5Sget_simple_extent_ndims(fs);
   hsize_t dims[3] = {0, 0, 0};
@@ -114,9 +142,16 @@ std::vector<double> readRowImpl(hid_t file, const std::string& path, int i) {
   h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
   hsize_t n = count[1] * count[2];
   std::vector<double> v(n);
-  H5Dataspace ms(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
+  // The memory space has the selection's shape: HDF5 then maps it to chunks block by block
+  // (a flat one is mapped element by element, which cost more than the write).
+  H5Dataspace ms(H5Screate_simple(rank, count, nullptr), "H5Screate_simple");
   h5check(H5Dread(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, v.data()), "read " + path);
   return v;
+}
+
+std::vector<double> readRowImpl(hid_t file, const std::string& path, int i) {
+  H5Dataset d(H5Dopen2(file, path.c_str(), H5P_DEFAULT), "open " + path);
+  return readRowFrom(d, path, i);
 }
 
 template <class T>
@@ -169,7 +204,7 @@ std::vector<double> readColumns(hid_t file, const std::string& path, hsize_t c0,
   h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
   hsize_t n = count[0] * count[1] * count[2];
   std::vector<double> v(n);
-  H5Dataspace ms(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
+  H5Dataspace ms(H5Screate_simple(3, count, nullptr), "H5Screate_simple");  // the selection's shape
   h5check(H5Dread(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, v.data()), "read " + path);
   return v;
 }
@@ -581,11 +616,12 @@ void BsdfFileWriter::create(const std::string& filename) {
   h5check(H5Fstart_swmr_write(f), "H5Fstart_swmr_write");
 }
 
-void BsdfFileWriter::appendJournal(int tile) {
-  // O_APPEND + fsync: the line is on disk before the next tile is written.
+void BsdfFileWriter::appendJournal(const std::vector<int>& tiles) {
+  // O_APPEND + fsync: the lines are on disk before the next tile is written.
   int fd = ::open(journal_.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
   if (fd < 0) throw WriteError(osErrorMessage("open", journal_, errno));
-  std::string line = "tile " + std::to_string(tile) + "\n";
+  std::string line;
+  for (int tile : tiles) line += "tile " + std::to_string(tile) + "\n";
   const ssize_t n = ::write(fd, line.data(), line.size());
   const bool ok = n == ssize_t(line.size()) && ::fsync(fd) == 0;
   const int err = n >= 0 && n != ssize_t(line.size()) ? ENOSPC : errno;
@@ -594,40 +630,145 @@ void BsdfFileWriter::appendJournal(int tile) {
 }
 
 void BsdfFileWriter::close() {
+  closeDatasets();
   file_.close("close " + partial_);
 }
 
 BsdfFileWriter::~BsdfFileWriter() {
   if (!finished_) {
+    datasets_.clear();
     file_.reset();  // leave the .partial file for inspection; the final path stays untouched
   }
 }
 
 BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
-  hid_t f = file_.get();
+  const EnergyBalance b = writeSlice(r);
+  commitSlices({r.incidenceIndex});
+  return b;
+}
+
+void BsdfFileWriter::commitSlices(const std::vector<int>& indices) {
+  // The slices on disk (flushed and synced), then their done flags (flushed and synced), then the
+  // journal: a slice marked done, or journaled, is complete on disk. One sync per commit, not per
+  // slice: a kill before the journal's sync loses the commit's slices, which a resume recomputes.
+  const hid_t f = file_.get();
+  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
+  syncHdf5File(f, partial_);
+  for (int i : indices) putRow("/bsdf/done", i, {1.0});
+  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
+  syncHdf5File(f, partial_);
+  appendJournal(indices);
+}
+
+BsdfFileWriter::OpenDataset& BsdfFileWriter::dataset(const std::string& path) {
+  auto it = datasets_.find(path);
+  if (it == datasets_.end()) {
+    OpenDataset o;
+    o.d = H5Dataset(H5Dopen2(file_.get(), path.c_str(), H5P_DEFAULT), "open " + path);
+    H5Datatype t(H5Dget_type(o.d), "type of " + path);
+    o.isFloat = H5Tget_class(t) == H5T_FLOAT && H5Tget_size(t) == sizeof(float);
+    // The filters create3D sets (shuffle, then deflate): only then are the chunks ours to make.
+    H5Plist dcpl(H5Dget_create_plist(o.d), "creation properties of " + path);
+    H5Dataspace s(H5Dget_space(o.d), "H5Dget_space");
+    if (o.isFloat && H5Pget_layout(dcpl) == H5D_CHUNKED && H5Sget_simple_extent_ndims(s) == 3 &&
+        H5Pget_nfilters(dcpl) == 2) {
+      unsigned flags = 0, cd[4] = {0, 0, 0, 0};
+      size_t ncd = 4;
+      const H5Z_filter_t first = H5Pget_filter2(dcpl, 0, &flags, &ncd, cd, 0, nullptr, nullptr);
+      ncd = 4;
+      const H5Z_filter_t second = H5Pget_filter2(dcpl, 1, &flags, &ncd, cd, 0, nullptr, nullptr);
+      if (first == H5Z_FILTER_SHUFFLE && second == H5Z_FILTER_DEFLATE && ncd >= 1) {
+        o.direct = true;
+        o.deflateLevel = int(cd[0]);
+        H5Sget_simple_extent_dims(s, o.dims, nullptr);
+        h5check(H5Pget_chunk(dcpl, 3, o.chunk), "chunk shape of " + path);
+      }
+    }
+    it = datasets_.emplace(path, std::move(o)).first;
+  }
+  return it->second;
+}
+
+void BsdfFileWriter::putTableRows(const std::vector<std::pair<std::string, const std::vector<double>*>>& rows, int i) {
+  struct Chunk {
+    hid_t d;
+    std::string path;
+    hsize_t offset[3];
+    std::vector<float> values;
+    int level;
+    std::vector<unsigned char> packed;
+  };
+  std::vector<Chunk> chunks;
+  for (const auto& [path, v] : rows) {
+    OpenDataset& o = dataset(path);
+    if (!o.direct) {
+      putRow(path, i, *v);
+      continue;
+    }
+    const hsize_t n1 = o.dims[1], n2 = o.dims[2], c1 = o.chunk[1], c2 = o.chunk[2];
+    if (v->size() != n1 * n2) throw std::runtime_error("HDF5: row size mismatch for " + path);
+    for (hsize_t a = 0; a < n1; a += c1)
+      for (hsize_t b = 0; b < n2; b += c2) {
+        // An edge chunk is stored whole: the part outside the dataset holds the fill value.
+        Chunk c{o.d.get(), path, {hsize_t(i), a, b}, std::vector<float>(c1 * c2, std::nanf("")), o.deflateLevel, {}};
+        for (hsize_t x = a; x < std::min(n1, a + c1); ++x)
+          for (hsize_t y = b; y < std::min(n2, b + c2); ++y) c.values[(x - a) * c2 + (y - b)] = float((*v)[x * n2 + y]);
+        chunks.push_back(std::move(c));
+      }
+  }
+  tbb::parallel_for(size_t(0), chunks.size(),
+                    [&](size_t k) { chunks[k].packed = shuffleDeflate(chunks[k].values, chunks[k].level); });
+  for (const Chunk& c : chunks)
+    h5check(H5Dwrite_chunk(c.d, H5P_DEFAULT, 0, c.offset, c.packed.size(), c.packed.data()), "write " + c.path);
+}
+
+void BsdfFileWriter::putRow(const std::string& path, int i, const std::vector<double>& v) {
+  OpenDataset& o = dataset(path);
+  if (!o.isFloat) return writeRowTo(o.d.get(), path, i, v, H5T_NATIVE_DOUBLE);
+  // Converted here (a C cast, as HDF5's own conversion): HDF5 converting a selection element by
+  // element cost more than the rest of the write.
+  const std::vector<float> f(v.begin(), v.end());
+  writeRowTo(o.d.get(), path, i, f, H5T_NATIVE_FLOAT);
+}
+
+std::vector<double> BsdfFileWriter::getRow(const std::string& path, int i) {
+  return readRowFrom(dataset(path).d.get(), path, i);
+}
+
+void BsdfFileWriter::closeDatasets() {
+  // Checked: closing writes what the chunk caches still hold.
+  for (auto& [path, o] : datasets_) o.d.close("write " + path);
+  datasets_.clear();
+}
+
+BsdfFileWriter::EnergyBalance BsdfFileWriter::writeSlice(const TileResult& r) {
   const int i = r.incidenceIndex;
   for (Component c : schema_.components.list()) {
     std::string name = componentName(c);
     if (!r.has(c)) throw std::runtime_error(std::string("tile lacks component ") + name);
-    writeRow(f, "/bsdf/" + name, i, r.value[int(c)], H5T_NATIVE_DOUBLE);
-    writeRow(f, "/bsdf_stderr/" + name, i, r.stdError[int(c)], H5T_NATIVE_DOUBLE);
     writeSliceStats(r, c);
   }
-  writeRow(f, "/stats/truncated", i, r.truncated, H5T_NATIVE_DOUBLE);
-  writeRow(f, "/stats/leaked", i, r.leaked, H5T_NATIVE_DOUBLE);
-  writeRow(f, "/stats/missed", i, r.missed, H5T_NATIVE_DOUBLE);
-  writeRow(f, "/stats/samples", i, {double(r.samples)}, H5T_NATIVE_DOUBLE);
-  writeRow(f, "/stats/wave_samples", i, {double(r.waveSamples)}, H5T_NATIVE_DOUBLE);
-  writeRow(f, "/stats/rays", i, {double(r.rays)}, H5T_NATIVE_DOUBLE);
-  writeRow(f, "/stats/seconds", i, {r.seconds}, H5T_NATIVE_DOUBLE);
-  writeRow(f, "/stats/sampling_stop", i, {double(int(r.samplingStop))}, H5T_NATIVE_DOUBLE);
+  std::vector<std::pair<std::string, const std::vector<double>*>> tables;
+  for (Component c : schema_.components.list()) {
+    tables.emplace_back(std::string("/bsdf/") + componentName(c), &r.value[int(c)]);
+    tables.emplace_back(std::string("/bsdf_stderr/") + componentName(c), &r.stdError[int(c)]);
+  }
+  putTableRows(tables, i);
+  putRow("/stats/truncated", i, r.truncated);
+  putRow("/stats/leaked", i, r.leaked);
+  putRow("/stats/missed", i, r.missed);
+  putRow("/stats/samples", i, {double(r.samples)});
+  putRow("/stats/wave_samples", i, {double(r.waveSamples)});
+  putRow("/stats/rays", i, {double(r.rays)});
+  putRow("/stats/seconds", i, {r.seconds});
+  putRow("/stats/sampling_stop", i, {double(int(r.samplingStop))});
   if (schema_.guarded.has(Component::Multiple)) {
-    writeRow(f, "/stats/multiple_check", i, {r.multipleCheck}, H5T_NATIVE_DOUBLE);
-    writeRow(f, "/stats/multiple_reenabled", i, {r.multipleReenabled ? 1.0 : 0.0}, H5T_NATIVE_DOUBLE);
+    putRow("/stats/multiple_check", i, {r.multipleCheck});
+    putRow("/stats/multiple_reenabled", i, {r.multipleReenabled ? 1.0 : 0.0});
   }
   if (schema_.guarded.has(Component::Incoherent)) {
-    writeRow(f, "/stats/diffraction_check", i, {r.diffractionCheck}, H5T_NATIVE_DOUBLE);
-    writeRow(f, "/stats/diffraction_reenabled", i, {r.diffractionReenabled ? 1.0 : 0.0}, H5T_NATIVE_DOUBLE);
+    putRow("/stats/diffraction_check", i, {r.diffractionCheck});
+    putRow("/stats/diffraction_reenabled", i, {r.diffractionReenabled ? 1.0 : 0.0});
   }
   {
     std::vector<Component> traced;
@@ -635,21 +776,12 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeTile(const TileResult& r) {
       if (c != Component::Lost && c != Component::GeoMasked && !r.pathMoments[int(c)].empty()) traced.push_back(c);
     std::vector<double> se = r.pathEnergyStdError(traced, -1);
     if (traced.empty()) se.assign(size_t(r.nLambda), 0.0);
-    writeRow(f, "/stats/paths_albedo_stderr", i, se, H5T_NATIVE_DOUBLE);
+    putRow("/stats/paths_albedo_stderr", i, se);
     std::vector<double> rel = relativeError(r, traced, grid_);
     if (r.samples == 0) rel.assign(size_t(r.nLambda), 0.0);  // the facet sum: no paths
-    writeRow(f, "/stats/paths_rel_error", i, rel, H5T_NATIVE_DOUBLE);
+    putRow("/stats/paths_rel_error", i, rel);
   }
-  const EnergyBalance balance = writeEnergyBalance(i);
-  // The slice on disk (flushed and synced), then its done flag (flushed and synced), then the
-  // journal: a slice marked done, or journaled, is complete on disk.
-  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
-  syncHdf5File(f, partial_);
-  writeRow(f, "/bsdf/done", i, {1.0}, H5T_NATIVE_DOUBLE);
-  h5check(H5Fflush(f, H5F_SCOPE_GLOBAL), "flush " + partial_);
-  syncHdf5File(f, partial_);
-  appendJournal(i);
-  return balance;
+  return writeEnergyBalance(i);
 }
 
 BsdfFileWriter::EnergyBalance BsdfFileWriter::writeEnergyBalance(int i) {
@@ -657,16 +789,16 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeEnergyBalance(int i) {
   EnergyBalance b;
   b.value.assign(size_t(nL), -1.0);
   std::vector<double> var(size_t(nL), 0.0);
-  const std::vector<double> paths = readRowImpl(file_, "/stats/paths_albedo_stderr", i);
-  const bool traced = readRowImpl(file_, "/stats/samples", i)[0] > 0;
+  const std::vector<double> paths = getRow("/stats/paths_albedo_stderr", i);
+  const bool traced = getRow("/stats/samples", i)[0] > 0;
   for (int l = 0; l < nL; ++l) var[size_t(l)] = paths[size_t(l)] * paths[size_t(l)];
   for (Component c : schema_.components.list()) {
     if (c == Component::Lost || c == Component::GeoMasked) continue;
     const std::string n = componentName(c);
     const bool fromPaths = traced && (c == Component::Coherent || c == Component::Multiple);
     for (const char* side : {"reflected", "transmitted"}) {
-      const std::vector<double> e = readRowImpl(file_, std::string("/stats/energy_") + side + "/" + n, i);
-      const std::vector<double> se = readRowImpl(file_, std::string("/stats/energy_") + side + "_stderr/" + n, i);
+      const std::vector<double> e = getRow(std::string("/stats/energy_") + side + "/" + n, i);
+      const std::vector<double> se = getRow(std::string("/stats/energy_") + side + "_stderr/" + n, i);
       for (int l = 0; l < nL; ++l) {
         b.value[size_t(l)] += e[size_t(l)];
         if (!fromPaths) var[size_t(l)] += se[size_t(l)] * se[size_t(l)];
@@ -674,7 +806,7 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeEnergyBalance(int i) {
     }
   }
   for (const char* lost : {"/stats/truncated", "/stats/leaked", "/stats/missed"}) {
-    const std::vector<double> v = readRowImpl(file_, lost, i);
+    const std::vector<double> v = getRow(lost, i);
     for (int l = 0; l < nL; ++l) b.value[size_t(l)] += v[size_t(l)];
   }
   b.stdError.resize(size_t(nL));
@@ -682,8 +814,8 @@ BsdfFileWriter::EnergyBalance BsdfFileWriter::writeEnergyBalance(int i) {
     if (!schema_.lossless) b.value[size_t(l)] = std::max(0.0, b.value[size_t(l)]);
     b.stdError[size_t(l)] = std::sqrt(var[size_t(l)]);
   }
-  writeRow(file_, "/stats/energy_balance", i, b.value, H5T_NATIVE_DOUBLE);
-  writeRow(file_, "/stats/energy_balance_stderr", i, b.stdError, H5T_NATIVE_DOUBLE);
+  putRow("/stats/energy_balance", i, b.value);
+  putRow("/stats/energy_balance_stderr", i, b.stdError);
   return b;
 }
 
@@ -695,12 +827,12 @@ void BsdfFileWriter::writeSliceStats(const TileResult& r, Component c) {
       double e = r.at(c, l, b) * grid_.projectedSolidAngle(b);
       (grid_.isUpper(b) ? refl : trans)[l] += e;
     }
-  writeRow(file_, "/stats/energy_reflected/" + name, r.incidenceIndex, refl, H5T_NATIVE_DOUBLE);
-  writeRow(file_, "/stats/energy_transmitted/" + name, r.incidenceIndex, trans, H5T_NATIVE_DOUBLE);
+  putRow("/stats/energy_reflected/" + name, r.incidenceIndex, refl);
+  putRow("/stats/energy_transmitted/" + name, r.incidenceIndex, trans);
   for (int side = 0; side < 2; ++side)
-    writeRow(file_, side == 0 ? "/stats/energy_reflected_stderr/" + name : "/stats/energy_transmitted_stderr/" + name,
-             r.incidenceIndex, energyStdError(r, c, side, grid_), H5T_NATIVE_DOUBLE);
-  writeRow(file_, "/stats/rel_error/" + name, r.incidenceIndex, relativeError(r, {c}, grid_), H5T_NATIVE_DOUBLE);
+    putRow(side == 0 ? "/stats/energy_reflected_stderr/" + name : "/stats/energy_transmitted_stderr/" + name,
+           r.incidenceIndex, energyStdError(r, c, side, grid_));
+  putRow("/stats/rel_error/" + name, r.incidenceIndex, relativeError(r, {c}, grid_));
 }
 
 double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
@@ -732,9 +864,9 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
       row.nBins = nB;
       auto& v = row.value[int(Component::Incoherent)];
       auto& se = row.stdError[int(Component::Incoherent)];
-      v = readRowImpl(f, inc, i);
-      se = readRowImpl(f, incE, i);
-      const std::vector<double> ch = readRowImpl(f, coh, i), chE = readRowImpl(f, cohE, i);
+      v = getRow(inc, i);
+      se = getRow(incE, i);
+      const std::vector<double> ch = getRow(coh, i), chE = getRow(cohE, i);
       const int bi = pairs.incidenceBin(i);
       for (int o = 0; o < nB; ++o) {
         if (pairs.computes(i, o)) continue;
@@ -750,8 +882,8 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
                                      std::to_string(bi));
         }
       }
-      writeRow(f, inc, i, v, H5T_NATIVE_DOUBLE);
-      writeRow(f, incE, i, se, H5T_NATIVE_DOUBLE);
+      putRow(inc, i, v);
+      putRow(incE, i, se);
       writeSliceStats(row, Component::Incoherent);
       writeEnergyBalance(i);
       for (int l = 0; l < nL; ++l)
@@ -766,6 +898,7 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
 void BsdfFileWriter::finish() {
   // Every byte on disk before the rename: a failure here leaves the partial file and its journal
   // (resumable) and the old output, if any, untouched.
+  closeDatasets();
   file_.close("close " + partial_);
   syncPath(partial_);
   renameChecked(partial_, path_);

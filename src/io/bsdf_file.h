@@ -67,6 +67,12 @@ class BsdfFileWriter {
     std::vector<double> value, stdError;  // per wavelength
   };
   EnergyBalance writeTile(const TileResult& r);
+  // The same in two steps, so that several slices (a tile and the slices symmetry maps it to) are
+  // committed as one: writeSlice writes a slice's rows and returns its energy balance; commitSlices
+  // flushes and syncs them, sets their done flags, flushes and syncs again and journals them with
+  // one sync. A slice written but not committed is not done (a resume recomputes it).
+  EnergyBalance writeSlice(const TileResult& r);
+  void commitSlices(const std::vector<int>& indices);
   // Fills the reciprocal half of /bsdf/incoherent (see above); every slice must be done. Returns
   // the mean over slices and wavelengths of the incoherent Σ f·Ω⊥.
   double completeReciprocal(const ReciprocalPairs& pairs);
@@ -79,7 +85,25 @@ class BsdfFileWriter {
 
  private:
   void create(const std::string& file);
-  void appendJournal(int tile);
+  void appendJournal(const std::vector<int>& tiles);
+  // The row datasets stay open while the writer runs (opening one per row cost more than the
+  // write); closed, checked, before the file closes.
+  struct OpenDataset {
+    H5Dataset d;
+    bool isFloat = false;  // stored as float32 (the tables), else double
+    // A table whose chunks the writer compresses itself (float32, 3-D, shuffle + deflate): its
+    // dimensions, chunk shape and deflate level.
+    bool direct = false;
+    hsize_t dims[3] = {0, 0, 0}, chunk[3] = {0, 0, 0};
+    int deflateLevel = 0;
+  };
+  OpenDataset& dataset(const std::string& path);
+  void putRow(const std::string& path, int i, const std::vector<double>& v);
+  // Rows i of several tables (path, values): their chunks compressed in parallel, then written as
+  // they are (H5Dwrite_chunk), so that HDF5's one-threaded filter pipeline is not rank 0's limit.
+  void putTableRows(const std::vector<std::pair<std::string, const std::vector<double>*>>& rows, int i);
+  std::vector<double> getRow(const std::string& path, int i);
+  void closeDatasets();
   // /stats/energy_reflected, energy_transmitted and rel_error of component c for r's slice.
   void writeSliceStats(const TileResult& r, Component c);
   // /stats/energy_balance and its standard error for slice i, from the slice's stored energies:
@@ -91,6 +115,7 @@ class BsdfFileWriter {
   const OutputSchema schema_;
   const DirectionGrid& grid_;
   H5File file_;
+  std::map<std::string, OpenDataset> datasets_;  // declared after file_: closed before it
   std::vector<int> resumed_;
   bool finished_ = false;
 };

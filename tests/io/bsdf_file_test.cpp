@@ -162,3 +162,41 @@ TEST(BsdfFile, EnergyBalanceByMaterial) {
     EXPECT_NEAR(f.stats(1).energyBalance[0], 0.05, 1e-12);
   }
 }
+
+// A row wider than one chunk (25 wavelengths x 45 000 bins: chunks of 13 wavelengths, the second an
+// edge chunk padded with the fill value): the writer compresses the chunks itself, and every value
+// reads back as the float it was, the unwritten slice as NaN.
+TEST(BsdfFile, RowsSplitIntoChunksReadBack) {
+  const DirectionGrid g(ThetaPhiGrid{75, 300});
+  OutputSchema schema;
+  schema.jobText = "# test";
+  schema.jobFile = "t.toml";
+  for (int l = 0; l < 25; ++l) schema.lambda_nm.push_back(400.0 + 10.0 * l);
+  schema.incidence = {{10.0, 0.0, 0}, {50.0, 0.0, 1}};
+  schema.components.add(Component::Coherent);
+  const std::string path = (std::filesystem::temp_directory_path() / "microbsdf_chunks_test.h5").string();
+  std::filesystem::remove(path);
+  TileResult r;
+  r.incidenceIndex = 1;
+  r.nLambda = 25;
+  r.nBins = g.binCount();
+  r.samples = 0;
+  r.truncated = r.leaked = r.missed = std::vector<double>(25, 0.0);
+  auto& v = r.value[int(Component::Coherent)];
+  for (int l = 0; l < 25; ++l)
+    for (int b = 0; b < g.binCount(); ++b) v.push_back(l + std::sqrt(double(b)) * 1e-3);
+  r.stdError[int(Component::Coherent)].assign(v.size(), 0.5);
+  {
+    BsdfFileWriter w(path, schema, g);
+    w.writeTile(r);
+    w.finish();
+  }
+  BsdfFileReader f(path);
+  const std::vector<double> back = f.slice("coherent", 1);
+  ASSERT_EQ(back.size(), v.size());
+  size_t differ = 0;
+  for (size_t k = 0; k < v.size(); ++k) differ += back[k] != double(float(v[k]));
+  EXPECT_EQ(differ, 0u);
+  EXPECT_TRUE(std::isnan(f.slice("coherent", 0)[7]));
+  std::filesystem::remove(path);
+}
