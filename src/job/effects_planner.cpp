@@ -1094,6 +1094,42 @@ void keepIfVerifyingCostsMore(const Job& job, int computed, nlohmann::json& d) {
                 " tiles no pilot covered would cost more than the wave term the job halves by reciprocity: kept on";
 }
 
+namespace {
+
+// The job the geometric pilots trace: every path depth, with the job's tallies, so that a pilot tile
+// is the job's own (a requested `lost` tallies one more).
+Job geometricPilotJob(const Job& job, const ComponentSet& forced) {
+  Job pilotJob = job;
+  pilotJob.components = ComponentSet{};
+  pilotJob.components.add(Component::Coherent);
+  pilotJob.components.add(Component::Multiple);
+  if (forced.has(Component::Lost)) pilotJob.components.add(Component::Lost);
+  return pilotJob;
+}
+
+// The plan's scene and pilot fields, once its decisions are made: which pilots ran, whether they
+// are the job's own tiles, and what they cost against the budget.
+void recordPilots(const PilotContext& ctx, double beamPathTiles, double waveSpent, EffectsPlan& plan) {
+  const Job& job = ctx.job;
+  plan.tolerance = ctx.tol;
+  plan.coherenceLength_um = job.scene.coherenceLength_um;
+  plan.coherenceSource = job.scene.coherenceSource;
+  if (job.scene.sourceAngularDiameter_deg > 0) plan.sourceAngularDiameter_deg = job.scene.sourceAngularDiameter_deg;
+  plan.pilots = ctx.pilots;
+  plan.pilotsPlanned = ctx.planned;
+  plan.pilotPaths = ctx.paths;
+  // A pilot is the job's tile unless the run computes other wavelengths than the pilots traced.
+  plan.pilotTilesKept = !plan.lambda_nm;
+  // Kept pilots cost the job nothing when it traces paths on every tile (with `multiple`, or a
+  // statistical surface); where it may take single scattering from the facet sum instead, they count.
+  const bool pilotsFree = plan.pilotTilesKept && (job.statistical || plan.components.has(Component::Multiple));
+  const double geometric = double(ctx.pilots.size()) * double(ctx.paths) / double(job.pathsPerSlice);
+  plan.pilotBudget = PilotBudgetUse{job.pilotBudget, ctx.computed, ctx.budgetTiles,
+                                    (pilotsFree ? 0.0 : geometric) + beamPathTiles, waveSpent};
+}
+
+}  // namespace
+
 EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, std::map<int, TileResult>* pilotTiles) {
   const auto t0 = Clock::now();
   const DirectionGrid grid(job.gridLayout);
@@ -1103,12 +1139,7 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, std:
   for (const auto& c : job.requestedComponents)
     if (auto comp = componentFromName(c)) forced.add(*comp);
 
-  Job pilotJob = job;
-  pilotJob.components = ComponentSet{};
-  pilotJob.components.add(Component::Coherent);
-  pilotJob.components.add(Component::Multiple);
-  // The job's tallies, so that a pilot tile is the job's own (a requested `lost` tallies one more).
-  if (forced.has(Component::Lost)) pilotJob.components.add(Component::Lost);
+  const Job pilotJob = geometricPilotJob(job, forced);
   const uint64_t paths = std::min<uint64_t>(options.paths, job.pathsPerSlice);
   GeometricTransport transport(pilotJob, grid, paths);
   // The pilot budget (Job::pilotBudget), in tiles' work: the job computes `computed` tiles of
@@ -1200,22 +1231,7 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, std:
   if (job.scene.incidenceMax_deg < 90) push(incidenceDecision(job, grid));
 
   plan.components = chosen;
-  plan.tolerance = tol;
-  plan.coherenceLength_um = job.scene.coherenceLength_um;
-  plan.coherenceSource = job.scene.coherenceSource;
-  if (job.scene.sourceAngularDiameter_deg > 0) plan.sourceAngularDiameter_deg = job.scene.sourceAngularDiameter_deg;
-  plan.pilots = pilots;
-  plan.pilotsPlanned = planned;
-  plan.pilotPaths = paths;
-  // A pilot is the job's tile unless the run computes other wavelengths than the pilots traced.
-  plan.pilotTilesKept = !plan.lambda_nm;
-  // Kept pilots cost the job nothing when it traces paths on every tile (with `multiple`, or a
-  // statistical surface); where it may take single scattering from the facet sum instead, they count.
-  const bool pilotsFree = plan.pilotTilesKept && (job.statistical || chosen.has(Component::Multiple));
-  plan.pilotBudget = PilotBudgetUse{
-      job.pilotBudget, computed, budgetTiles,
-      (pilotsFree ? 0.0 : double(pilots.size()) * double(paths) / double(job.pathsPerSlice)) + beamPathTiles,
-      waveSpent};
+  recordPilots(ctx, beamPathTiles, waveSpent, plan);
   if (pilotTiles && plan.pilotTilesKept)
     for (size_t k = 0; k < pilots.size(); ++k) (*pilotTiles)[pilots[k]] = std::move(ctx.geo[k]);
   plan.pilotSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
