@@ -447,14 +447,21 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   }
   p["accuracy"] = accuracyTable(job, pilots, pathRelErrors, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
                                 waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
+  // The effects pilots' paths that the run keeps as its tiles' first paths (effects_planner.h) are
+  // not traced again, where the run traces paths on every tile.
+  double keptPilotSeconds = 0;
+  if (effects && effects->pilotTilesKept && (job.statistical || effects->components.has(Component::Multiple)))
+    keptPilotSeconds = double(effects->pilots.size()) *
+                       std::min(1.0, double(effects->pilotPaths) / double(job.pathsPerSlice)) * pathSeconds;
   p["estimate"] = {{"seconds_per_tile", tileSeconds},
+                   {"kept_pilot_path_seconds", keptPilotSeconds},
                    {"path_seconds_per_tile", pathSeconds},
                    {"wave_seconds_per_tile", waveSeconds},
                    {"wave_setup_seconds_per_rank", waveSetupSeconds},
                    {"write_seconds_per_slice", writeSeconds},
                    {"wall_seconds_on_these_cores", tileSeconds * computedTiles + waveSetupSeconds +
                                                        writeSeconds * nTiles + sceneSeconds + options.jobLoadSeconds +
-                                                       (effects ? effects->pilotSeconds : 0.0)},
+                                                       (effects ? effects->pilotSeconds : 0.0) - keptPilotSeconds},
                    {"job_load_seconds", options.jobLoadSeconds},
                    {"core_hours", coreHours}};
   const double memoryBytes = memoryBytesPerRank(job, waveBytes);
