@@ -88,23 +88,31 @@ H5Dataset create3D(hid_t loc, const std::string& name, hid_t type, hsize_t n0, h
   return H5Dataset(H5Dcreate2(loc, name.c_str(), type, s, H5P_DEFAULT, p, H5P_DEFAULT), "create " + name);
 }
 
-// Writes row `i` (all of dims 1..2) of an open 2D or 3D dataset from values of memType, which HDF5
-// converts on the fly where the dataset's type differs. The chunk cache writes the chunk when the
-// dataset closes or the file is flushed.
-template <class T>
-void writeRowTo(hid_t d, const std::string& path, int i, const std::vector<T>& v, hid_t memType) {
-  H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
-  int rank = H5Sget_simple_extent_ndims(fs);
+// Row `i` (all of dims 1..2) of an open 2D or 3D dataset: the file selection, a memory space of
+// the selection's shape (HDF5 then maps it to chunks block by block; a flat one is mapped element
+// by element, which cost more than the write) and its value count.
+struct RowSelection {
+  H5Dataspace file, memory;
+  hsize_t n = 0;
+};
+RowSelection selectRow(hid_t d, const std::string& path, int i) {
+  RowSelection s{H5Dataspace(H5Dget_space(d), "H5Dget_space"), H5Dataspace(), 0};
+  const int rank = H5Sget_simple_extent_ndims(s.file);
   hsize_t dims[3] = {0, 0, 0};
-  H5Sget_simple_extent_dims(fs, dims, nullptr);
+  H5Sget_simple_extent_dims(s.file, dims, nullptr);
   hsize_t start[3] = {hsize_t(i), 0, 0}, count[3] = {1, rank > 1 ? dims[1] : 1, rank > 2 ? dims[2] : 1};
-  h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
-  hsize_t n = count[1] * count[2];
-  if (v.size() != n) throw std::runtime_error("HDF5: row size mismatch for " + path);
-  // The memory space has the selection's shape: HDF5 then maps it to chunks block by block
-  // (a flat one is mapped element by element, which cost more than the write).
-  H5Dataspace ms(H5Screate_simple(rank, count, nullptr), "H5Screate_simple");
-  h5check(H5Dwrite(d, memType, ms, fs, H5P_DEFAULT, v.data()), "write " + path);
+  h5check(H5Sselect_hyperslab(s.file, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
+  s.memory = H5Dataspace(H5Screate_simple(rank, count, nullptr), "H5Screate_simple");
+  s.n = count[1] * count[2];
+  return s;
+}
+
+// Writes row `i` of an open dataset from doubles, converted on the fly to the dataset's type. The
+// chunk cache writes the chunk when the dataset closes or the file is flushed.
+void writeRowTo(hid_t d, const std::string& path, int i, const std::vector<double>& v, hid_t memType) {
+  const RowSelection s = selectRow(d, path, i);
+  if (v.size() != s.n) throw std::runtime_error("HDF5: row size mismatch for " + path);
+  h5check(H5Dwrite(d, memType, s.memory, s.file, H5P_DEFAULT, v.data()), "write " + path);
 }
 
 // Writes row `i` of the dataset at `path`.
@@ -134,18 +142,9 @@ std::vector<unsigned char> shuffleDeflate(const std::vector<float>& v, int level
 
 // Row `i` of an open dataset, as doubles.
 std::vector<double> readRowFrom(hid_t d, const std::string& path, int i) {
-  H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
-  int rank = H5Sget_simple_extent_ndims(fs);
-  hsize_t dims[3] = {0, 0, 0};
-  H5Sget_simple_extent_dims(fs, dims, nullptr);
-  hsize_t start[3] = {hsize_t(i), 0, 0}, count[3] = {1, rank > 1 ? dims[1] : 1, rank > 2 ? dims[2] : 1};
-  h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
-  hsize_t n = count[1] * count[2];
-  std::vector<double> v(n);
-  // The memory space has the selection's shape: HDF5 then maps it to chunks block by block
-  // (a flat one is mapped element by element, which cost more than the write).
-  H5Dataspace ms(H5Screate_simple(rank, count, nullptr), "H5Screate_simple");
-  h5check(H5Dread(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, v.data()), "read " + path);
+  const RowSelection s = selectRow(d, path, i);
+  std::vector<double> v(s.n);
+  h5check(H5Dread(d, H5T_NATIVE_DOUBLE, s.memory, s.file, H5P_DEFAULT, v.data()), "read " + path);
   return v;
 }
 
@@ -666,11 +665,11 @@ BsdfFileWriter::OpenDataset& BsdfFileWriter::dataset(const std::string& path) {
     OpenDataset o;
     o.d = H5Dataset(H5Dopen2(file_.get(), path.c_str(), H5P_DEFAULT), "open " + path);
     H5Datatype t(H5Dget_type(o.d), "type of " + path);
-    o.isFloat = H5Tget_class(t) == H5T_FLOAT && H5Tget_size(t) == sizeof(float);
+    const bool isFloat = H5Tget_class(t) == H5T_FLOAT && H5Tget_size(t) == sizeof(float);
     // The filters create3D sets (shuffle, then deflate): only then are the chunks ours to make.
     H5Plist dcpl(H5Dget_create_plist(o.d), "creation properties of " + path);
     H5Dataspace s(H5Dget_space(o.d), "H5Dget_space");
-    if (o.isFloat && H5Pget_layout(dcpl) == H5D_CHUNKED && H5Sget_simple_extent_ndims(s) == 3 &&
+    if (isFloat && H5Pget_layout(dcpl) == H5D_CHUNKED && H5Sget_simple_extent_ndims(s) == 3 &&
         H5Pget_nfilters(dcpl) == 2) {
       unsigned flags = 0, cd[4] = {0, 0, 0, 0};
       size_t ncd = 4;
@@ -723,12 +722,7 @@ void BsdfFileWriter::putTableRows(const std::vector<std::pair<std::string, const
 }
 
 void BsdfFileWriter::putRow(const std::string& path, int i, const std::vector<double>& v) {
-  OpenDataset& o = dataset(path);
-  if (!o.isFloat) return writeRowTo(o.d.get(), path, i, v, H5T_NATIVE_DOUBLE);
-  // Converted here (a C cast, as HDF5's own conversion): HDF5 converting a selection element by
-  // element cost more than the rest of the write.
-  const std::vector<float> f(v.begin(), v.end());
-  writeRowTo(o.d.get(), path, i, f, H5T_NATIVE_FLOAT);
+  writeRowTo(dataset(path).d.get(), path, i, v, H5T_NATIVE_DOUBLE);
 }
 
 std::vector<double> BsdfFileWriter::getRow(const std::string& path, int i) {
@@ -743,15 +737,13 @@ void BsdfFileWriter::closeDatasets() {
 
 BsdfFileWriter::EnergyBalance BsdfFileWriter::writeSlice(const TileResult& r) {
   const int i = r.incidenceIndex;
+  std::vector<std::pair<std::string, const std::vector<double>*>> tables;
   for (Component c : schema_.components.list()) {
     std::string name = componentName(c);
     if (!r.has(c)) throw std::runtime_error(std::string("tile lacks component ") + name);
     writeSliceStats(r, c);
-  }
-  std::vector<std::pair<std::string, const std::vector<double>*>> tables;
-  for (Component c : schema_.components.list()) {
-    tables.emplace_back(std::string("/bsdf/") + componentName(c), &r.value[int(c)]);
-    tables.emplace_back(std::string("/bsdf_stderr/") + componentName(c), &r.stdError[int(c)]);
+    tables.emplace_back("/bsdf/" + name, &r.value[int(c)]);
+    tables.emplace_back("/bsdf_stderr/" + name, &r.stdError[int(c)]);
   }
   putTableRows(tables, i);
   putRow("/stats/truncated", i, r.truncated);

@@ -90,7 +90,6 @@ class BsdfFileWriter {
   // write); closed, checked, before the file closes.
   struct OpenDataset {
     H5Dataset d;
-    bool isFloat = false;  // stored as float32 (the tables), else double
     // A table whose chunks the writer compresses itself (float32, 3-D, shuffle + deflate): its
     // dimensions, chunk shape and deflate level.
     bool direct = false;

@@ -357,8 +357,7 @@ MeasuredEstimator measureEstimatorPilot(const Job& job, const ComponentSet& chos
   using enum WaveEstimatorKind;
   const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
   const auto& inc = job.incidence[size_t(pilot)];
-  std::optional<Vec3> exact;
-  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  const std::optional<Vec3> exact = tileRequestOf(job, pilot).exactDirection;
   Job cj = job;
   cj.waveEstimator = c;
   cj.components = chosen;
@@ -561,10 +560,7 @@ struct PilotContext {
   // bin). The geometric pilots (multiple scattering, wavelengths) use it, so that they see what the
   // job's tiles see (a groove's inter-reflection that begins inside an incidence bin but not at its
   // centre) and are the first paths of those tiles.
-  std::optional<Vec3> jobBeam(int p) const {
-    if (job.exactIncidence) return beam(p);
-    return std::nullopt;
-  }
+  std::optional<Vec3> jobBeam(int p) const { return tileRequestOf(job, p).exactDirection; }
   // The geometric single scattering along beam(p) that a diffraction pilot compares with: the
   // geometric pilot where that is the same beam, else a pilot of its own.
   TileResult beamGeometry(size_t k) const {

@@ -389,12 +389,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
            std::abs(std::cos(radians(job.incidence[size_t(b)].theta_deg)));
   });  // the most grazing, reported
   const auto& inc = job.incidence[size_t(pilot)];
-  auto exactOf = [&](int t) {
-    std::optional<Vec3> exact;
-    const auto& i = job.incidence[size_t(t)];
-    if (job.exactIncidence) exact = sphericalDirection(radians(i.theta_deg), radians(i.phi_deg));
-    return exact;
-  };
+  auto exactOf = [&](int t) { return tileRequestOf(job, t).exactDirection; };
   auto ts = std::chrono::steady_clock::now();
   const uint64_t pilotPaths = std::min<uint64_t>(job.pathsPerSlice, options.pilotPaths);
   // As the run: a guarded skip (Job::guarded) is left out of what the tile computes first.

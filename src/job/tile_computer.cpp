@@ -83,7 +83,7 @@ TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb,
                                  double* waveSeconds) const {
   const Job& job = job_;
   const DirectionGrid& grid = grid_;
-  const TileRequest request = requestOf(t);
+  const TileRequest request = tileRequestOf(job_, t);
   const std::optional<Vec3>& exact = request.exactDirection;
   auto ts = Clock::now();
   TileResult r = firstRound(request, cb);
@@ -123,13 +123,6 @@ TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb,
   }
   r.seconds = since(ts);
   return r;
-}
-
-TileRequest TileComputer::requestOf(int t) const {
-  const IncidenceDirection& inc = job_.incidence[size_t(t)];
-  TileRequest q{t, t, inc.bin, std::nullopt};
-  if (job_.exactIncidence) q.exactDirection = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
-  return q;
 }
 
 TileResult TileComputer::firstRound(const TileRequest& q, const std::function<void(uint64_t)>& cb) const {
@@ -193,12 +186,12 @@ void TileComputer::verifySkippedMultiple(int t, const std::function<void(uint64_
     r.multipleCheck = 0;
     zeroComponent(r, Component::Multiple);
   } else {
-    const TileResult checked = check->run(requestOf(t), cb);
+    const TileResult checked = check->run(tileRequestOf(job_, t), cb);
     r.multipleCheck = multipleBound(checked, grid);
     r.rays += checked.rays;  // the check is the tile's work too
     if (r.multipleCheck > job.scene.tolerance) {
       const uint64_t spent = r.rays;
-      r = full->run(requestOf(t), cb);
+      r = full->run(tileRequestOf(job_, t), cb);
       r.rays += spent;
       r.multipleCheck = multipleBound(r, grid);
     } else {

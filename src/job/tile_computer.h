@@ -44,8 +44,6 @@ class TileComputer {
   // The tile's first round of paths (or its facet sum): as one run, or, for a tile an effects pilot
   // traced, the pilot's paths (kept, or traced again) and then the rest.
   TileResult firstRound(const TileRequest& request, const std::function<void(uint64_t)>& progress) const;
-  // Tile t as the job samples it: along its exact direction, or averaged over its bin.
-  TileRequest requestOf(int t) const;
   void verifySkippedMultiple(int t, const std::function<void(uint64_t)>& progress, TileResult& r) const;
   void addWaveTerm(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& progress,
                    TileResult& r) const;

@@ -66,6 +66,13 @@ std::string GeometricTransport::describe() const {
   return "path tracer through the explicit microgeometry";
 }
 
+TileRequest tileRequestOf(const Job& job, int t) {
+  const IncidenceDirection& inc = job.incidence[size_t(t)];
+  TileRequest q{t, t, inc.bin, std::nullopt};
+  if (job.exactIncidence) q.exactDirection = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  return q;
+}
+
 WaveSettings waveSettingsOf(const Job& job) {
   WaveSettings ws;
   ws.estimator = job.resolvedWaveEstimator();

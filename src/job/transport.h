@@ -55,6 +55,10 @@ class GeometricTransport : public GeometricEstimator {
   double pathRays_ = 0;  // rays of the path tracer per tile at the job's paths_per_slice
 };
 
+// Tile t (an index into job.incidence) as the job samples it: along its exact direction when the
+// job's incidence is collimated (`incidence_sampling = "exact"`), else averaged over its bin.
+TileRequest tileRequestOf(const Job& job, int t);
+
 // The job's wave-optics settings ([sampling] estimator, samples, points, incidence directions,
 // seed; masked sums when `lost` is a component), for the run and, adjusted, for the pilots.
 WaveSettings waveSettingsOf(const Job& job);
