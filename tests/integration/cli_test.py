@@ -949,7 +949,7 @@ def test_tour():
     for name, target in (("build", BUILD), ("jobs", os.path.join(SRC, "jobs")), ("scripts", os.path.join(SRC, "scripts"))):
         os.symlink(target, os.path.join(root, name))
     for line in lines:
-        p = subprocess.run(["bash", "-c", line], capture_output=True, text=True, timeout=600, env=ENV, cwd=root)
+        p = subprocess.run(["bash", "-c", line], capture_output=True, text=True, timeout=600, env=MPI_ENV, cwd=root)
         assert p.returncode == 0, f"{line}\nexit {p.returncode}\n{p.stdout[-3000:]}\n{p.stderr[-3000:]}"
     made = sorted(os.listdir(os.path.join(root, "out")))
     print(f"README tour: {len(lines)} lines ran in order; out/ holds {', '.join(made)}")

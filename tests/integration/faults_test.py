@@ -281,7 +281,7 @@ def test_pilot_signal():
     ref = good_output("p.h5")
     for mpi in (0, 2):
         cmd = ([shutil.which("mpirun"), "-np", "2", "--oversubscribe"] if mpi else []) + [EXE, "run", job, "-o", "p.h5"]
-        p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ENV, cwd=TMP,
+        p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=MPI_ENV if mpi else ENV, cwd=TMP,
                              start_new_session=True)
         lines = []
         for line in p.stdout:

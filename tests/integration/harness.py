@@ -28,12 +28,15 @@ BUILD, SRC, NAME = sys.argv[1], sys.argv[2], sys.argv[3]
 EXE = os.path.join(BUILD, "microbsdf")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1")
+# For mpirun: munge is installed for the Slurm tests, but its daemon runs only while they do, and
+# PMIx's munge plugin retries an absent daemon for 2.3 s at every mpirun start (docs/running.md).
+MPI_ENV = dict(ENV, PMIX_MCA_psec="^munge")
 TMP = tempfile.mkdtemp(prefix="microbsdf_" + NAME + "_")
 
 
 def run(args, timeout=300, expect=0, mpi=0):
     cmd = ([shutil.which("mpirun"), "-np", str(mpi), "--oversubscribe"] if mpi else []) + [EXE] + args
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=ENV, cwd=TMP)
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=MPI_ENV if mpi else ENV, cwd=TMP)
     if expect is not None and p.returncode != expect:
         sys.exit(f"FAIL: {' '.join(cmd)} exited {p.returncode}, expected {expect}\n{p.stdout}\n{p.stderr}")
     return p
@@ -114,7 +117,7 @@ def journal_count(out):
 
 def start(args, mpi=2):
     cmd = [shutil.which("mpirun"), "-np", str(mpi), "--oversubscribe", EXE] + args
-    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=ENV, cwd=TMP,
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=MPI_ENV, cwd=TMP,
                             start_new_session=True)
 
 
