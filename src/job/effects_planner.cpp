@@ -357,7 +357,7 @@ MeasuredEstimator measureEstimatorPilot(const Job& job, const ComponentSet& chos
   using enum WaveEstimatorKind;
   const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
   const auto& inc = job.incidence[size_t(pilot)];
-  const std::optional<Vec3> exact = tileRequestOf(job, pilot).exactDirection;
+
   Job cj = job;
   cj.waveEstimator = c;
   cj.components = chosen;
@@ -393,7 +393,7 @@ MeasuredEstimator measureEstimatorPilot(const Job& job, const ComponentSet& chos
     binFraction = double(picked) / nB;
   }
   const WaveTileResult w =
-      est->run(pilot, inc.bin, exact, pilotProgress("estimator pilot (" + waveEstimatorName(c) + ")", inc), mask);
+      est->run(tileRequestOf(job, pilot), pilotProgress("estimator pilot (" + waveEstimatorName(c) + ")", inc), mask);
   double error = 0;
   for (int l = 0; l < nL; ++l) {
     double e = 0;
@@ -552,22 +552,23 @@ struct PilotContext {
   // as the job does (runDiffractionPilots). A job of collimated beams (`incidence_sampling =
   // "exact"`) is piloted along its own directions: a grating lit exactly along its grooves scatters
   // nothing twice, where the bin's centre may.
-  Vec3 beam(int p) const {
+  TileRequest beamRequest(int p) const {
     const IncidenceDirection& inc = job.incidence[size_t(p)];
-    return job.exactIncidence ? sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg)) : grid.centre(inc.bin);
+    return TileRequest{
+        p, p, inc.bin,
+        job.exactIncidence ? sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg)) : grid.centre(inc.bin)};
   }
   // The incidence of tile p as the job traces it: its exact direction, or none (averaged over the
   // bin). The geometric pilots (multiple scattering, wavelengths) use it, so that they see what the
   // job's tiles see (a groove's inter-reflection that begins inside an incidence bin but not at its
   // centre) and are the first paths of those tiles.
-  std::optional<Vec3> jobBeam(int p) const { return tileRequestOf(job, p).exactDirection; }
-  // The geometric single scattering along beam(p) that a diffraction pilot compares with: the
+  TileRequest jobRequest(int p) const { return tileRequestOf(job, p); }
+  // The geometric single scattering along beamRequest(p) that a diffraction pilot compares with: the
   // geometric pilot where that is the same beam, else a pilot of its own.
   TileResult beamGeometry(size_t k) const {
     if (job.exactIncidence) return geo[k];
     const int p = pilots[k];
-    return transport.run(p, p, job.incidence[size_t(p)].bin, beam(p),
-                         pilotProgress("geometric pilot at the bin centre", job.incidence[size_t(p)]));
+    return transport.run(beamRequest(p), pilotProgress("geometric pilot at the bin centre", job.incidence[size_t(p)]));
   }
 };
 
@@ -744,7 +745,6 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, DiffractionPilot
   const int nL = int(job.lambda_nm.size());
   const double tol = ctx.tol, budgetTiles = ctx.budgetTiles;
   const uint64_t paths = ctx.paths;
-  auto beam = [&](int p) { return ctx.beam(p); };
   double& waveSpent = *waveSpentOut;
   DiffractionPilots out;
   std::unique_ptr<WaveEstimator>& est = setup.est;
@@ -785,9 +785,10 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, DiffractionPilot
       std::min(pilots.size(), size_t(std::floor(budgetTiles / wavePilotCost + 1e-9)));
   for (size_t k = 0; k < waveAffordable && waveSpent + wavePilotCost <= budgetTiles + 1e-9; ++k) {
     const auto& inc = job.incidence[size_t(pilots[k])];
-    const std::optional<Vec3> dir = binAveraged ? std::nullopt : std::optional<Vec3>(beam(pilots[k]));
-    const WaveTileResult w = est->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot", inc));
-    const TileResult r = binAveraged ? facetGs->run(pilots[k], pilots[k], inc.bin, std::nullopt) : ctx.beamGeometry(k);
+    // Bin-averaged pilots exist only where the job averages over its bins (diffractionPilotSetup).
+    const TileRequest request = binAveraged ? ctx.jobRequest(pilots[k]) : ctx.beamRequest(pilots[k]);
+    const WaveTileResult w = est->run(request, pilotProgress("diffraction pilot", inc));
+    const TileResult r = binAveraged ? facetGs->run(request, {}) : ctx.beamGeometry(k);
     if (!binAveraged && !job.exactIncidence) *beamPathTiles += double(paths) / double(job.pathsPerSlice);
     auto figures = [&](int l, const WaveTileResult* w2) { return cellDifference(grid, cellOf, nCells, w, w2, r, l); };
     std::vector<DiffractionFigures> fig;
@@ -808,7 +809,7 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, DiffractionPilot
       WaveSettings other = ws;
       other.seed = ws.seed ^ 0x5851F42D4C957F2Dull;
       const WaveTileResult w2 = makeJobWaveEstimator(job, grid, *transport.scene(), other)
-                                    ->run(pilots[k], inc.bin, dir, pilotProgress("diffraction pilot replica", inc));
+                                    ->run(request, pilotProgress("diffraction pilot replica", inc));
       ++replicas;
       for (int l = 0; l < nL; ++l) fig[size_t(l)] = figures(l, &w2);
     }
@@ -1160,8 +1161,7 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, std:
 
   PilotContext ctx{job, grid, transport, ws, planned, pilots, {}, paths, computed, budgetTiles, tol};
   for (int p : pilots)
-    ctx.geo.push_back(transport.run(p, p, job.incidence[size_t(p)].bin, ctx.jobBeam(p),
-                                    pilotProgress("geometric pilot", job.incidence[size_t(p)])));
+    ctx.geo.push_back(transport.run(ctx.jobRequest(p), pilotProgress("geometric pilot", job.incidence[size_t(p)])));
   const std::vector<TileResult>& geo = ctx.geo;
 
   EffectsPlan plan;
@@ -1220,8 +1220,7 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, std:
     other.seed = job.seed ^ 0x9E3779B97F4A7C15ull;
     GeometricTransport t2(other, grid, paths);
     for (int p : pilots)
-      geo2->push_back(t2.run(p, p, job.incidence[size_t(p)].bin, ctx.jobBeam(p),
-                             pilotProgress("geometric pilot replica", job.incidence[size_t(p)])));
+      geo2->push_back(t2.run(ctx.jobRequest(p), pilotProgress("geometric pilot replica", job.incidence[size_t(p)])));
   };
   push(wavelengthDecision(job, grid, geo, chosen, replicate, &plan));
   if (job.scene.incidenceMax_deg < 90) push(incidenceDecision(job, grid));

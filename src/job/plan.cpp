@@ -183,7 +183,6 @@ struct WavePilotCost {
 };
 WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const GeometricTransport& transport,
                              const PlanOptions& options, const std::vector<int>& pilots,
-                             const std::function<std::optional<Vec3>(int)>& exactOf,
                              std::vector<TileResult>& pilotTiles) {
   WavePilotCost out;
   double& waveSeconds = out.seconds;
@@ -211,7 +210,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   for (size_t k = 0; k < pilots.size(); ++k) {
     const int t = pilots[k];
     spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
-    const WaveTileResult w = est->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
+    const WaveTileResult w = est->run(tileRequestOf(job, t), heartbeat("plan: wave pilot"));
     const double e1 = waveRelativeError(w, grid);
     if (waveDeterministic) {
       waveRelErrors.push_back(e1);
@@ -220,7 +219,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
       waveRelErrors.push_back(e1 * std::sqrt(double(ws.samplesPerBin) / N));
       waveSeconds += w.seconds;
     } else {
-      const WaveTileResult w2 = est2->run(t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: wave pilot"));
+      const WaveTileResult w2 = est2->run(tileRequestOf(job, t), heartbeat("plan: wave pilot"));
       const double e2 = waveRelativeError(w2, grid);
       const double rate =
           e1 > 0 && e2 > 0
@@ -267,15 +266,14 @@ struct PathPilotCost {
   std::vector<double> relErrors;
 };
 PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid& grid,
-                         const GeometricTransport& transport, const std::vector<int>& pilots, uint64_t pilotPaths,
-                         const std::function<std::optional<Vec3>(int)>& exactOf) {
+                         const GeometricTransport& transport, const std::vector<int>& pilots, uint64_t pilotPaths) {
   PathPilotCost out;
   std::vector<Component> traced;
   for (Component c : {Component::Coherent, Component::Multiple})
     if (planned.components.has(c)) traced.push_back(c);
   for (int t : pilots) {
     spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
-    out.tiles.push_back(transport.run(t, t, job.incidence[size_t(t)].bin, exactOf(t), heartbeat("plan: path pilot")));
+    out.tiles.push_back(transport.run(tileRequestOf(job, t), heartbeat("plan: path pilot")));
     const TileResult& r = out.tiles.back();
     const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
     out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
@@ -389,7 +387,6 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
            std::abs(std::cos(radians(job.incidence[size_t(b)].theta_deg)));
   });  // the most grazing, reported
   const auto& inc = job.incidence[size_t(pilot)];
-  auto exactOf = [&](int t) { return tileRequestOf(job, t).exactDirection; };
   auto ts = std::chrono::steady_clock::now();
   const uint64_t pilotPaths = std::min<uint64_t>(job.pathsPerSlice, options.pilotPaths);
   // As the run: a guarded skip (Job::guarded) is left out of what the tile computes first.
@@ -397,14 +394,14 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   for (Component c : job.guarded.list()) planned.components.remove(c);
   GeometricTransport transport(planned, grid, pilotPaths);
   const double sceneSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
-  PathPilotCost paths = pathPilots(job, planned, grid, transport, pilots, pilotPaths, exactOf);
+  PathPilotCost paths = pathPilots(job, planned, grid, transport, pilots, pilotPaths);
   const double pathSeconds = paths.seconds, pilotSeconds = paths.pilotSeconds;
   const int facetTiles = paths.facetTiles;
   std::vector<TileResult>& pilotTiles = paths.tiles;
   const std::vector<double>& pathRelErrors = paths.relErrors;
   const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(nL);
   const WavePilotCost wave =
-      job.needsWave() ? waveTermPilots(job, grid, transport, options, pilots, exactOf, pilotTiles) : WavePilotCost{};
+      job.needsWave() ? waveTermPilots(job, grid, transport, options, pilots, pilotTiles) : WavePilotCost{};
   double waveSeconds = wave.seconds;
   const double waveBytes = wave.bytes, waveSetupSeconds = wave.setupSeconds, waveRate = wave.rate;
   const std::vector<double>& waveRelErrors = wave.relErrors;

@@ -79,12 +79,11 @@ TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, std::map<i
   }
 }
 
-TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb, double* pathSeconds,
-                                 double* waveSeconds) const {
+TileResult TileComputer::compute(const TileRequest& request, const std::function<void(uint64_t)>& cb,
+                                 double* pathSeconds, double* waveSeconds) const {
   const Job& job = job_;
   const DirectionGrid& grid = grid_;
-  const TileRequest request = tileRequestOf(job_, t);
-  const std::optional<Vec3>& exact = request.exactDirection;
+  const int t = request.tile;
   auto ts = Clock::now();
   TileResult r = firstRound(request, cb);
   if (job.targetRelError > 0 && r.samples > 0) {  // a facet-sum tile is deterministic
@@ -113,11 +112,11 @@ TileResult TileComputer::compute(int t, const std::function<void(uint64_t)>& cb,
       r.poolPaths(transport_.run(more, cb));
     }
   }
-  if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(t, cb, r);
+  if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(request, cb, r);
   *pathSeconds += since(ts);
   if (wave_ && (!job.guarded.has(Component::Incoherent) || verifySkippedDiffraction(t, r))) {
     auto tw = Clock::now();
-    addWaveTerm(t, exact, cb, r);
+    addWaveTerm(request, cb, r);
     if (job.guarded.has(Component::Incoherent)) recordDiffractionCheck(t, r);
     *waveSeconds += since(tw);
   }
@@ -140,21 +139,21 @@ TileResult TileComputer::firstRound(const TileRequest& q, const std::function<vo
   return r;
 }
 
-void TileComputer::addWaveTerm(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& cb,
+void TileComputer::addWaveTerm(const TileRequest& request, const std::function<void(uint64_t)>& cb,
                                TileResult& r) const {
   const Job& job = job_;
   const DirectionGrid& grid = grid_;
-  const auto& inc = job.incidence[size_t(t)];
-  std::vector<uint8_t> mask = pairs_ ? pairs_->exitMask(t) : std::vector<uint8_t>{};
+  const std::optional<Vec3>& exact = request.exactDirection;
+  std::vector<uint8_t> mask = pairs_ ? pairs_->exitMask(request.tile) : std::vector<uint8_t>{};
   // No BTDF needed (effects planner): the transmitted bins keep geometric optics.
-  const bool incidentAbove = exact ? exact->z >= 0 : grid.isUpper(inc.bin);
+  const bool incidentAbove = exact ? exact->z >= 0 : grid.isUpper(request.incidenceBin);
   auto transmitted = [&](int b) { return grid.isUpper(b) != incidentAbove; };
   if (!job.waveTransmission) {
     mask.resize(size_t(grid.binCount()), 1);
     for (int b = 0; b < grid.binCount(); ++b)
       if (transmitted(b)) mask[size_t(b)] = 0;
   }
-  WaveTileResult w = wave_->run(t, inc.bin, exact, cb, mask);
+  WaveTileResult w = wave_->run(request, cb, mask);
   addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
   if (!job.waveTransmission && r.has(Component::Incoherent))
     for (int l = 0; l < r.nLambda; ++l)
@@ -173,7 +172,11 @@ void TileComputer::addWaveTerm(int t, const std::optional<Vec3>& exact, const st
 // tile is traced in full after all, otherwise its `multiple` is stored as zero (within the
 // tolerance by the bound). Either way the slice records the bound and whether it was re-enabled.
 // An incidence below the geometry's single-bounce limit (effects_planner.h) has none: its check is 0.
-void TileComputer::verifySkippedMultiple(int t, const std::function<void(uint64_t)>& cb, TileResult& r) const {
+void TileComputer::verifySkippedMultiple(const TileRequest& request, const std::function<void(uint64_t)>& cb,
+                                         TileResult& r) const {
+  const int t = request.tile;
+  // The check's and the full tile's paths are their transports' own counts from path 0.
+  const TileRequest whole{request.tile, request.incidenceIndex, request.incidenceBin, request.exactDirection};
   const Job& job = job_;
   const DirectionGrid& grid = grid_;
   const GeometricTransport* check = checkTransport_.get();
@@ -186,12 +189,12 @@ void TileComputer::verifySkippedMultiple(int t, const std::function<void(uint64_
     r.multipleCheck = 0;
     zeroComponent(r, Component::Multiple);
   } else {
-    const TileResult checked = check->run(tileRequestOf(job_, t), cb);
+    const TileResult checked = check->run(whole, cb);
     r.multipleCheck = multipleBound(checked, grid);
     r.rays += checked.rays;  // the check is the tile's work too
     if (r.multipleCheck > job.scene.tolerance) {
       const uint64_t spent = r.rays;
-      r = full->run(tileRequestOf(job_, t), cb);
+      r = full->run(whole, cb);
       r.rays += spent;
       r.multipleCheck = multipleBound(r, grid);
     } else {

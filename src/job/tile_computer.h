@@ -27,11 +27,18 @@ class TileComputer {
   // same two rounds (the pilot's paths, then the rest), and a rank that holds the pilot's result
   // keeps it instead of tracing its paths again. The table does not depend on which rank did.
   TileComputer(const Job& job, const DirectionGrid& grid, std::map<int, TileResult> pilotTiles = {});
-  // Tile t (an index into job.incidence). progress(done) is called from the inner loops and may
-  // throw to abandon the tile; the seconds spent on paths and on the wave term are added to the
-  // counters given.
-  TileResult compute(int t, const std::function<void(uint64_t)>& progress, double* pathSeconds,
+  // One tile as the job computes it: the request's incidence (request.tile indexes job.incidence)
+  // through the geometric transport, progressive sampling, the checks of skipped effects and the
+  // wave term, every estimator asked with the same request. progress(done) is called from the inner
+  // loops and may throw to abandon the tile; the seconds spent on paths and on the wave term are
+  // added to the counters given.
+  TileResult compute(const TileRequest& request, const std::function<void(uint64_t)>& progress, double* pathSeconds,
                      double* waveSeconds) const;
+  // Tile t as the job samples it (tileRequestOf).
+  TileResult compute(int t, const std::function<void(uint64_t)>& progress, double* pathSeconds,
+                     double* waveSeconds) const {
+    return compute(tileRequestOf(job_, t), progress, pathSeconds, waveSeconds);
+  }
 
   const GeometricTransport& transport() const { return transport_; }
   const WaveEstimator* wave() const { return wave_.get(); }
@@ -44,9 +51,9 @@ class TileComputer {
   // The tile's first round of paths (or its facet sum): as one run, or, for a tile an effects pilot
   // traced, the pilot's paths (kept, or traced again) and then the rest.
   TileResult firstRound(const TileRequest& request, const std::function<void(uint64_t)>& progress) const;
-  void verifySkippedMultiple(int t, const std::function<void(uint64_t)>& progress, TileResult& r) const;
-  void addWaveTerm(int t, const std::optional<Vec3>& exact, const std::function<void(uint64_t)>& progress,
-                   TileResult& r) const;
+  void verifySkippedMultiple(const TileRequest& request, const std::function<void(uint64_t)>& progress,
+                             TileResult& r) const;
+  void addWaveTerm(const TileRequest& request, const std::function<void(uint64_t)>& progress, TileResult& r) const;
   // A diffraction the effects planner skipped, verified on tile t: by the pilot that ran this tile
   // as the job does (its upper estimate; the slice's `incoherent` is stored as 0), else by the
   // tile's own wave term (computed and kept; re-enabled when its upper estimate beyond noise at the

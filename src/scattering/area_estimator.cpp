@@ -165,9 +165,10 @@ static void binIntegral(const ExitDirectionSampler& dirs, int M, int nL, int nB,
   }
 }
 
-WaveTileResult AreaWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                                      const std::function<void(uint64_t)>& progress,
+WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::function<void(uint64_t)>& progress,
                                       const std::vector<uint8_t>& exitMask) const {
+  const int tile = request.tile, incidenceBin = request.incidenceBin;
+  const std::optional<Vec3>& exactDirection = request.exactDirection;
   auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = ctx_.grid;
   const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();

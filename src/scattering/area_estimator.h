@@ -19,8 +19,8 @@ class AreaWaveEstimator : public WaveEstimator {
  public:
   explicit AreaWaveEstimator(const WaveContext& ctx);
   std::string name() const override { return "area"; }
-  WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                     const std::function<void(uint64_t)>& progress = {},
+  using WaveEstimator::run;
+  WaveTileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress = {},
                      const std::vector<uint8_t>& exitMask = {}) const override;
 
  private:

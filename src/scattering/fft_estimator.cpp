@@ -89,8 +89,8 @@ class FftSpeckleEstimator : public WaveEstimator {
   }
   bool deterministic() const override { return true; }
   double memoryBytes() const override;
-  WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                     const std::function<void(uint64_t)>& progress = {},
+  using WaveEstimator::run;
+  WaveTileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress = {},
                      const std::vector<uint8_t>& exitMask = {}) const override;
 
  private:
@@ -339,9 +339,10 @@ void FftSpeckleEstimator::binIntegral(const HeightfieldSpectrum::FacetFields& fi
   throwIfStopped();
 }
 
-WaveTileResult FftSpeckleEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                                        const std::function<void(uint64_t)>& progress,
+WaveTileResult FftSpeckleEstimator::run(const TileRequest& request, const std::function<void(uint64_t)>& progress,
                                         const std::vector<uint8_t>& exitMask) const {
+  const int tile = request.tile, incidenceBin = request.incidenceBin;
+  const std::optional<Vec3>& exactDirection = request.exactDirection;
   const auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = ctx_.grid;
   const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();

@@ -11,22 +11,10 @@
 #include <optional>
 
 #include "core/vecmath.h"
+#include "scattering/tile_request.h"
 #include "scattering/tile_result.h"
 
 namespace mbsdf {
-
-// One tile of a table as an estimator sees it.
-struct TileRequest {
-  int tile = 0;            // the samplers' key (results depend on it, never on the rank or thread)
-  int incidenceIndex = 0;  // recorded in the result
-  int incidenceBin = 0;
-  // A collimated beam from this direction (pointing away from the surface), or none: averaged over
-  // the incidence bin with density ∝ cos θ.
-  std::optional<Vec3> exactDirection;
-  // Paths firstPath … firstPath + paths − 1 (paths 0: the estimator's own count), so that a tile
-  // traced in rounds holds the paths of one run; a deterministic estimator ignores both.
-  uint64_t firstPath = 0, paths = 0;
-};
 
 class GeometricEstimator {
  public:

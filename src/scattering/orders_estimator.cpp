@@ -700,9 +700,10 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
   }
 }
 
-WaveTileResult OrdersWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                                        const std::function<void(uint64_t)>& progress,
+WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::function<void(uint64_t)>& progress,
                                         const std::vector<uint8_t>& exitMask) const {
+  const int tile = request.tile, incidenceBin = request.incidenceBin;
+  const std::optional<Vec3>& exactDirection = request.exactDirection;
   // The cost is per incidence sample and order, not per exit bin: every bin is computed and
   // `computed` stays empty (the mask is a permission to skip, not an obligation), except that the
   // transmitted orders are left out when the mask excludes the whole other hemisphere.

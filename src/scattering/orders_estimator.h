@@ -58,8 +58,8 @@ class OrdersWaveEstimator : public WaveEstimator {
   bool deterministic() const override { return amplitudes_ != OrderAmplitudes::MonteCarlo; }
   double memoryBytes() const override;
   double setupSeconds() const override;
-  WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                     const std::function<void(uint64_t)>& progress = {},
+  using WaveEstimator::run;
+  WaveTileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress = {},
                      const std::vector<uint8_t>& exitMask = {}) const override;
 
  private:

@@ -18,9 +18,10 @@ namespace {
 constexpr uint32_t kPaperStream = 0x9A9E5;
 }
 
-WaveTileResult PaperWaveEstimator::run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                                       const std::function<void(uint64_t)>& progress,
+WaveTileResult PaperWaveEstimator::run(const TileRequest& request, const std::function<void(uint64_t)>& progress,
                                        const std::vector<uint8_t>& exitMask) const {
+  const int tile = request.tile, incidenceBin = request.incidenceBin;
+  const std::optional<Vec3>& exactDirection = request.exactDirection;
   auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = ctx_.grid;
   const PeriodicScene& scene = ctx_.scene;

@@ -14,8 +14,8 @@ class PaperWaveEstimator : public WaveEstimator {
  public:
   explicit PaperWaveEstimator(const WaveContext& ctx) : ctx_(ctx) {}
   std::string name() const override { return "paper"; }
-  WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                     const std::function<void(uint64_t)>& progress = {},
+  using WaveEstimator::run;
+  WaveTileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress = {},
                      const std::vector<uint8_t>& exitMask = {}) const override;
 
  private:

@@ -19,6 +19,7 @@
 #include "geometry/microgeometry.h"
 #include "optics/material.h"
 #include "scattering/coherence_window.h"
+#include "scattering/tile_request.h"
 #include "scattering/wave_estimator_kind.h"
 
 namespace mbsdf {
@@ -84,9 +85,17 @@ class WaveEstimator {
   // drawn cosine-weighted inside the incidence bin. exitMask (one entry per sphere bin, empty = all):
   // only the bins with a non-zero entry are estimated (estimators whose cost is not per exit bin
   // may compute more and say so in `computed`). A bin's estimate does not depend on the mask.
-  virtual WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
-                             const std::function<void(uint64_t)>& progress = {},
+  // The request's tile, incidenceBin and exactDirection are read (firstPath and paths are the
+  // geometric estimators'); the tile keys the samplers.
+  virtual WaveTileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress = {},
                              const std::vector<uint8_t>& exitMask = {}) const = 0;
+
+  // The same request in positional form.
+  WaveTileResult run(int tile, int incidenceBin, std::optional<Vec3> exactDirection,
+                     const std::function<void(uint64_t)>& progress = {},
+                     const std::vector<uint8_t>& exitMask = {}) const {
+    return run(TileRequest{tile, tile, incidenceBin, exactDirection, 0, 0}, progress, exitMask);
+  }
 };
 
 // The order n of the deterministic estimators' n x n Gauss–Legendre rule over an incidence bin
