@@ -19,6 +19,7 @@
 #include "job/effects_planner.h"
 #include "job/scalar_validity.h"
 #include "job/symmetry.h"
+#include "job/tile_computer.h"
 #include "job/transport.h"
 #include "scattering/path_tracer.h"
 #include "scattering/reciprocity.h"
@@ -265,15 +266,17 @@ struct PathPilotCost {
   std::vector<TileResult> tiles;
   std::vector<double> relErrors;
 };
-PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid& grid,
-                         const GeometricTransport& transport, const std::vector<int>& pilots, uint64_t pilotPaths) {
+PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid& grid, const TileComputer& computer,
+                         const std::vector<int>& pilots, uint64_t pilotPaths) {
   PathPilotCost out;
   std::vector<Component> traced;
   for (Component c : {Component::Coherent, Component::Multiple})
     if (planned.components.has(c)) traced.push_back(c);
   for (int t : pilots) {
     spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
-    out.tiles.push_back(transport.run(tileRequestOf(job, t), heartbeat("plan: path pilot")));
+    double pathSeconds = 0, waveSeconds = 0;
+    out.tiles.push_back(
+        computer.compute(tileRequestOf(job, t), heartbeat("plan: path pilot"), &pathSeconds, &waveSeconds));
     const TileResult& r = out.tiles.back();
     const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
     out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
@@ -389,12 +392,18 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   const auto& inc = job.incidence[size_t(pilot)];
   auto ts = std::chrono::steady_clock::now();
   const uint64_t pilotPaths = std::min<uint64_t>(job.pathsPerSlice, options.pilotPaths);
-  // As the run: a guarded skip (Job::guarded) is left out of what the tile computes first.
+  // As the run: a guarded skip (Job::guarded) is left out of what the tile computes first, and
+  // checked on the tile (its cost is the tile's). The run's tile at the pilot's paths, in one
+  // round, without its wave term (timed below at budgets of its own).
   Job planned = job;
   for (Component c : job.guarded.list()) planned.components.remove(c);
-  GeometricTransport transport(planned, grid, pilotPaths);
+  Job pilotJob = job;
+  pilotJob.pathsPerSlice = pilotPaths;
+  pilotJob.targetRelError = 0;
+  const TileComputer computer(pilotJob, grid, {}, false);
+  const GeometricTransport& transport = computer.transport();
   const double sceneSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
-  PathPilotCost paths = pathPilots(job, planned, grid, transport, pilots, pilotPaths);
+  PathPilotCost paths = pathPilots(job, planned, grid, computer, pilots, pilotPaths);
   const double pathSeconds = paths.seconds, pilotSeconds = paths.pilotSeconds;
   const int facetTiles = paths.facetTiles;
   std::vector<TileResult>& pilotTiles = paths.tiles;

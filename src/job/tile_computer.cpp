@@ -47,7 +47,8 @@ Job withoutGuarded(const Job& job) {
 
 }  // namespace
 
-TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, std::map<int, TileResult> pilotTiles)
+TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, std::map<int, TileResult> pilotTiles,
+                           bool waveTerm)
     : job_(job), grid_(grid), planned_(withoutGuarded(job)), transport_(planned_, grid, job.pathsPerSlice) {
   if (!job.effectsPlan.empty()) {
     const EffectsPlan plan = EffectsPlan::fromJson(nlohmann::json::parse(job.effectsPlan));
@@ -67,7 +68,7 @@ TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, std::map<i
         std::make_unique<GeometricTransport>(job, grid, std::min<uint64_t>(job.pathsPerSlice, kMultipleCheckPaths));
     fullTransport_ = std::make_unique<GeometricTransport>(job, grid, job.pathsPerSlice);
   }
-  if (job.needsWave()) wave_ = makeJobWaveEstimator(job, grid, *transport_.scene(), waveSettingsOf(job));
+  if (waveTerm && job.needsWave()) wave_ = makeJobWaveEstimator(job, grid, *transport_.scene(), waveSettingsOf(job));
   if (wave_ && job.halvesWaveByReciprocity())
     pairs_.emplace(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere());
   if (job.guarded.has(Component::Incoherent)) {

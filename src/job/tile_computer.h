@@ -26,7 +26,10 @@ class TileComputer {
   // the first paths of their tiles; where the plan says so, every rank traces those tiles in the
   // same two rounds (the pilot's paths, then the rest), and a rank that holds the pilot's result
   // keeps it instead of tracing its paths again. The table does not depend on which rank did.
-  TileComputer(const Job& job, const DirectionGrid& grid, std::map<int, TileResult> pilotTiles = {});
+  // waveTerm false: the tile's geometric part only (`plan` times the wave term apart, at budgets of
+  // its own).
+  TileComputer(const Job& job, const DirectionGrid& grid, std::map<int, TileResult> pilotTiles = {},
+               bool waveTerm = true);
   // One tile as the job computes it: the request's incidence (request.tile indexes job.incidence)
   // through the geometric transport, progressive sampling, the checks of skipped effects and the
   // wave term, every estimator asked with the same request. progress(done) is called from the inner
