@@ -700,6 +700,25 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
   }
 }
 
+// One incidence sample's |Ĥ_G|² per order, its lobe shared among the bins: power and variance per
+// (λ, bin), visible (pv, vv) and masked (pm, vm).
+static void shareOrderLobes(const std::vector<Order>& orders, const std::vector<OrderPower>& op, bool masked, int nL,
+                            int nB, std::vector<double>& pv, std::vector<double>& vv, std::vector<double>& pm,
+                            std::vector<double>& vm) {
+  pv.assign(size_t(nL) * nB, 0.0), vv.assign(size_t(nL) * nB, 0.0);
+  if (masked) pm.assign(size_t(nL) * nB, 0.0), vm.assign(size_t(nL) * nB, 0.0);
+  for (size_t o = 0; o < orders.size(); ++o)
+    for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
+      if (op[o].P[msk] == 0) continue;
+      auto& pt = msk ? pm : pv;
+      auto& vt = msk ? vm : vv;
+      for (auto [bin, frac] : op[o].share) {
+        pt[size_t(orders[o].lambda) * nB + bin] += op[o].P[msk] * frac;
+        vt[size_t(orders[o].lambda) * nB + bin] += op[o].var[msk] * frac * frac;
+      }
+    }
+}
+
 WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::function<void(uint64_t)>& progress,
                                         const std::vector<uint8_t>& exitMask) const {
   const int tile = request.tile, incidenceBin = request.incidenceBin;
@@ -793,19 +812,7 @@ WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::f
         np.present[size_t(k)] = 1;
       }
     } else {
-      // |Ĥ_G|² per order, its lobe shared among the bins.
-      pv[k].assign(size_t(nL) * nB, 0.0), vv[k].assign(size_t(nL) * nB, 0.0);
-      if (masked) pm[k].assign(size_t(nL) * nB, 0.0), vm[k].assign(size_t(nL) * nB, 0.0);
-      for (size_t o = 0; o < nO; ++o)
-        for (int msk = 0; msk < (masked ? 2 : 1); ++msk) {
-          if (op[o].P[msk] == 0) continue;
-          auto& pt = msk ? pm[k] : pv[k];
-          auto& vt = msk ? vm[k] : vv[k];
-          for (auto [bin, frac] : op[o].share) {
-            pt[size_t(orders[o].lambda) * nB + bin] += op[o].P[msk] * frac;
-            vt[size_t(orders[o].lambda) * nB + bin] += op[o].var[msk] * frac * frac;
-          }
-        }
+      shareOrderLobes(orders, op, masked, nL, nB, pv[k], vv[k], pm[k], vm[k]);
     }
     if (progress) progress(uint64_t(k + 1) * uint64_t(N));
   }
