@@ -1614,6 +1614,13 @@ def test_slurm_job():
             run(["run", f"{name}.toml", "-o", f"out/{name}-direct.h5"])
             assert datasets(os.path.join(TMP, f"out/sweep/{name}.h5")) == datasets(os.path.join(TMP, f"out/{name}-direct.h5"))
         print("job array (sweep.sbatch) over two job files: both COMPLETED with the expected datasets")
+        # srun without PMIx: each task would be an MPI job of its own and compute the whole table;
+        # Open MPI refuses the direct launch (the isolated singleton start does not hide it).
+        p = subprocess.run(["srun", "--mpi=none", "-n", "2", EXE, "run", "job.toml", "-o", "out/no-pmix.h5"],
+                           capture_output=True, text=True, timeout=120, env=slurm.env, cwd=TMP)
+        assert p.returncode != 0 and 'direct launched using "srun"' in p.stdout + p.stderr, p.stdout + p.stderr
+        assert not os.path.exists(os.path.join(TMP, "out/no-pmix.h5"))
+        print(f"srun --mpi=none -n 2: refused by Open MPI (srun exit {p.returncode}), no output written")
     finally:
         slurm.stop()
 
