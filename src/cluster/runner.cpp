@@ -480,6 +480,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     refused.error = shortfall.empty() ? "another rank's node has too little memory for the job" : shortfall;
     return refused;
   }
+  spdlog::debug("start-up: the tile computer (scenes, facet tables, wave estimator) {:.3f} s", since(t0));
   if (mpi.rank() == 0) logJobHeader(job, grid, tiles, mpi.size());
 
   TimedTiles own{job, tiles};
@@ -513,6 +514,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     refuseWorkers(mpi, summary.exit);
     return summary;
   }
+  spdlog::debug("start-up: the output file ready {:.3f} s after the run began", since(t0));
   TileServer server(job, grid, mpi, options, outPath, *writer, own, summary, t0);
   server.run();
   server.complete(tiles.pairs());

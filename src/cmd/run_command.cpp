@@ -74,7 +74,11 @@ int runCommand(int argc, char** argv, RunArgs a) {
   // The whole run as this process sees it (MPI start-up, the job's geometry, the effects pilots,
   // the tiles, the file): what `plan`'s wall-time estimate predicts (scripts/bench-plan).
   const auto started = std::chrono::steady_clock::now();
+  // Where a small job's start-up goes (logged at debug level once the pilots are done): seconds
+  // since the program started at each step.
+  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); };
   MpiSession mpi(&argc, &argv);
+  const double mpiReady = elapsed();
   installStopHandlers();
   setupLogging(mpi.rank(), "", "", a.verbose);
   auto agree = [&](const std::string& outcome) { return agreeOnRankZero(mpi, outcome); };
@@ -92,6 +96,7 @@ int runCommand(int argc, char** argv, RunArgs a) {
     if (mpi.rank() == 0) spdlog::error("{}", error.empty() ? "another rank could not read the job" : error);
     return exitCode(ExitCode::BadInput);
   }
+  const double jobReady = elapsed();
   const std::string out = a.outPath.empty() ? job->outputPath : a.outPath;
   if (a.logDir.empty()) a.logDir = out + ".logs";
   // The output location, before any compute: a folder, an unwritable place or a busy output fail
@@ -134,8 +139,14 @@ int runCommand(int argc, char** argv, RunArgs a) {
   }
   try {
     RunOptions opt;
+    const double outputChecked = elapsed();
     if (job->autoComponents)
       if (auto code = planComponents(mpi, *job, a.threads, &opt.pilotTiles)) return *code;
+    const double planned = elapsed();
+    spdlog::debug(
+        "start-up: MPI {:.3f} s, job file and geometry {:.3f} s, output checks and log files {:.3f} s, effects "
+        "pilots {:.3f} s ({:.3f} s since the program started)",
+        mpiReady, jobReady - mpiReady, outputChecked - jobReady, planned - outputChecked, planned);
     opt.outputPath = out;
     opt.threads = a.threads;
     opt.resume = a.resume;
