@@ -473,7 +473,7 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   const std::string outPath = options.outputPath.empty() ? job.outputPath : options.outputPath;
   DirectionGrid grid(job.gridLayout);
   // What a tile is (job/tile_computer.h); this file only hands tiles out and writes them.
-  const TileComputer tiles(job, grid, options.pilotTiles);
+  const TileComputer tiles(job, grid, options.pilots);
   if (std::string shortfall = memoryShortfall(job, tiles.wave()); mpi.anyRank(!shortfall.empty())) {
     RunSummary refused;
     refused.exit = ExitCode::BadInput;

@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "cluster/mpi_session.h"
 #include "job/job.h"
+#include "job/effects_planner.h"
 #include "scattering/tile_result.h"
 
 namespace mbsdf {
@@ -26,9 +27,9 @@ struct RunOptions {
   int threads = 0;         // 0: all cores
   bool resume = false;
   double maxHours = 0;  // 0: no limit
-  // The effects planner's geometric pilots held by this rank (planEffects): tiles it need not
-  // trace again.
-  std::map<int, TileResult> pilotTiles;
+  // What the effects planner's pilots computed on this rank (planEffects): paths and wave terms of
+  // tiles it need not compute again.
+  PilotResults pilots;
 };
 
 struct RunSummary {

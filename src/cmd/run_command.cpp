@@ -49,15 +49,15 @@ std::string failure(ExitCode c, const std::string& msg) {
 }
 
 // components = "auto": rank 0 runs the effects planner's pilots, every rank applies the same plan;
-// rank 0 keeps the pilots' tiles in *pilotTiles. Returns the exit code when a stop arrived during
+// rank 0 keeps what the pilots computed in *kept. Returns the exit code when a stop arrived during
 // the pilots.
-std::optional<int> planComponents(MpiSession& mpi, Job& job, int threads, std::map<int, TileResult>* pilotTiles) {
+std::optional<int> planComponents(MpiSession& mpi, Job& job, int threads, PilotResults* kept) {
   std::string planText, stopped;
   if (mpi.rank() == 0) {
     std::optional<tbb::global_control> limit;
     if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
     try {
-      const EffectsPlan p = planEffects(job, {}, pilotTiles);
+      const EffectsPlan p = planEffects(job, {}, kept);
       for (std::istringstream lines(formatEffects(p)); std::getline(lines, planText);) spdlog::info("{}", planText);
       planText = p.toJson().dump();
     } catch (const StopRequested&) {
@@ -141,7 +141,7 @@ int runCommand(int argc, char** argv, RunArgs a) {
     RunOptions opt;
     const double outputChecked = elapsed();
     if (job->autoComponents)
-      if (auto code = planComponents(mpi, *job, a.threads, &opt.pilotTiles)) return *code;
+      if (auto code = planComponents(mpi, *job, a.threads, &opt.pilots)) return *code;
     const double planned = elapsed();
     spdlog::debug(
         "start-up: MPI {:.3f} s, job file and geometry {:.3f} s, output checks and log files {:.3f} s, effects "

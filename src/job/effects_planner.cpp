@@ -653,6 +653,8 @@ struct DiffractionPilots {
   size_t waveAffordable = 0;
   // (incidence, upper estimate over λ) of each pilot run as the job runs that tile.
   std::vector<std::pair<int, double>> jobLike;
+  // The wave terms of the pilots along the job's own collimated directions (PilotResults).
+  std::map<int, WaveTileResult> waveTerms;
 };
 
 // Runs the diffraction pilots the budget affords (adding their work to *waveSpent) and measures the
@@ -828,6 +830,7 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, DiffractionPilot
     // own direction) verifies a skip on that tile; a beam through the centre of a bin the job
     // averages over does not (TileComputer checks that tile itself).
     if (binAveraged || job.exactIncidence) out.jobLike.emplace_back(pilots[k], pilotUpper);
+    if (!binAveraged && job.exactIncidence) out.waveTerms.emplace(pilots[k], w);
     // One pilot whose difference exceeds the tolerance beyond noise decides: the others would
     // only confirm it (they cost as much as a tile's wave term each).
     wavePilotsRun = int(k) + 1;
@@ -1127,7 +1130,7 @@ void recordPilots(const PilotContext& ctx, double beamPathTiles, double waveSpen
 
 }  // namespace
 
-EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, std::map<int, TileResult>* pilotTiles) {
+EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, PilotResults* kept) {
   const auto t0 = Clock::now();
   const DirectionGrid grid(job.gridLayout);
   const double tol = job.scene.tolerance;
@@ -1184,11 +1187,15 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, std:
   double waveSpent = 0;      // wave pilots' work, in the job's wave terms
   double beamPathTiles = 0;  // geometric pilots at bin centres for the diffraction pilots, in tiles' paths
   {
-    nlohmann::json d =
-        job.statistical
-            ? decision("incoherent", false,
-                       "a statistical surface has no explicit geometry to diffract (microflake model)")
-            : diffractionVerdict(ctx, runDiffractionPilots(ctx, *diffractionSetup, &waveSpent, &beamPathTiles));
+    nlohmann::json d;
+    if (job.statistical) {
+      d = decision("incoherent", false,
+                   "a statistical surface has no explicit geometry to diffract (microflake model)");
+    } else {
+      DiffractionPilots m = runDiffractionPilots(ctx, *diffractionSetup, &waveSpent, &beamPathTiles);
+      d = diffractionVerdict(ctx, m);
+      if (kept) kept->waveTerms = std::move(m.waveTerms), kept->waveSettings = ctx.ws;
+    }
     keepIfRequested(d, forced, Component::Incoherent);
     keepIfVerifyingCostsMore(job, computed, d);
     push(d);
@@ -1227,8 +1234,8 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, std:
 
   plan.components = chosen;
   recordPilots(ctx, beamPathTiles, waveSpent, plan);
-  if (pilotTiles && plan.pilotTilesKept)
-    for (size_t k = 0; k < pilots.size(); ++k) (*pilotTiles)[pilots[k]] = std::move(ctx.geo[k]);
+  if (kept && plan.pilotTilesKept)
+    for (size_t k = 0; k < pilots.size(); ++k) kept->tiles[pilots[k]] = std::move(ctx.geo[k]);
   plan.pilotSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return plan;
 }

@@ -40,6 +40,7 @@
 #include "job/effects_plan.h"
 #include "job/job.h"
 #include "scattering/tile_result.h"
+#include "scattering/wave_estimator.h"
 
 namespace mbsdf {
 
@@ -85,11 +86,18 @@ std::optional<double> steepestFacet_deg(const Job& job);
 // direction), so that its `multiple` is zero by the geometry.
 bool scattersOnce(const Job& job, const DirectionGrid& grid, int t, const std::optional<double>& limit_deg);
 
-// The decisions (effects_plan.h). The geometric pilots trace their tiles as the job does, so their
-// results are the first plan.pilotPaths paths of those tiles: given pilotTiles, they are handed
-// over (incidence → result) for the run to keep (TileComputer).
-EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options = {},
-                        std::map<int, TileResult>* pilotTiles = nullptr);
+// What the pilots computed that the run can keep (TileComputer): the geometric pilots' tiles, which
+// are the first plan.pilotPaths paths of those tiles, and the wave terms of the diffraction pilots
+// that ran along a job's own collimated direction, with the settings they ran with (the run keeps
+// one only where those are the job's own: the same estimator, samples and seed).
+struct PilotResults {
+  std::map<int, TileResult> tiles;          // incidence → the geometric pilot's result
+  std::map<int, WaveTileResult> waveTerms;  // incidence → the diffraction pilot's wave term
+  WaveSettings waveSettings;                // what the wave terms were computed with
+};
+
+// The decisions (effects_plan.h); given `kept`, the pilots' results the run may keep.
+EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options = {}, PilotResults* kept = nullptr);
 // Sets job.components, its guarded components, wavelengths, wave estimator and job.effectsPlan
 // (the plan's JSON) from a plan (the same on every rank).
 void applyEffectsPlan(Job& job, const EffectsPlan& plan);

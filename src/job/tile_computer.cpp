@@ -45,10 +45,20 @@ Job withoutGuarded(const Job& job) {
   return planned;
 }
 
+// Whether a wave estimator with settings `a` computes, along a collimated direction, exactly what
+// one with `b` does: the same estimator, seed, masked sums and visibility table, and for the Monte
+// Carlo ones the same samples (the incidence rule plays no part for one direction).
+bool sameWaveTerm(const WaveSettings& a, const WaveSettings& b) {
+  const bool monteCarlo = a.estimator == WaveEstimatorKind::Area || a.estimator == WaveEstimatorKind::Orders ||
+                          a.estimator == WaveEstimatorKind::Paper;
+  return a.estimator == b.estimator && a.seed == b.seed && a.computeMasked == b.computeMasked &&
+         a.visibilityTable == b.visibilityTable &&
+         (!monteCarlo || (a.samplesPerBin == b.samplesPerBin && a.pointsPerDirection == b.pointsPerDirection));
+}
+
 }  // namespace
 
-TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, std::map<int, TileResult> pilotTiles,
-                           bool waveTerm)
+TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, PilotResults pilots, bool waveTerm)
     : job_(job), grid_(grid), planned_(withoutGuarded(job)), transport_(planned_, grid, job.pathsPerSlice) {
   if (!job.effectsPlan.empty()) {
     const EffectsPlan plan = EffectsPlan::fromJson(nlohmann::json::parse(job.effectsPlan));
@@ -56,7 +66,7 @@ TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, std::map<i
       pilotIncidences_.insert(plan.pilots.begin(), plan.pilots.end());
       pilotPaths_ = plan.pilotPaths;
       // A result that is not this job's first round (another wavelength set or path count) is dropped.
-      for (auto& [t, r] : pilotTiles)
+      for (auto& [t, r] : pilots.tiles)
         if (pilotIncidences_.count(t) && r.samples == pilotPaths_ && r.nLambda == int(job.lambda_nm.size()) &&
             r.nBins == grid.binCount())
           keptPilots_.emplace(t, std::move(r));
@@ -71,6 +81,11 @@ TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, std::map<i
   if (waveTerm && job.needsWave()) wave_ = makeJobWaveEstimator(job, grid, *transport_.scene(), waveSettingsOf(job));
   if (wave_ && job.halvesWaveByReciprocity())
     pairs_.emplace(job.incidenceBins(), grid.binCount(), grid.binsPerHemisphere());
+  if (wave_ && !pairs_ && job.waveTransmission && job.exactIncidence &&
+      sameWaveTerm(pilots.waveSettings, waveSettingsOf(job)))
+    for (auto& [t, w] : pilots.waveTerms)
+      if (w.nLambda == int(job.lambda_nm.size()) && w.nBins == grid.binCount() && w.computed.empty())
+        keptWave_.emplace(t, std::move(w));
   if (job.guarded.has(Component::Incoherent)) {
     cellOf_ = resolutionCells(grid, job.scene.angularResolution_deg);
     const EffectsPlan plan = EffectsPlan::fromJson(nlohmann::json::parse(job.effectsPlan));
@@ -154,7 +169,11 @@ void TileComputer::addWaveTerm(const TileRequest& request, const std::function<v
     for (int b = 0; b < grid.binCount(); ++b)
       if (transmitted(b)) mask[size_t(b)] = 0;
   }
-  WaveTileResult w = wave_->run(request, cb, mask);
+  const auto kept = keptWave_.find(request.tile);
+  const bool own =
+      kept != keptWave_.end() && request.exactDirection == tileRequestOf(job_, request.tile).exactDirection;
+  if (own && cb) cb(0);
+  WaveTileResult w = own ? kept->second : wave_->run(request, cb, mask);
   addWaveComponents(r, w, job.components.has(Component::Incoherent), job.components.has(Component::Lost));
   if (!job.waveTransmission && r.has(Component::Incoherent))
     for (int l = 0; l < r.nLambda; ++l)

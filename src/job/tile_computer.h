@@ -12,6 +12,7 @@
 #include <set>
 
 #include "core/direction_grid.h"
+#include "job/effects_planner.h"
 #include "job/job.h"
 #include "job/transport.h"
 #include "scattering/reciprocity.h"
@@ -22,14 +23,15 @@ namespace mbsdf {
 
 class TileComputer {
  public:
-  // pilotTiles: the effects planner's geometric pilots (effects_planner.h planEffects), which are
-  // the first paths of their tiles; where the plan says so, every rank traces those tiles in the
-  // same two rounds (the pilot's paths, then the rest), and a rank that holds the pilot's result
-  // keeps it instead of tracing its paths again. The table does not depend on which rank did.
+  // pilots: what the effects planner's pilots computed (effects_planner.h planEffects). The
+  // geometric pilots are the first paths of their tiles; where the plan says so, every rank traces
+  // those tiles in the same two rounds (the pilot's paths, then the rest), and a rank that holds the
+  // pilot's result keeps it instead of tracing its paths again. A diffraction pilot's wave term is
+  // kept where it is exactly the tile's (the job's collimated direction, estimator, samples and
+  // seed, no exit mask). The table does not depend on which rank did.
   // waveTerm false: the tile's geometric part only (`plan` times the wave term apart, at budgets of
   // its own).
-  TileComputer(const Job& job, const DirectionGrid& grid, std::map<int, TileResult> pilotTiles = {},
-               bool waveTerm = true);
+  TileComputer(const Job& job, const DirectionGrid& grid, PilotResults pilots = {}, bool waveTerm = true);
   // One tile as the job computes it: the request's incidence (request.tile indexes job.incidence)
   // through the geometric transport, progressive sampling, the checks of skipped effects and the
   // wave term, every estimator asked with the same request. progress(done) is called from the inner
@@ -48,7 +50,7 @@ class TileComputer {
   // The reciprocal bin pairs when the job halves its wave term by reciprocity, else none.
   const std::optional<ReciprocalPairs>& pairs() const { return pairs_; }
   // Whether this computer holds tile t's pilot paths (so computing t costs less here).
-  bool holdsPilot(int t) const { return keptPilots_.count(t) > 0; }
+  bool holdsPilot(int t) const { return keptPilots_.count(t) > 0 || keptWave_.count(t) > 0; }
 
  private:
   // The tile's first round of paths (or its facet sum): as one run, or, for a tile an effects pilot
@@ -77,6 +79,7 @@ class TileComputer {
   std::set<int> pilotIncidences_;           // tiles whose first paths an effects pilot traced
   uint64_t pilotPaths_ = 0;                 // how many
   std::map<int, TileResult> keptPilots_;    // those pilots' results held by this rank
+  std::map<int, WaveTileResult> keptWave_;  // diffraction pilots' wave terms that are the tiles' own
 };
 
 }  // namespace mbsdf

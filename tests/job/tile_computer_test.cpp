@@ -1,6 +1,7 @@
 // A tile as the run computes it (tile_computer.h): the effects planner's geometric pilots are the
-// first paths of their tiles, and a tile is the same whether the rank computing it holds the
-// pilot's result or traces those paths again.
+// first paths of their tiles, a diffraction pilot along the job's own collimated direction is the
+// tile's wave term, and a tile is the same whether the rank computing it holds the pilot's result
+// or computes it again.
 #include <gtest/gtest.h>
 
 #include <map>
@@ -15,19 +16,21 @@ using namespace mbsdf;
 
 namespace {
 
-Job autoJob(const std::string& geometry, const std::string& material, const std::string& incidence) {
+Job autoJob(const std::string& geometry, const std::string& material, const std::string& incidence,
+            const std::string& sampling = "") {
   return loadJobFromString("[geometry]\n" + geometry + "\n[material]\n" + material +
                                "\n[spectrum]\nwavelengths_nm = [500.0, 600.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
                                "incidence = " +
                                incidence +
                                "\n[scene]\ncoherence_length_um = 50.0\ntolerance = 0.02\n[effects]\n"
-                               "components = [\"auto\"]\n[sampling]\npaths_per_slice = 50000\nseed = 5\n",
+                               "components = [\"auto\"]\n[sampling]\npaths_per_slice = 50000\nseed = 5\n" +
+                               sampling,
                            "t.toml", "");
 }
 
 // Every pilot tile computed by a computer that holds the pilots and by one that does not.
 void expectPilotTilesKept(Job job) {
-  std::map<int, TileResult> pilots;
+  PilotResults pilots;
   const EffectsPlan plan = planEffects(job, {}, &pilots);
   applyEffectsPlan(job, plan);
   ASSERT_TRUE(plan.pilotTilesKept) << formatEffects(plan);
@@ -66,11 +69,56 @@ TEST(TileComputer, KeptPilotTilesAreTheJobsOwn) {
 TEST(TileComputer, ForeignPilotResultIsNotKept) {
   Job job = autoJob("kind = \"ridged\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\napex_angle_deg = 125.0",
                     "name = \"mirror\"", "[[0.0, 0.0], [20.0, 0.0]]");
-  std::map<int, TileResult> pilots;
+  PilotResults pilots;
   const EffectsPlan plan = planEffects(job, {}, &pilots);
   applyEffectsPlan(job, plan);
-  for (auto& [t, r] : pilots) r.samples += 1;
+  for (auto& [t, r] : pilots.tiles) r.samples += 1;
   const DirectionGrid grid(job.gridLayout);
   const TileComputer computer(job, grid, pilots);
   for (int t : plan.pilots) EXPECT_FALSE(computer.holdsPilot(t));
+}
+
+// A diffraction pilot along the job's own collimated direction, with the job's estimator (`exact`
+// for this grating: 8 x 128 facets within the 1024 samples per bin), is the tile's wave term: the
+// rank that ran it keeps it, and the tile equals one whose wave term is computed again. With a
+// Monte Carlo estimator at fewer samples than the pilot's it is not the job's, and is not kept.
+TEST(TileComputer, KeptWavePilotIsTheTilesOwnWaveTerm) {
+  const std::string grating = "kind = \"sine-grating\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\namplitude_um = 0.1";
+  const std::string incidence = "[[10.0, 0.0], [35.0, 0.0], [60.0, 90.0]]\nincidence_sampling = \"exact\"";
+  Job job = autoJob(grating, "name = \"Al\"", incidence, "wave_samples_per_bin = 1024\n");
+  PilotResults pilots;
+  const EffectsPlan plan = planEffects(job, {}, &pilots);
+  applyEffectsPlan(job, plan);
+  ASSERT_TRUE(job.components.has(Component::Incoherent) && !job.guarded.has(Component::Incoherent))
+      << formatEffects(plan);
+  ASSERT_FALSE(pilots.waveTerms.empty()) << formatEffects(plan);
+  const DirectionGrid grid(job.gridLayout);
+  const TileComputer holding(job, grid, pilots), computing(job, grid);
+  double paths = 0, wave = 0;
+  for (const auto& [t, w] : pilots.waveTerms) {
+    EXPECT_TRUE(holding.holdsPilot(t));
+    const TileResult a = holding.compute(t, {}, &paths, &wave), b = computing.compute(t, {}, &paths, &wave);
+    EXPECT_EQ(a.value, b.value) << "tile " << t;
+    EXPECT_EQ(a.stdError, b.stdError) << "tile " << t;
+    EXPECT_EQ(a.rays, b.rays) << "the kept wave term's rays are the tile's work, counted once";
+  }
+
+  // The kept wave term is what the tile uses: one changed by hand shows in the tile.
+  PilotResults tampered = pilots;
+  const int t0 = tampered.waveTerms.begin()->first;
+  for (double& v : tampered.waveTerms.begin()->second.fws) v += 1;
+  const TileComputer fooled(job, grid, tampered);
+  EXPECT_NE(fooled.compute(t0, {}, &paths, &wave).value, computing.compute(t0, {}, &paths, &wave).value);
+
+  Job orders = autoJob(grating, "name = \"Al\"", incidence, "wave_samples_per_bin = 64\nwave_estimator = \"orders\"\n");
+  PilotResults other;
+  const EffectsPlan p2 = planEffects(orders, {}, &other);
+  applyEffectsPlan(orders, p2);
+  ASSERT_FALSE(other.waveTerms.empty()) << formatEffects(p2);
+  ASSERT_FALSE(orders.guarded.has(Component::Incoherent)) << formatEffects(p2);
+  for (auto& [t, w] : other.waveTerms)
+    for (double& v : w.fws) v += 1;  // would show in the tile if it were kept
+  const TileComputer notKept(orders, grid, other), own(orders, grid);
+  for (const auto& [t, w] : other.waveTerms)
+    EXPECT_EQ(notKept.compute(t, {}, &paths, &wave).value, own.compute(t, {}, &paths, &wave).value) << "tile " << t;
 }
