@@ -357,7 +357,6 @@ MeasuredEstimator measureEstimatorPilot(const Job& job, const ComponentSet& chos
   using enum WaveEstimatorKind;
   const int nL = int(job.lambda_nm.size()), nB = grid.binCount();
   const auto& inc = job.incidence[size_t(pilot)];
-
   Job cj = job;
   cj.waveEstimator = c;
   cj.components = chosen;
