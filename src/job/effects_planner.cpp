@@ -432,12 +432,12 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
     alternative = Fft;
   }
   if (!alternative) {
-    auto d = decision(
-        "estimator", true,
-        resolved + ": the job's own estimator" +
-            (resolvedKind == Exact || resolvedKind == Fft ? std::string(" is deterministic")
-                                                          : std::string(" has no deterministic alternative here")) +
-            skipped + "; no estimator pilot");
+    auto d =
+        decision("estimator", true,
+                 resolved + ": the job's own estimator" +
+                     (deterministicEstimator(resolvedKind) ? std::string(" is deterministic")
+                                                           : std::string(" has no deterministic alternative here")) +
+                     skipped + "; no estimator pilot");
     d["estimator"] = resolved;
     return d;
   }

@@ -49,11 +49,10 @@ Job withoutGuarded(const Job& job) {
 // one with `b` does: the same estimator, seed, masked sums and visibility table, and for the Monte
 // Carlo ones the same samples (the incidence rule plays no part for one direction).
 bool sameWaveTerm(const WaveSettings& a, const WaveSettings& b) {
-  const bool monteCarlo = a.estimator == WaveEstimatorKind::Area || a.estimator == WaveEstimatorKind::Orders ||
-                          a.estimator == WaveEstimatorKind::Paper;
   return a.estimator == b.estimator && a.seed == b.seed && a.computeMasked == b.computeMasked &&
          a.visibilityTable == b.visibilityTable &&
-         (!monteCarlo || (a.samplesPerBin == b.samplesPerBin && a.pointsPerDirection == b.pointsPerDirection));
+         (deterministicEstimator(a.estimator) ||
+          (a.samplesPerBin == b.samplesPerBin && a.pointsPerDirection == b.pointsPerDirection));
 }
 
 }  // namespace

@@ -13,6 +13,11 @@ inline constexpr WaveEstimatorKind kWaveEstimatorKinds[] = {WaveEstimatorKind::A
                                                             WaveEstimatorKind::Orders, WaveEstimatorKind::Exact,
                                                             WaveEstimatorKind::Fft};
 std::string waveEstimatorName(WaveEstimatorKind k);
+// Whether the estimator has no sampling noise (`exact`, `fft`): its cost and result do not depend on
+// wave_samples_per_bin.
+constexpr bool deterministicEstimator(WaveEstimatorKind k) {
+  return k == WaveEstimatorKind::Exact || k == WaveEstimatorKind::Fft;
+}
 // The estimator of that name, or none.
 std::optional<WaveEstimatorKind> parseWaveEstimator(std::string_view name);
 // The estimator of that name; std::invalid_argument for any other.
