@@ -16,8 +16,11 @@
 #include "core/log.h"
 #include "job/symmetry.h"
 #include "job/transport.h"
+#include "optics/fresnel.h"
 #include "scattering/coherence_window.h"
 #include "scattering/fft_estimator.h"
+#include "scattering/kirchhoff_ensemble.h"
+#include "scattering/wave_common.h"
 #include "scattering/single_scattering.h"
 #include "scattering/wave_estimator.h"
 
@@ -41,11 +44,8 @@ constexpr double kExactPilotMaxWork = 2e5;
 // The `area` pilot of the wave estimator choice estimates about 1/kAreaPilotStride of the exit bins.
 constexpr int kAreaPilotStride = 8;
 
-}  // namespace
-
-std::vector<int> pilotIncidences(const Job& job) {
-  // Candidates: the incidences whose tiles the job computes (a symmetric job's other slices are
-  // rotations of them, so a pilot there would repeat one).
+// The incidences whose tiles the job computes (a symmetric job's other slices are rotations of them).
+std::vector<int> computedIncidences(const Job& job) {
   std::vector<int> order;
   if (job.symmetryReduced()) {
     const AzimuthalSymmetry symmetry(job, DirectionGrid(job.gridLayout));
@@ -54,6 +54,14 @@ std::vector<int> pilotIncidences(const Job& job) {
   } else {
     for (int i = 0; i < int(job.incidence.size()); ++i) order.push_back(i);
   }
+  return order;
+}
+
+}  // namespace
+
+std::vector<int> pilotIncidences(const Job& job) {
+  // Candidates: the computed incidences (a pilot at a rotated slice would repeat one).
+  std::vector<int> order = computedIncidences(job);
   const int n = int(order.size());
   const std::vector<int> candidates = order;
   auto cosTheta = [&](int i) { return std::abs(std::cos(radians(job.incidence[size_t(i)].theta_deg))); };
@@ -890,6 +898,100 @@ KirchhoffEstimate kirchhoffEstimate(const Job& job) {
   return {sigmaH, slope, g, corr, blurRad, lobeRad, physical, corr >= 5 * job.meanLambda_um() && slope > 0};
 }
 
+// Diffraction from physics on a random rough surface, before any pilot (scattering/kirchhoff_ensemble.h):
+// the scalar Kirchhoff table of the surface's ensemble against geometric optics, on the job's bins
+// pooled to the renderer's resolution, averaged over each incidence bin (a 8 x 8 rule: the job's
+// smaller rule is its own quadrature error, not diffraction) or along the job's collimated
+// directions, at the computed incidences and the shortest and longest wavelengths. "On" where the
+// L1 distance exceeds the tolerance at any of them (keeping diffraction never makes a table wrong);
+// "off" where the upper bound, which counts every bit of the diffuse part as a difference (a
+// realisation's speckle included), stays below it at every computed incidence; otherwise the
+// pilots decide. It applies to the generated Gaussian surfaces and to a flat with ground noise
+// (Gaussian heights of Gaussian correlation), conductors lit from above, and patches of at least
+// kEnsembleMinAreas correlation areas (a realisation's slope histogram is then the ensemble's).
+constexpr int kEnsembleMaxIncidences = 64;
+constexpr int kEnsembleIncidenceNodes = 64;
+constexpr double kEnsembleMinAreas = 100;
+
+}  // namespace
+
+std::optional<KirchhoffEnsemble> jobEnsemble(const Job& job) {
+  if (job.statistical || (job.geometryKind != "gaussian" && job.geometryKind != "flat") || !job.material.isConductor())
+    return std::nullopt;
+  for (const IncidenceDirection& inc : job.incidence)
+    if (inc.theta_deg >= 90) return std::nullopt;
+  const double sigmaH = rmsHeight(job.geometry), alpha = rmsSlope(job.geometry);
+  if (sigmaH <= 0 || alpha <= 0) return std::nullopt;
+  const KirchhoffEnsemble ensemble(sigmaH, alpha, windowSigma(job.scene.coherenceLength_um));
+  const double ell = ensemble.correlationLength_um();
+  if (job.geometry.sizeX * job.geometry.sizeY < kEnsembleMinAreas * ell * ell) return std::nullopt;
+  return ensemble;
+}
+
+EnsembleSlice ensembleSlice(const Job& job, const KirchhoffEnsemble& ensemble, const DirectionGrid& grid, int incidence,
+                            double lambda_nm, const std::vector<int>& cellOf) {
+  const IncidenceDirection& inc = job.incidence[size_t(incidence)];
+  std::optional<Vec3> exact;
+  if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
+  std::vector<std::pair<Vec3, double>> wi;
+  for (const wave::IncidenceNode& n : wave::incidenceRule(grid, inc.bin, exact, kEnsembleIncidenceNodes))
+    if (n.high) wi.emplace_back(n.wi, n.weight);
+  const Complex eta = job.material.ior(lambda_nm * 1e-3);
+  const double nOut = job.material.outsideIor;
+  const auto reflectance = [&](double c) {
+    return job.material.isPerfectConductor() ? 1.0 : fresnelReflectance(c, nOut, eta);
+  };
+  return ensemble.slice(grid, wi, lambda_nm * 1e-3, nOut, reflectance, cellOf, cellCount(cellOf));
+}
+
+namespace {
+
+std::optional<nlohmann::json> ensembleDiffractionDecision(const Job& job, const DirectionGrid& grid) {
+  const std::optional<KirchhoffEnsemble> ensemble = jobEnsemble(job);
+  if (!ensemble) return std::nullopt;
+  const std::vector<int> computed = computedIncidences(job);
+  const bool everyIncidence = computed.size() <= size_t(kEnsembleMaxIncidences);
+  const std::vector<int> evaluated = everyIncidence ? computed : pilotIncidences(job);
+  const auto [lMin, lMax] = std::minmax_element(job.lambda_nm.begin(), job.lambda_nm.end());
+  std::vector<double> lambdas{*lMin};
+  if (*lMax > *lMin) lambdas.push_back(*lMax);
+  const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
+  double l1 = -1, upper = -1, theta = 0, lambda = 0;
+  for (int i : evaluated)
+    for (double l_nm : lambdas) {
+      const EnsembleSlice s = ensembleSlice(job, *ensemble, grid, i, l_nm, cellOf);
+      if (s.l1() > l1) l1 = s.l1(), theta = job.incidence[size_t(i)].theta_deg, lambda = l_nm;
+      upper = std::max(upper, s.upperBound());
+    }
+  const double sigmaH = rmsHeight(job.geometry), alpha = rmsSlope(job.geometry);
+  const double ell = ensemble->correlationLength_um();
+  const double tol = job.scene.tolerance;
+  const bool on = l1 > tol;
+  if (!on && !(everyIncidence && upper <= tol)) return std::nullopt;
+  const std::string surface = "the Kirchhoff ensemble of a Gaussian surface of rms height " + fmt3(sigmaH) +
+                              " um and rms slope " + fmt3(alpha) + " (correlation length " + fmt3(ell) +
+                              " um; Beckmann & Spizzichino 1963)";
+  nlohmann::json d = decision("incoherent", on,
+                              on ? surface + " differs from geometric optics by " + fmt3(l1) +
+                                       " (sum|f_ws - f_gs| * proj. solid angle) at theta " + fmt3(theta) + " deg, " +
+                                       fmt3(lambda) + " nm, beyond the tolerance " + fmt3(tol) + ": on, no pilot needed"
+                                 : surface + " differs from geometric optics by at most " + fmt3(upper) +
+                                       " (its whole diffuse part counted as a difference) at every one of the " +
+                                       std::to_string(evaluated.size()) + " computed incidences, below the tolerance " +
+                                       fmt3(tol) + ": off, for every tile, no pilot needed");
+  d["decided_by"] = "kirchhoff ensemble";
+  d["ensemble_l1"] = l1;
+  d["ensemble_upper"] = upper;
+  d["ensemble_theta_deg"] = theta;
+  d["ensemble_lambda_nm"] = lambda;
+  d["ensemble_incidences"] = evaluated.size();
+  d["rms_height_um"] = sigmaH;
+  d["rms_slope"] = alpha;
+  d["correlation_length_um"] = ell;
+  d["wave_pilots_run"] = 0;
+  return d;
+}
+
 nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilots& m) {
   const Job& job = ctx.job;
   const DirectionGrid& grid = ctx.grid;
@@ -1152,9 +1254,12 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, Pilo
   const double budgetTiles = job.pilotBudget * computed;
   // A job that averages over its incidence bins has its diffraction pilots compared with beams
   // through the bins' centres (PilotContext::beam): room is left for one such geometric pilot each.
+  // Diffraction from physics first where it applies (a random rough surface): no wave pilot then.
+  const std::optional<nlohmann::json> physicsDiffraction = ensembleDiffractionDecision(job, grid);
+  const bool diffractionPilots = !job.statistical && !physicsDiffraction;
   std::optional<DiffractionPilotSetup> diffractionSetup;
-  if (!job.statistical) diffractionSetup = diffractionPilotSetup(job, grid, *transport.scene(), ws);
-  const bool beams = !job.statistical && !job.exactIncidence && !diffractionSetup->binAveraged(job, planned, paths);
+  if (diffractionPilots) diffractionSetup = diffractionPilotSetup(job, grid, *transport.scene(), ws);
+  const bool beams = diffractionPilots && !job.exactIncidence && !diffractionSetup->binAveraged(job, planned, paths);
   const double pathsPerPilot = double(paths) * (beams ? 2.0 : 1.0);
   std::vector<int> pilots = planned;
   pilots.resize(
@@ -1190,6 +1295,8 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, Pilo
     if (job.statistical) {
       d = decision("incoherent", false,
                    "a statistical surface has no explicit geometry to diffract (microflake model)");
+    } else if (physicsDiffraction) {
+      d = *physicsDiffraction;
     } else {
       DiffractionPilots m = runDiffractionPilots(ctx, *diffractionSetup, &waveSpent, &beamPathTiles);
       d = diffractionVerdict(ctx, m);

@@ -35,10 +35,12 @@
 #include <nlohmann/json.hpp>
 
 #include <map>
+#include <optional>
 
 #include "core/direction_grid.h"
 #include "job/effects_plan.h"
 #include "job/job.h"
+#include "scattering/kirchhoff_ensemble.h"
 #include "scattering/tile_result.h"
 #include "scattering/wave_estimator.h"
 
@@ -85,6 +87,16 @@ std::optional<double> steepestFacet_deg(const Job& job);
 // Whether incidence t lies wholly below that limit (every direction of its bin, or its exact
 // direction), so that its `multiple` is zero by the geometry.
 bool scattersOnce(const Job& job, const DirectionGrid& grid, int t, const std::optional<double>& limit_deg);
+
+// The Kirchhoff ensemble (scattering/kirchhoff_ensemble.h) of a random rough surface, from which the
+// diffraction decision is taken before any pilot: a generated Gaussian surface or a flat with
+// ground noise, of a conductor lit from above, whose patch holds at least 100 correlation areas
+// (σ_h and the rms slope measured on the mesh); none elsewhere.
+std::optional<KirchhoffEnsemble> jobEnsemble(const Job& job);
+// Its slice at incidence i as the job samples it (averaged over the bin with an 8 x 8 rule, or
+// along the exact direction), at lambda_nm, pooled into the cells of cellOf (resolutionCells).
+EnsembleSlice ensembleSlice(const Job& job, const KirchhoffEnsemble& ensemble, const DirectionGrid& grid, int i,
+                            double lambda_nm, const std::vector<int>& cellOf);
 
 // What the pilots computed that the run can keep (TileComputer): the geometric pilots' tiles, which
 // are the first plan.pilotPaths paths of those tiles, and the wave terms of the diffraction pilots

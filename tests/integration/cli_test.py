@@ -879,7 +879,8 @@ def test_effects_adversarial():
     """Scenes built to fool the effects planner's pilots: an inter-reflection threshold between pilot
     incidences, listed incidences, collimated against bin-averaged incidence on a grating lit along
     its grooves, anisotropic grooves lit across and along, a rough surface at the wave pilot's noise
-    floor, and a dielectric grating lit from inside. For each, per slice and wavelength, the auto
+    floor (decided from the Kirchhoff ensemble), a dielectric grating lit from inside, and a smooth
+    noisy gold whose diffraction the ensemble turns off without pilots or per-tile checks. For each, per slice and wavelength, the auto
     table is within the tolerance of the full table's WM model beyond noise (wm_excess_beyond_noise),
     and auto's tiles do no more work than the full table's (ray casts and wave samples, the
     machine-independent measure of `/stats/rays` and `/stats/wave_samples`) x 1.05; the pilots' own
@@ -906,6 +907,11 @@ def test_effects_adversarial():
              "[[0.0, 0.0], [40.0, 0.0], [70.0, 30.0]]", ""),
         "glass sine grating lit from inside":
             (sine, glass, "coherence_length_um = 50.0", "[[130.0, 45.0], [150.0, 0.0], [170.0, 90.0]]", ""),
+        # Off from physics, with no pilot and no per-tile check: the Kirchhoff ensemble's bound.
+        "gold with 1 nm ground noise, collimated, its lobes inside their bins":
+            ('kind = "flat"\nsize_um = [5.0, 5.0]\nground_noise_rms_nm = 1.0', 'name = "Au"',
+             "coherence_length_um = 2000.0", "[[39.375, 11.25], [50.625, 101.25], [61.875, 191.25]]",
+             'incidence_sampling = "exact"'),
     }
     for k, (name, (geo, mat, scene, incidence, directions)) in enumerate(scenes.items()):
         auto = effects_job(os.path.join(TMP, f"adv-auto{k}.toml"), geo, mat, scene, incidence=incidence, directions=directions)
@@ -929,6 +935,13 @@ def test_effects_adversarial():
             if same_estimator:
                 assert samples[0] <= 1.05 * samples[1], f"{name}: wave samples {samples[0]:.3g} against {samples[1]:.3g}"
             reenabled = int(np.sum(a["/stats/multiple_reenabled"][:])) if "/stats/multiple_reenabled" in a else 0
+            diffraction = next(d for d in plan["decisions"] if d["effect"] == "incoherent")
+            if "\"gaussian\"" in geo or "ground_noise" in geo:
+                # Random rough surfaces are decided from physics: no wave pilot.
+                assert diffraction.get("decided_by") == "kirchhoff ensemble", diffraction
+                assert budget["wave_tiles_spent"] == 0, budget
+            if "ground_noise" in geo:
+                assert not diffraction["on"] and "incoherent" not in a["bsdf"], diffraction
         print(f"{name}: auto = {sorted(plan['components'])}, |auto - full| beyond noise {max(worst, 0):.4f} <= {tol}; "
               f"rays {rays[0]:.3g} vs {rays[1]:.3g} ({rays[0] / max(rays[1], 1):.2f}x), wave samples {samples[0]:.3g} vs "
               f"{samples[1]:.3g}{'' if same_estimator else ' (another estimator)'}; pilots {budget['path_tiles_spent']:.2f} + "
