@@ -1,9 +1,10 @@
 // Rank 0's writer fed finished tiles as fast as it takes them (no physics): paper-resolution slices
 // (75 x 300 bins per hemisphere, 8 wavelengths, coherent, incoherent and multiple with their
 // standard errors: 8.6 MB of float32 per slice) written and committed one by one, as a job without
-// symmetry writes them, and in commits of 60 (a symmetric surface's ring). The baseline, measured
-// in the same run: the same bytes written raw to a file and synced. Printed: slices per second of
-// each and the writer's rate against the raw one.
+// symmetry writes them, and in commits of 60 (a symmetric surface's ring), and one by one with their
+// statistics and chunks prepared by the ranks that computed them (as rank 0 receives a worker's). The baseline,
+// measured in the same run: the same bytes written raw to a file and synced. Printed: slices per second of each and the
+// writer's rate against the raw one.
 #include <benchmark/benchmark.h>
 #include <fcntl.h>
 #include <unistd.h>
@@ -72,12 +73,21 @@ struct WriterFixture {
   size_t rawBytes() const { return size_t(6) * kLambda * size_t(grid.binCount()) * sizeof(float); }
 };
 
-double gWriterOne = 0, gWriterRing = 0, gRaw = 0;
+double gWriterOne = 0, gWriterRing = 0, gWriterPacked = 0, gRaw = 0;
 
-// Slices per second through BsdfFileWriter, committed in groups of `commit`.
+// Slices per second through BsdfFileWriter, committed in groups of `commit`; with `packed`, the
+// slices come prepared (statistics and compressed table chunks), as the ranks that computed them
+// send them (prepareSlice, not timed: the other ranks' work).
 void BM_WriterSlices(benchmark::State& state) {
   const int n = int(state.range(0)), commit = int(state.range(1));
+  const bool packed = state.range(2) != 0;
   WriterFixture f(n);
+  std::vector<PreparedSlice> prepared;
+  for (int i = 0; packed && i < n; ++i) {
+    TileResult r = f.slices[size_t(i) % f.slices.size()];
+    r.incidenceIndex = i;
+    prepared.push_back(prepareSlice(r, f.schema, f.grid));
+  }
   const std::string path = (std::filesystem::temp_directory_path() / "microbsdf_bench_writer.h5").string();
   double seconds = 0;
   for (auto _ : state) {
@@ -88,7 +98,10 @@ void BM_WriterSlices(benchmark::State& state) {
     for (int i = 0; i < n; ++i) {
       TileResult r = f.slices[size_t(i) % f.slices.size()];
       r.incidenceIndex = i;
-      writer.writeSlice(r);
+      if (packed)
+        writer.writePrepared(prepared[size_t(i)], [&] { return r; });
+      else
+        writer.writeSlice(r);
       pending.push_back(i);
       if (int(pending.size()) == commit || i == n - 1) {
         writer.commitSlices(pending);
@@ -101,9 +114,15 @@ void BM_WriterSlices(benchmark::State& state) {
   std::filesystem::remove(path);
   const double rate = double(n) * double(state.iterations()) / seconds;
   state.counters["slices_per_s"] = rate;
-  (commit == 1 ? gWriterOne : gWriterRing) = rate;
+  (packed ? gWriterPacked : commit == 1 ? gWriterOne : gWriterRing) = rate;
 }
-BENCHMARK(BM_WriterSlices)->Args({60, 1})->Args({60, 60})->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
+BENCHMARK(BM_WriterSlices)
+    ->Args({60, 1, 0})
+    ->Args({60, 60, 0})
+    ->Args({60, 1, 1})
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(1);
 
 // The same bytes (float32) written raw and synced once per slice.
 void BM_RawSliceWrites(benchmark::State& state) {
@@ -135,8 +154,9 @@ void printWriterSummary() {
   if (gRaw <= 0) return;
   std::printf(
       "writer, paper-resolution slices (75x300 bins, 8 wavelengths, 3 components + errors): %.1f slices/s committed "
-      "one by one, %.1f in rings of 60; raw writes of the same bytes %.1f slices/s; ratio %.2f and %.2f\n",
-      gWriterOne, gWriterRing, gRaw, gWriterOne / gRaw, gWriterRing / gRaw);
+      "one by one, %.1f in rings of 60, %.1f one by one prepared by the computing ranks; raw writes of the same bytes "
+      "%.1f slices/s; ratio %.2f, %.2f and %.2f\n",
+      gWriterOne, gWriterRing, gWriterPacked, gRaw, gWriterOne / gRaw, gWriterRing / gRaw, gWriterPacked / gRaw);
 }
 
 }  // namespace mbsdf

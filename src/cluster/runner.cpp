@@ -29,7 +29,7 @@
 namespace mbsdf {
 namespace {
 
-constexpr int kTagRequest = 11, kTagResult = 12, kTagStopped = 13, kTagAssign = 21;
+constexpr int kTagRequest = 11, kTagResult = 12, kTagStopped = 13, kTagPrepared = 14, kTagAssign = 21;
 
 // How a rank ends; the maximum over the ranks is the run's.
 enum RankStatus : int { kRankOk = 0, kRankWriteFailed = 1 };
@@ -76,9 +76,53 @@ void checkDiskSpace(const std::string& outPath, const Job& job, const DirectionG
         outPath, free / 1e6, upper / 1e6);
 }
 
+// A tile's slices in the order both sides of the exchange take them: the tile's own, then the
+// slices symmetry maps it to (symmetry.h).
+std::vector<int> sliceIndices(const TileResult& r, const std::optional<AzimuthalSymmetry>& symmetry) {
+  std::vector<int> v{r.incidenceIndex};
+  if (symmetry)
+    for (int m : symmetry->members(r.incidenceIndex))
+      if (m != r.incidenceIndex) v.push_back(m);
+  return v;
+}
+TileResult sliceOf(const Job& job, const TileResult& r, const std::optional<AzimuthalSymmetry>& symmetry, int m) {
+  return m == r.incidenceIndex ? r : symmetry->mappedSlice(r, m, job.incidence[size_t(m)].bin);
+}
+
+// A worker's slices as the file stores them (PreparedSlice: statistics and compressed table
+// chunks), sent to rank 0 one message per slice after the tile's result: preparing them is most of
+// writing, spread here over the ranks that computed the tiles. Prepared before the result is sent
+// (up to kPrepareAheadBytes; the rest as they are sent), so that rank 0 does not wait for them.
+constexpr double kPrepareAheadBytes = 256e6;
+std::function<void()> prepareSlices(const Job& job, const TileResult& r,
+                                    const std::optional<AzimuthalSymmetry>& symmetry, const OutputSchema& schema,
+                                    const DirectionGrid& grid) {
+  const std::vector<int> indices = sliceIndices(r, symmetry);
+  auto message = [&job, &schema, &grid, &symmetry, r](int m) {
+    return serializePrepared(prepareSlice(sliceOf(job, r, symmetry, m), schema, grid));
+  };
+  auto ahead = std::make_shared<std::vector<std::vector<unsigned char>>>();
+  double bytes = 0;
+  for (int m : indices) {
+    if (bytes > kPrepareAheadBytes) break;
+    ahead->push_back(message(m));
+    bytes += double(ahead->back().size());
+  }
+  return [indices, ahead, message] {
+    for (size_t k = 0; k < indices.size(); ++k) {
+      const std::vector<unsigned char> later = k < ahead->size() ? std::vector<unsigned char>{} : message(indices[k]);
+      const std::vector<unsigned char>& m = k < ahead->size() ? (*ahead)[k] : later;
+      MPI_Send(m.data(), int(m.size()), MPI_BYTE, 0, kTagPrepared, MPI_COMM_WORLD);
+    }
+  };
+}
+
 // A worker rank: asks rank 0 for tiles until told there are none (or a stop abandons one), sends
-// each result back, then joins the ranks' agreement on how the run ended (RankStatus).
-void serveAsWorker(const std::function<TileResult(int)>& computeTile, RunSummary& summary) {
+// each result back (and its prepared slices, prepareSlicesOf), then joins the ranks' agreement on
+// how the run ended (RankStatus).
+void serveAsWorker(const std::function<TileResult(int)>& computeTile,
+                   const std::function<std::function<void()>(const TileResult&)>& prepareSlicesOf,
+                   RunSummary& summary) {
   int request = -1;
   MPI_Send(&request, 1, MPI_INT, 0, kTagRequest, MPI_COMM_WORLD);
   while (true) {
@@ -92,8 +136,10 @@ void serveAsWorker(const std::function<TileResult(int)>& computeTile, RunSummary
     }
     try {
       TileResult r = computeTile(t);
+      const std::function<void()> sendSlices = prepareSlicesOf(r);
       std::vector<double> buf = r.serialize();
       MPI_Send(buf.data(), int(buf.size()), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD);
+      sendSlices();
       summary.paths += r.samples;
       ++summary.computed;
     } catch (const StopRequested&) {
@@ -286,8 +332,8 @@ class TileServer {
     }
     return t.value_or(-1);
   }
-  void noteEnergyBalance(const TileResult& r, const BsdfFileWriter::EnergyBalance& b);
-  void writeResult(const TileResult& r);
+  void noteEnergyBalance(int slice, const EnergyBalance& b);
+  void writeResult(const TileResult& r, int worker = 0);
   bool serveOne(bool blocking);
 
   const Job& job_;
@@ -310,7 +356,8 @@ class TileServer {
   // dropped (the journal lists only slices whose data reached the disk).
   std::string writeFailure_;
   int unbalanced_ = 0;
-  double writeSeconds_ = 0;  // rank 0's time in the writer (slices, their flags, the journal)
+  double writeSeconds_ = 0;    // rank 0's time in the writer (slices, their flags, the journal)
+  double prepareSeconds_ = 0;  // rank 0 preparing the slices of its own tiles (prepareSlice)
   double worstBalance_ = 0;
   std::map<std::string, double> energySum_;  // Σ over the slices written now of each component's Σ f Ω⊥
 };
@@ -318,43 +365,67 @@ class TileServer {
 // The energy balance of each slice (BsdfFileWriter::writeEnergyBalance): beyond [scene] tolerance
 // and its standard error it is the model's error (scalar theory on deep or steep structures), and
 // the log says so; `info` shows it for every slice.
-void TileServer::noteEnergyBalance(const TileResult& r, const BsdfFileWriter::EnergyBalance& b) {
+void TileServer::noteEnergyBalance(int slice, const EnergyBalance& b) {
   for (size_t l = 0; l < b.value.size(); ++l) {
     if (!(std::abs(b.value[l]) > job_.scene.tolerance + 4 * b.stdError[l])) continue;
     if (unbalanced_++ < 10)
       spdlog::warn(
           "slice {} (theta_i {:.3g} deg, {} nm): energy balance {:+.4f} ± {:.4f} (reflected + transmitted + "
           "lost paths − 1{}), beyond the tolerance {}: the model's own error there",
-          r.incidenceIndex, job_.incidence[size_t(r.incidenceIndex)].theta_deg, job_.lambda_nm[l], b.value[l],
-          b.stdError[l], job_.material.lossless() ? "" : ", counted only above 1: the material absorbs",
-          job_.scene.tolerance);
+          slice, job_.incidence[size_t(slice)].theta_deg, job_.lambda_nm[l], b.value[l], b.stdError[l],
+          job_.material.lossless() ? "" : ", counted only above 1: the material absorbs", job_.scene.tolerance);
     if (std::abs(b.value[l]) > std::abs(worstBalance_)) worstBalance_ = b.value[l];
     break;
   }
 }
 
-// A tile's slice and the slices symmetry maps it to, committed together (one sync for all).
-void TileServer::writeResult(const TileResult& r) {
-  if (!writeFailure_.empty()) return;
+// A tile's slice and the slices symmetry maps it to, committed together (one sync for all). A
+// worker's tile comes with its slices prepared (worker >= 1: one message each, in sliceIndices'
+// order, every one received even where the slice is not written); rank 0 prepares its own here,
+// counted apart from writing (prepareSeconds_: a computing rank's share of the work).
+void TileServer::writeResult(const TileResult& r, int worker) {
+  const std::vector<int> indices = sliceIndices(r, symmetry_);
+  const size_t expected = worker > 0 ? indices.size() : 0;
+  size_t received = 0;
+  auto nextPrepared = [&]() -> std::optional<PreparedSlice> {
+    if (received >= expected) return std::nullopt;
+    ++received;
+    MPI_Status st;
+    MPI_Probe(worker, kTagPrepared, MPI_COMM_WORLD, &st);
+    int count = 0;
+    MPI_Get_count(&st, MPI_BYTE, &count);
+    std::vector<unsigned char> bytes(static_cast<size_t>(count));
+    MPI_Recv(bytes.data(), count, MPI_BYTE, worker, kTagPrepared, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    return deserializePrepared(bytes);
+  };
+  auto drain = [&] {
+    while (received < expected) nextPrepared();
+  };
+  if (!writeFailure_.empty()) return drain();
   std::vector<int> written;
   try {
-    const auto t = Clock::now();
-    auto write = [&](const TileResult& slice) {
-      if (finished_.count(slice.incidenceIndex)) return;
-      noteEnergyBalance(slice, writer_.writeSlice(slice));
-      written.push_back(slice.incidenceIndex);
-    };
-    write(r);
-    if (symmetry_)
-      for (int m : symmetry_->members(r.incidenceIndex))
-        if (m != r.incidenceIndex && !finished_.count(m))
-          write(symmetry_->mappedSlice(r, m, job_.incidence[size_t(m)].bin));
+    for (int m : indices) {
+      auto tw = Clock::now();
+      std::optional<PreparedSlice> p = nextPrepared();
+      if (finished_.count(m)) continue;
+      auto slice = [&] { return sliceOf(job_, r, symmetry_, m); };
+      if (!p || p->index != m) {
+        const auto tp = Clock::now();
+        p = writer_.prepare(slice());
+        prepareSeconds_ += since(tp);
+        tw = Clock::now();
+      }
+      noteEnergyBalance(m, writer_.writePrepared(*p, slice));
+      written.push_back(m);
+      writeSeconds_ += since(tw);
+    }
+    const auto tc = Clock::now();
     if (!written.empty()) writer_.commitSlices(written);
-    writeSeconds_ += since(t);
+    writeSeconds_ += since(tc);
   } catch (const WriteError& e) {
     writeFailure_ = e.what();
     noteStop("the output could not be written");
-    return;
+    return drain();
   }
   finished_.insert(written.begin(), written.end());
   written_ += int(written.size());
@@ -388,7 +459,7 @@ bool TileServer::serveOne(bool blocking) {
     const TileResult r = TileResult::deserialize(buf);
     summary_.paths += r.samples;
     ++summary_.computed;
-    writeResult(r);
+    writeResult(r, st.MPI_SOURCE);
   } else {
     int v = 0;
     MPI_Recv(&v, 1, MPI_INT, st.MPI_SOURCE, st.MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
@@ -430,10 +501,10 @@ void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
       energies += fmt::format(", incoherent {:.4f} (all slices, after the fill)", *filledIncoherent);
     spdlog::info(
         "summary: {} tiles computed now, {} slices resumed; {:.1f} s wall, of which rank 0 wrote slices for "
-        "{:.2f} s ({:.0f} %); tile time summed over ranks: path tracing {:.1f} s, scalar diffraction {:.1f} s; {} "
-        "paths; mean energy per slice: {}",
-        summary_.computed, summary_.resumed, since(t0_), writeSeconds_, 100.0 * writeSeconds_ / since(t0_), total[0],
-        total[1], summary_.paths, energies);
+        "{:.2f} s ({:.0f} %) and prepared those of its own tiles (statistics, compression) for {:.2f} s; tile time "
+        "summed over ranks: path tracing {:.1f} s, scalar diffraction {:.1f} s; {} paths; mean energy per slice: {}",
+        summary_.computed, summary_.resumed, since(t0_), writeSeconds_, 100.0 * writeSeconds_ / since(t0_),
+        prepareSeconds_, total[0], total[1], summary_.paths, energies);
   }
   if (unbalanced_)
     spdlog::warn(
@@ -487,7 +558,11 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   RunSummary summary;
   summary.tiles = int(job.incidence.size());
   if (mpi.rank() != 0) {
-    serveAsWorker([&](int t) { return own.compute(t, {}); }, summary);
+    std::optional<AzimuthalSymmetry> symmetry;
+    if (job.symmetryReduced()) symmetry.emplace(job, grid);
+    const OutputSchema schema = outputSchemaOf(job);
+    serveAsWorker([&](int t) { return own.compute(t, {}); },
+                  [&](const TileResult& r) { return prepareSlices(job, r, symmetry, schema, grid); }, summary);
     double times[2] = {own.pathSeconds, own.waveSeconds};
     MPI_Reduce(times, nullptr, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     int outcome = 0;  // rank 0's ExitCode, once it has finished or closed the file

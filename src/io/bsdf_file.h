@@ -41,6 +41,7 @@
 // not compute, so it is idempotent (a kill during the fill is resumed by running it again).
 #pragma once
 #include <cmath>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -56,6 +57,36 @@ namespace mbsdf {
 
 inline constexpr int kSchemaVersion = 1;
 
+// A chunk of a slice's BSDF table as the file stores it (float32, shuffle + deflate): the rank that
+// computed a tile packs its slices (packSlice), so that rank 0 writes bytes instead of compressing
+// every slice of the run itself. path: the table ("/bsdf/coherent", "/bsdf_stderr/coherent", …);
+// (a, b): the chunk's offset in (wavelength, bin); c1 x c2: the chunk shape it was packed for (the
+// writer compresses a chunk itself when its file's layout differs).
+struct PackedChunk {
+  std::string path;
+  uint64_t a = 0, b = 0, c1 = 0, c2 = 0;
+  std::vector<unsigned char> bytes;
+};
+std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid);
+
+// A slice's energy balance per wavelength (BsdfFileWriter::writeEnergyBalance).
+struct EnergyBalance {
+  std::vector<double> value, stdError;
+};
+
+// A slice as the file stores it, made where its tile was computed (prepareSlice): its statistics
+// rows (every row dataset but the tables: energies, errors, counts, energy balance) and its tables'
+// packed chunks. Rank 0 then only writes (BsdfFileWriter::writePrepared).
+struct PreparedSlice {
+  int index = -1;
+  std::map<std::string, std::vector<double>> rows;
+  std::vector<PackedChunk> chunks;
+};
+PreparedSlice prepareSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid);
+// A byte message (between ranks) and back; a malformed one throws.
+std::vector<unsigned char> serializePrepared(const PreparedSlice& p);
+PreparedSlice deserializePrepared(const std::vector<unsigned char>& bytes);
+
 class BsdfFileWriter {
  public:
   // resume: keep the finished slices of an earlier run of the same job (see above). Throws
@@ -63,15 +94,18 @@ class BsdfFileWriter {
   BsdfFileWriter(const std::string& path, OutputSchema schema, const DirectionGrid& grid, bool resume = false);
   ~BsdfFileWriter();
   // Writes a slice (see above); returns its energy balance (writeEnergyBalance).
-  struct EnergyBalance {
-    std::vector<double> value, stdError;  // per wavelength
-  };
+  using EnergyBalance = mbsdf::EnergyBalance;
   EnergyBalance writeTile(const TileResult& r);
   // The same in two steps, so that several slices (a tile and the slices symmetry maps it to) are
   // committed as one: writeSlice writes a slice's rows and returns its energy balance; commitSlices
   // flushes and syncs them, sets their done flags, flushes and syncs again and journals them with
   // one sync. A slice written but not committed is not done (a resume recomputes it).
   EnergyBalance writeSlice(const TileResult& r);
+  // The same for a slice prepared where its tile was computed (prepareSlice for this file's schema
+  // and grid: prepare). raw() gives the slice's values where its packed chunks do not fit the file's
+  // layout (a file resumed from another layout), which is then compressed here.
+  PreparedSlice prepare(const TileResult& r) const;
+  EnergyBalance writePrepared(const PreparedSlice& p, const std::function<TileResult()>& raw);
   void commitSlices(const std::vector<int>& indices);
   // Fills the reciprocal half of /bsdf/incoherent (see above); every slice must be done. Returns
   // the mean over slices and wavelengths of the incoherent Σ f·Ω⊥.
@@ -97,10 +131,15 @@ class BsdfFileWriter {
     int deflateLevel = 0;
   };
   OpenDataset& dataset(const std::string& path);
+  // Row i of a dataset, held until the next commit (flushPending), which writes each dataset's
+  // consecutive rows with one call: a slice has some thirty small rows, and one write per row was
+  // most of rank 0's time per slice. getRow sees the rows held.
   void putRow(const std::string& path, int i, const std::vector<double>& v);
+  void flushPending();
   // Rows i of several tables (path, values): their chunks compressed in parallel, then written as
   // they are (H5Dwrite_chunk), so that HDF5's one-threaded filter pipeline is not rank 0's limit.
-  void putTableRows(const std::vector<std::pair<std::string, const std::vector<double>*>>& rows, int i);
+  void putTableRows(const std::vector<std::pair<std::string, const std::vector<double>*>>& rows, int i,
+                    const std::vector<PackedChunk>* packed);
   std::vector<double> getRow(const std::string& path, int i);
   void closeDatasets();
   // /stats/energy_reflected, energy_transmitted and rel_error of component c for r's slice.
@@ -114,7 +153,8 @@ class BsdfFileWriter {
   const OutputSchema schema_;
   const DirectionGrid& grid_;
   H5File file_;
-  std::map<std::string, OpenDataset> datasets_;  // declared after file_: closed before it
+  std::map<std::string, OpenDataset> datasets_;                        // declared after file_: closed before it
+  std::map<std::string, std::map<int, std::vector<double>>> pending_;  // path → row → values (putRow)
   std::vector<int> resumed_;
   bool finished_ = false;
 };

@@ -200,3 +200,62 @@ TEST(BsdfFile, RowsSplitIntoChunksReadBack) {
   EXPECT_TRUE(std::isnan(f.slice("coherent", 0)[7]));
   std::filesystem::remove(path);
 }
+
+// A slice prepared where its tile was computed (statistics and compressed chunks), sent as bytes and
+// written by rank 0 makes the same file as the slice written directly: tables, errors and every
+// statistic; where the packed chunks do not fit the file's layout the writer compresses the raw
+// slice itself; a truncated or padded message is refused.
+TEST(BsdfFile, PreparedSlicesWriteTheSameFile) {
+  Job job = smallJob();
+  DirectionGrid g(job.gridLayout);
+  const OutputSchema schema = outputSchemaOf(job);
+  const std::string direct = (std::filesystem::temp_directory_path() / "microbsdf_direct_test.h5").string(),
+                    prepared = (std::filesystem::temp_directory_path() / "microbsdf_prepared_test.h5").string();
+  for (const std::string& p : {direct, prepared}) std::filesystem::remove(p);
+  const TileResult a = tile(job, g, 0, 0.5), b = tile(job, g, 1, 0.25);
+  {
+    BsdfFileWriter w(direct, schema, g);
+    w.writeTile(a);
+    w.writeTile(b);
+    w.finish();
+  }
+  {
+    BsdfFileWriter w(prepared, schema, g);
+    const std::vector<unsigned char> bytes = serializePrepared(prepareSlice(a, schema, g));
+    int rawCalls = 0;
+    w.writePrepared(deserializePrepared(bytes), [&] {
+      ++rawCalls;
+      return a;
+    });
+    EXPECT_EQ(rawCalls, 0) << "the packed chunks fit: no compression on the writer";
+    PreparedSlice misfit = prepareSlice(b, schema, g);
+    for (PackedChunk& c : misfit.chunks) c.c2 += 1;  // packed for another layout
+    w.writePrepared(misfit, [&] {
+      ++rawCalls;
+      return b;
+    });
+    EXPECT_EQ(rawCalls, 1);
+    w.commitSlices({0, 1});
+    w.finish();
+    std::vector<unsigned char> cut(bytes.begin(), bytes.end() - 1), padded = bytes;
+    padded.push_back(0);
+    EXPECT_THROW(deserializePrepared(cut), std::runtime_error);
+    EXPECT_THROW(deserializePrepared(padded), std::runtime_error);
+  }
+  BsdfFileReader x(direct), y(prepared);
+  for (int i = 0; i < 2; ++i) {
+    for (const char* c : {"coherent", "multiple"}) {
+      EXPECT_EQ(x.slice(c, i), y.slice(c, i)) << c << " " << i;
+      EXPECT_EQ(x.sliceStdError(c, i), y.sliceStdError(c, i)) << c << " " << i;
+    }
+    const SliceStats s = x.stats(i), t = y.stats(i);
+    EXPECT_EQ(s.samples, t.samples);
+    EXPECT_EQ(s.energyReflected, t.energyReflected);
+    EXPECT_EQ(s.energyReflectedStdError, t.energyReflectedStdError);
+    EXPECT_EQ(s.relError, t.relError);
+    EXPECT_EQ(s.pathsAlbedoStdError, t.pathsAlbedoStdError);
+    EXPECT_EQ(s.energyBalance, t.energyBalance);
+    EXPECT_EQ(s.energyBalanceStdError, t.energyBalanceStdError);
+  }
+  for (const std::string& p : {direct, prepared}) std::filesystem::remove(p);
+}
