@@ -902,7 +902,7 @@ KirchhoffEstimate kirchhoffEstimate(const Job& job) {
 // the scalar Kirchhoff table of the surface's ensemble against geometric optics, on the job's bins
 // pooled to the renderer's resolution, averaged over each incidence bin (a 8 x 8 rule: the job's
 // smaller rule is its own quadrature error, not diffraction) or along the job's collimated
-// directions, at the computed incidences and the shortest and longest wavelengths. "On" where the
+// directions, at the computed incidences and the wavelengths of ensembleWavelengths. "On" where the
 // L1 distance exceeds the tolerance at any of them (keeping diffraction never makes a table wrong);
 // "off" where the upper bound, which counts every bit of the diffuse part as a difference (a
 // realisation's speckle included), stays below it at every computed incidence; otherwise the
@@ -946,15 +946,34 @@ EnsembleSlice ensembleSlice(const Job& job, const KirchhoffEnsemble& ensemble, c
 
 namespace {
 
+// The wavelengths the ensemble is evaluated at: the shortest (the largest Rayleigh g, the brightest
+// halo), the longest (the widest window blur), and those of the highest reflectance R and R/λ² at
+// normal incidence (the distances scale with R, the halo's energy with g R).
+std::vector<double> ensembleWavelengths(const Job& job) {
+  const auto [lMin, lMax] = std::minmax_element(job.lambda_nm.begin(), job.lambda_nm.end());
+  auto reflectance = [&](double l_nm) {
+    return job.material.isPerfectConductor()
+               ? 1.0
+               : fresnelReflectance(1.0, job.material.outsideIor, job.material.ior(l_nm * 1e-3));
+  };
+  const auto brightest = std::max_element(job.lambda_nm.begin(), job.lambda_nm.end(),
+                                          [&](double a, double b) { return reflectance(a) < reflectance(b); });
+  const auto brightestHalo = std::max_element(job.lambda_nm.begin(), job.lambda_nm.end(), [&](double a, double b) {
+    return reflectance(a) / (a * a) < reflectance(b) / (b * b);
+  });
+  std::vector<double> v{*lMin, *lMax, *brightest, *brightestHalo};
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+  return v;
+}
+
 std::optional<nlohmann::json> ensembleDiffractionDecision(const Job& job, const DirectionGrid& grid) {
   const std::optional<KirchhoffEnsemble> ensemble = jobEnsemble(job);
   if (!ensemble) return std::nullopt;
   const std::vector<int> computed = computedIncidences(job);
   const bool everyIncidence = computed.size() <= size_t(kEnsembleMaxIncidences);
   const std::vector<int> evaluated = everyIncidence ? computed : pilotIncidences(job);
-  const auto [lMin, lMax] = std::minmax_element(job.lambda_nm.begin(), job.lambda_nm.end());
-  std::vector<double> lambdas{*lMin};
-  if (*lMax > *lMin) lambdas.push_back(*lMax);
+  const std::vector<double> lambdas = ensembleWavelengths(job);
   const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
   double l1 = -1, upper = -1, theta = 0, lambda = 0;
   for (int i : evaluated)
