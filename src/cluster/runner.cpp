@@ -109,11 +109,14 @@ std::function<void()> prepareSlices(const Job& job, const TileResult& r,
     bytes += double(ahead->back().size());
   }
   return [indices, ahead, message] {
-    for (size_t k = 0; k < indices.size(); ++k) {
-      const std::vector<unsigned char> later = k < ahead->size() ? std::vector<unsigned char>{} : message(indices[k]);
-      const std::vector<unsigned char>& m = k < ahead->size() ? (*ahead)[k] : later;
+    auto send = [](const std::vector<unsigned char>& m) {
       MPI_Send(m.data(), int(m.size()), MPI_BYTE, 0, kTagPrepared, MPI_COMM_WORLD);
-    }
+    };
+    for (size_t k = 0; k < indices.size(); ++k)
+      if (k < ahead->size())
+        send((*ahead)[k]);
+      else
+        send(message(indices[k]));
   };
 }
 

@@ -180,6 +180,16 @@ std::vector<float> chunkValues(const std::vector<double>& v, hsize_t n1, hsize_t
   return out;
 }
 
+// The chunk at (a, b) of table `path` among `packed` if it was packed for this layout (chunks of
+// c1 x c2, the tables' deflate level), else none.
+const std::vector<unsigned char>* packedChunkFor(const std::vector<PackedChunk>* packed, const std::string& path,
+                                                 hsize_t a, hsize_t b, hsize_t c1, hsize_t c2, int level) {
+  if (!packed || level != kTableDeflateLevel) return nullptr;
+  for (const PackedChunk& c : *packed)
+    if (c.path == path && c.a == a && c.b == b && c.c1 == c1 && c.c2 == c2) return &c.bytes;
+  return nullptr;
+}
+
 // Row `i` of an open dataset, as doubles.
 std::vector<double> readRowFrom(hid_t d, const std::string& path, int i) {
   const RowSelection s = selectRow(d, path, i);
@@ -742,12 +752,6 @@ void BsdfFileWriter::putTableRows(const std::vector<std::pair<std::string, const
     const std::vector<unsigned char>* ready;  // packed by the rank that computed the tile
     std::vector<unsigned char> packed;
   };
-  auto readyChunk = [&](const std::string& path, hsize_t a, hsize_t b, const OpenDataset& o) {
-    if (!packed || o.deflateLevel != kTableDeflateLevel) return static_cast<const std::vector<unsigned char>*>(nullptr);
-    for (const PackedChunk& c : *packed)
-      if (c.path == path && c.a == a && c.b == b && c.c1 == o.chunk[1] && c.c2 == o.chunk[2]) return &c.bytes;
-    return static_cast<const std::vector<unsigned char>*>(nullptr);
-  };
   std::vector<Chunk> chunks;
   for (const auto& [path, v] : rows) {
     OpenDataset& o = dataset(path);
@@ -759,7 +763,7 @@ void BsdfFileWriter::putTableRows(const std::vector<std::pair<std::string, const
     if (v && v->size() != n1 * n2) throw std::runtime_error("HDF5: row size mismatch for " + path);
     for (hsize_t a = 0; a < n1; a += c1)
       for (hsize_t b = 0; b < n2; b += c2) {
-        const std::vector<unsigned char>* ready = readyChunk(path, a, b, o);
+        const std::vector<unsigned char>* ready = packedChunkFor(packed, path, a, b, c1, c2, o.deflateLevel);
         if (!ready && !v) throw std::logic_error("putTableRows: no values and no packed chunk for " + path);
         chunks.push_back({o.d.get(),
                           path,
@@ -917,6 +921,34 @@ Rows sliceRows(const TileResult& r, const OutputSchema& schema, const DirectionG
   return rows;
 }
 
+// The slice's table chunks packed as createTables lays the tables out.
+std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid) {
+  const int nI = int(schema.incidence.size()), nL = int(schema.lambda_nm.size()), nB = grid.binCount();
+  struct Work {
+    PackedChunk chunk;
+    const std::vector<double>* row;
+  };
+  std::vector<Work> work;
+  for (Component c : schema.components.list()) {
+    if (!r.has(c)) throw std::runtime_error(std::string("tile lacks component ") + componentName(c));
+    const bool blocked = schema.halvesWaveByReciprocity && (c == Component::Incoherent || c == Component::Coherent);
+    const auto [c1, c2] = sliceChunkShape(hsize_t(nL), hsize_t(nB), sizeof(float), blocked ? fillBlock(nI, nL, nB) : 0);
+    for (const auto& [prefix, row] : {std::pair<std::string, const std::vector<double>*>{"/bsdf/", &r.value[int(c)]},
+                                      {"/bsdf_stderr/", &r.stdError[int(c)]}})
+      for (hsize_t a = 0; a < hsize_t(nL); a += c1)
+        for (hsize_t b = 0; b < hsize_t(nB); b += c2)
+          work.push_back({{prefix + componentName(c), a, b, c1, c2, {}}, row});
+  }
+  tbb::parallel_for(size_t(0), work.size(), [&](size_t k) {
+    const PackedChunk& c = work[k].chunk;
+    work[k].chunk.bytes =
+        shuffleDeflate(chunkValues(*work[k].row, hsize_t(nL), hsize_t(nB), c.a, c.b, c.c1, c.c2), kTableDeflateLevel);
+  });
+  std::vector<PackedChunk> out;
+  for (Work& w : work) out.push_back(std::move(w.chunk));
+  return out;
+}
+
 }  // namespace
 
 PreparedSlice prepareSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid) {
@@ -935,34 +967,22 @@ EnergyBalance BsdfFileWriter::writePrepared(const PreparedSlice& p, const std::f
   const int i = p.index;
   // The tables from the packed chunks; from the raw slice where the file's layout is not the one
   // they were packed for (a resumed file of another layout).
-  std::vector<std::pair<std::string, std::vector<double>>> values;
-  std::vector<std::pair<std::string, const std::vector<double>*>> tables;
   bool packedFits = true;
   for (Component c : schema_.components.list())
     for (const char* prefix : {"/bsdf/", "/bsdf_stderr/"}) {
       const std::string path = std::string(prefix) + componentName(c);
       const OpenDataset& o = dataset(path);
-      if (!o.direct || o.deflateLevel != kTableDeflateLevel) {
-        packedFits = false;
-        continue;
-      }
-      for (hsize_t a = 0; a < o.dims[1]; a += o.chunk[1])
-        for (hsize_t b = 0; b < o.dims[2]; b += o.chunk[2])
-          packedFits = packedFits && std::any_of(p.chunks.begin(), p.chunks.end(), [&](const PackedChunk& k) {
-                         return k.path == path && k.a == a && k.b == b && k.c1 == o.chunk[1] && k.c2 == o.chunk[2];
-                       });
+      packedFits = packedFits && o.direct;
+      for (hsize_t a = 0; packedFits && a < o.dims[1]; a += o.chunk[1])
+        for (hsize_t b = 0; packedFits && b < o.dims[2]; b += o.chunk[2])
+          packedFits = packedChunkFor(&p.chunks, path, a, b, o.chunk[1], o.chunk[2], o.deflateLevel) != nullptr;
     }
-  std::optional<TileResult> slice;
-  if (!packedFits) slice = raw();
+  const std::optional<TileResult> slice = packedFits ? std::nullopt : std::optional<TileResult>(raw());
+  std::vector<std::pair<std::string, const std::vector<double>*>> tables;
   for (Component c : schema_.components.list()) {
     const std::string name = componentName(c);
-    if (slice) {
-      tables.emplace_back("/bsdf/" + name, &slice->value[int(c)]);
-      tables.emplace_back("/bsdf_stderr/" + name, &slice->stdError[int(c)]);
-    } else {
-      tables.emplace_back("/bsdf/" + name, nullptr);
-      tables.emplace_back("/bsdf_stderr/" + name, nullptr);
-    }
+    tables.emplace_back("/bsdf/" + name, slice ? &slice->value[int(c)] : nullptr);
+    tables.emplace_back("/bsdf_stderr/" + name, slice ? &slice->stdError[int(c)] : nullptr);
   }
   putTableRows(tables, i, slice ? nullptr : &p.chunks);
   for (const auto& [path, row] : p.rows) putRow(path, i, row);
@@ -1184,34 +1204,6 @@ int BsdfFileReader::nearestIncidence(double theta_deg, double phi_deg) const {
     }
   }
   return best;
-}
-
-std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid) {
-  const int nI = int(schema.incidence.size()), nL = int(schema.lambda_nm.size()), nB = grid.binCount();
-  struct Work {
-    PackedChunk chunk;
-    const std::vector<double>* row;
-  };
-  std::vector<Work> work;
-  for (Component c : schema.components.list()) {
-    if (!r.has(c)) throw std::runtime_error(std::string("tile lacks component ") + componentName(c));
-    // As createTables lays the table out (create3D).
-    const bool blocked = schema.halvesWaveByReciprocity && (c == Component::Incoherent || c == Component::Coherent);
-    const auto [c1, c2] = sliceChunkShape(hsize_t(nL), hsize_t(nB), sizeof(float), blocked ? fillBlock(nI, nL, nB) : 0);
-    for (const auto& [prefix, row] : {std::pair<std::string, const std::vector<double>*>{"/bsdf/", &r.value[int(c)]},
-                                      {"/bsdf_stderr/", &r.stdError[int(c)]}})
-      for (hsize_t a = 0; a < hsize_t(nL); a += c1)
-        for (hsize_t b = 0; b < hsize_t(nB); b += c2)
-          work.push_back({{prefix + componentName(c), a, b, c1, c2, {}}, row});
-  }
-  tbb::parallel_for(size_t(0), work.size(), [&](size_t k) {
-    const PackedChunk& c = work[k].chunk;
-    work[k].chunk.bytes =
-        shuffleDeflate(chunkValues(*work[k].row, hsize_t(nL), hsize_t(nB), c.a, c.b, c.c1, c.c2), kTableDeflateLevel);
-  });
-  std::vector<PackedChunk> out;
-  for (Work& w : work) out.push_back(std::move(w.chunk));
-  return out;
 }
 
 namespace {

@@ -58,7 +58,7 @@ namespace mbsdf {
 inline constexpr int kSchemaVersion = 1;
 
 // A chunk of a slice's BSDF table as the file stores it (float32, shuffle + deflate): the rank that
-// computed a tile packs its slices (packSlice), so that rank 0 writes bytes instead of compressing
+// computed a tile packs its slices (prepareSlice), so that rank 0 writes bytes instead of compressing
 // every slice of the run itself. path: the table ("/bsdf/coherent", "/bsdf_stderr/coherent", …);
 // (a, b): the chunk's offset in (wavelength, bin); c1 x c2: the chunk shape it was packed for (the
 // writer compresses a chunk itself when its file's layout differs).
@@ -67,7 +67,6 @@ struct PackedChunk {
   uint64_t a = 0, b = 0, c1 = 0, c2 = 0;
   std::vector<unsigned char> bytes;
 };
-std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid);
 
 // A slice's energy balance per wavelength (BsdfFileWriter::writeEnergyBalance).
 struct EnergyBalance {

@@ -982,7 +982,7 @@ std::optional<nlohmann::json> ensembleDiffractionDecision(const Job& job, const 
       if (s.l1() > l1) l1 = s.l1(), theta = job.incidence[size_t(i)].theta_deg, lambda = l_nm;
       upper = std::max(upper, s.upperBound());
     }
-  const double sigmaH = rmsHeight(job.geometry), alpha = rmsSlope(job.geometry);
+  const double sigmaH = ensemble->rmsHeight_um(), alpha = ensemble->rmsSlope();
   const double ell = ensemble->correlationLength_um();
   const double tol = job.scene.tolerance;
   const bool on = l1 > tol;

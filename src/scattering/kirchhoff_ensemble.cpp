@@ -95,7 +95,7 @@ EnsembleSlice KirchhoffEnsemble::slice(const DirectionGrid& grid, const std::vec
   const double k = 2 * kPi * n / lambda_um;
   const double ell = alpha_ > 0 ? 2 * sigma_ / alpha_ : 0.0;
   const double blur = windowSigma_ > 0 ? 1.0 / (std::sqrt(2.0) * windowSigma_ * k) : 0.0;
-  static const std::vector<std::pair<double, double>> blurStrata = gaussianStrata(32, 16);
+  static const std::vector<std::pair<double, double>> blurStrata = gaussianStrata(32, 16), noBlur{{0.0, 0.0}};
   // Slope strata per axis and region: about 32 768 slopes per incidence, shared by its directions.
   const int strata = std::max(12, int(std::lround(std::sqrt(16384.0 / double(std::max<size_t>(1, wis.size()))))));
   for (const auto& [wi, weight] : wis) {
@@ -105,7 +105,7 @@ EnsembleSlice KirchhoffEnsemble::slice(const DirectionGrid& grid, const std::vec
     // beyond the horizon are evanescent (lost).
     const double gSpec = std::pow(2 * k * sigma_ * cosI, 2);
     const double coherent = weight * std::exp(-gSpec) * reflectance(cosI);
-    const auto& spots = blur > 0 ? blurStrata : std::vector<std::pair<double, double>>{{0.0, 0.0}};
+    const std::vector<std::pair<double, double>>& spots = blur > 0 ? blurStrata : noBlur;
     for (const auto& [dx, dy] : spots) {
       const double x = mirror.x + blur * dx, y = mirror.y + blur * dy;
       if (x * x + y * y >= 1) continue;

@@ -48,6 +48,8 @@ class KirchhoffEnsemble {
   // coherence window's σ (0: none), whose diffraction blurs the specular part with a Gaussian of
   // standard deviation 1 / (√2 σ_w k) in the xy plane of ωo (coherence_window.h).
   KirchhoffEnsemble(double sigma_um, double alpha, double windowSigma_um);
+  double rmsHeight_um() const { return sigma_; }
+  double rmsSlope() const { return alpha_; }
   double correlationLength_um() const { return alpha_ > 0 ? 2 * sigma_ / alpha_ : 0.0; }
 
   // One incidence: directions wi (unit, z > 0, away from the surface) with weights summing to 1
