@@ -37,6 +37,7 @@ OutputSchema outputSchemaOf(const Job& job) {
   s.incidence = job.incidence;
   s.components = job.components;
   s.guarded = job.guarded;
+  s.storage = job.storage;
   return s;
 }
 

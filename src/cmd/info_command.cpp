@@ -27,6 +27,7 @@ nlohmann::json infoJson(const BsdfFileReader& f, const std::string& path) {
   j["wavelengths_nm"] = f.wavelengths_nm();
   j["components"] = f.components();
   if (f.hasAttribute("reciprocity")) j["reciprocity"] = f.attribute("reciprocity");
+  j["storage_profile"] = f.storageProfile();
   // components = "auto": the effects planner's decisions, their reasons, pilots and pilot budget.
   if (f.hasAttribute("effects_plan")) j["effects_plan"] = nlohmann::json::parse(f.attribute("effects_plan"));
   int done = 0;
@@ -110,6 +111,7 @@ void printInfo(const nlohmann::json& j) {
             << "wavelengths: " << j["wavelengths_nm"].dump() << " nm\n"
             << "components:  " << j["components"].dump() << "\n"
             << (j.contains("reciprocity") ? "reciprocity: " + j["reciprocity"].get<std::string>() + "\n" : "")
+            << "storage:     " << j["storage_profile"].get<std::string>() << "\n"
             << (j.contains("effects_plan") ? formatEffects(EffectsPlan::fromJson(j["effects_plan"])) : "")
             << (j["wave_samples"].get<uint64_t>()
                     ? "wave term:   " + j["wave_samples"].dump() + " Kirchhoff samples per wavelength\n"

@@ -37,6 +37,9 @@ Command addPlanCommand(CLI::App& app) {
     po.writeSecondsPerSlice = [](const Job& j, const DirectionGrid& g) {
       return measureWriteSecondsPerSlice(outputSchemaOf(j), g);
     };
+    po.storedBytesPerSlice = [](const Job& j, const DirectionGrid& g, const std::vector<TileResult>& tiles) {
+      return storedBytesPerSlice(outputSchemaOf(j), g, tiles);
+    };
     nlohmann::json p = planJob(job, po);
     std::cout << formatPlan(p);
     if (!o->json.empty()) writeJsonFile(o->json, p, 2);

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
 #include <libdeflate.h>
+#include <Imath/half.h>
 
 #include <algorithm>
 #include <cctype>
@@ -144,11 +145,11 @@ void writeRow(hid_t file, const std::string& path, int i, const std::vector<doub
   d.close("write " + path);
 }
 
-// The chunk as HDF5's shuffle and deflate filters store it: the values' bytes regrouped by
-// significance (byte k of every value, then byte k + 1, …), then zlib's deflate at `level`.
-std::vector<unsigned char> shuffleDeflate(const std::vector<float>& v, int level) {
-  const size_t n = v.size(), s = sizeof(float);
-  const auto* in = reinterpret_cast<const unsigned char*>(v.data());
+// The chunk as HDF5's shuffle and deflate filters store it: the values' bytes (elements of
+// `elemSize` bytes) regrouped by significance (byte k of every value, then byte k + 1, …), then
+// zlib's deflate at `level`.
+std::vector<unsigned char> shuffleDeflate(const std::vector<unsigned char>& in, size_t elemSize, int level) {
+  const size_t n = in.size() / elemSize, s = elemSize;
   std::vector<unsigned char> shuffled(n * s);
   for (size_t i = 0; i < n; ++i)
     for (size_t b = 0; b < s; ++b) shuffled[b * n + i] = in[i * s + b];
@@ -170,14 +171,91 @@ std::vector<unsigned char> shuffleDeflate(const std::vector<float>& v, int level
   return out;
 }
 
-// The float32 values of chunk (a, b) of shape c1 x c2 of an n1 x n2 row; an edge chunk is stored
-// whole, the part outside the dataset holding the fill value.
-std::vector<float> chunkValues(const std::vector<double>& v, hsize_t n1, hsize_t n2, hsize_t a, hsize_t b, hsize_t c1,
-                               hsize_t c2) {
-  std::vector<float> out(c1 * c2, std::nanf(""));
-  for (hsize_t x = a; x < std::min(n1, a + c1); ++x)
-    for (hsize_t y = b; y < std::min(n2, b + c2); ++y) out[(x - a) * c2 + (y - b)] = float(v[x * n2 + y]);
+// IEEE 754 binary16 as the file stores it (HDF5 1.10 has no predefined half type; h5py reads this
+// one as numpy's float16).
+H5Datatype halfType() {
+  H5Datatype t(H5Tcopy(H5T_IEEE_F32LE), "H5Tcopy");
+  h5check(H5Tset_fields(t, 15, 10, 5, 0, 10), "H5Tset_fields");
+  h5check(H5Tset_precision(t, 16), "H5Tset_precision");
+  h5check(H5Tset_size(t, 2), "H5Tset_size");
+  h5check(H5Tset_ebias(t, 15), "H5Tset_ebias");
+  return t;
+}
+
+// The values of one element: single precision, or the bits of half precision (Imath, rounding to
+// nearest even).
+void storeElement(double x, size_t elemSize, unsigned char* out) {
+  if (elemSize == sizeof(float)) {
+    const float f = float(x);
+    std::memcpy(out, &f, sizeof f);
+  } else {
+    const uint16_t h = Imath::half(float(x)).bits();
+    std::memcpy(out, &h, sizeof h);
+  }
+}
+
+// The bytes of chunk (a, b) of shape c1 x c2 of an n1 x n2 row, elements of `elemSize` bytes; an
+// edge chunk is stored whole, the part outside the dataset holding the fill value (NaN).
+std::vector<unsigned char> chunkBytes(const std::vector<double>& v, hsize_t n1, hsize_t n2, hsize_t a, hsize_t b,
+                                      hsize_t c1, hsize_t c2, size_t elemSize) {
+  std::vector<unsigned char> out(c1 * c2 * elemSize);
+  for (hsize_t x = 0; x < c1; ++x)
+    for (hsize_t y = 0; y < c2; ++y) {
+      const bool inside = a + x < n1 && b + y < n2;
+      storeElement(inside ? v[(a + x) * n2 + (b + y)] : std::nan(""), elemSize, &out[(x * c2 + y) * elemSize]);
+    }
   return out;
+}
+
+// A table row (nλ x nBins) in half precision: each wavelength's values over a power of two, chosen
+// so that the row's largest |value| falls in [2^14, 2^15). Half's largest finite value is 65504 and
+// its relative precision 2^-11 down to 2^-14 (its normal range): a row keeps that precision over 29
+// binary orders of magnitude (5·10^8) below its peak, subnormals below that — a specular bin of
+// 10^5 /sr or a far tail of 10^-4 /sr alike, which an unscaled half could not hold.
+struct ScaledRow {
+  std::vector<double> values, scales;  // values / scale (λ-major), scale per wavelength
+};
+ScaledRow scaleForHalf(const std::vector<double>& v, size_t nL) {
+  const size_t nB = nL ? v.size() / nL : 0;
+  ScaledRow out{v, std::vector<double>(nL, 1.0)};
+  for (size_t l = 0; l < nL; ++l) {
+    double peak = 0;
+    for (size_t b = 0; b < nB; ++b)
+      if (std::isfinite(v[l * nB + b])) peak = std::max(peak, std::abs(v[l * nB + b]));
+    if (peak == 0) continue;
+    int e = 0;
+    std::frexp(peak, &e);  // peak = m 2^e, m in [0.5, 1)
+    const double scale = std::ldexp(1.0, e - 15);
+    out.scales[l] = scale;
+    for (size_t b = 0; b < nB; ++b) out.values[l * nB + b] = v[l * nB + b] / scale;
+  }
+  return out;
+}
+
+// A table's scale dataset in a half-precision file: /bsdf/x -> /bsdf_scale/x,
+// /bsdf_stderr/x -> /bsdf_stderr_scale/x.
+std::string scalePathOf(const std::string& table) {
+  const size_t slash = table.rfind('/');
+  return table.substr(0, slash) + "_scale" + table.substr(slash);
+}
+
+// The tables a schema stores: each component's values and, where the profile keeps them, its
+// per-bin standard errors.
+struct TableRef {
+  std::string path;
+  Component c;
+  bool error;
+};
+std::vector<TableRef> tablesOf(const OutputSchema& schema) {
+  std::vector<TableRef> out;
+  for (Component c : schema.components.list()) {
+    out.push_back({std::string("/bsdf/") + componentName(c), c, false});
+    if (schema.storesBinErrors(c)) out.push_back({std::string("/bsdf_stderr/") + componentName(c), c, true});
+  }
+  return out;
+}
+size_t tableElementSize(const OutputSchema& schema) {
+  return schema.storage.values == TableValues::Float16 ? 2 : sizeof(float);
 }
 
 // The chunk at (a, b) of table `path` among `packed` if it was packed for this layout (chunks of
@@ -216,10 +294,14 @@ std::vector<T> read1D(hid_t file, const std::string& path, hid_t type) {
 // Every dataset that holds one row per incidence slice.
 std::vector<std::string> rowDatasets(const OutputSchema& schema) {
   std::vector<std::string> v;
+  for (const TableRef& t : tablesOf(schema)) {
+    v.push_back(t.path);
+    if (schema.storage.values == TableValues::Float16) v.push_back(scalePathOf(t.path));
+  }
   for (Component c : schema.components.list()) {
     std::string n = componentName(c);
-    for (const char* g : {"/bsdf/", "/bsdf_stderr/", "/stats/energy_reflected/", "/stats/energy_transmitted/",
-                          "/stats/energy_reflected_stderr/", "/stats/energy_transmitted_stderr/", "/stats/rel_error/"})
+    for (const char* g : {"/stats/energy_reflected/", "/stats/energy_transmitted/", "/stats/energy_reflected_stderr/",
+                          "/stats/energy_transmitted_stderr/", "/stats/rel_error/"})
       v.push_back(g + n);
   }
   for (const char* n :
@@ -489,6 +571,18 @@ static void writeProvenance(hid_t f, const OutputSchema& schema) {
   if (!schema.effectsPlan.empty()) setStringAttr(f, "effects_plan", schema.effectsPlan);
   if (!schema.waveEstimator.empty()) setStringAttr(f, "wave_estimator", schema.waveEstimator);
   setStringAttr(f, "symmetry", schema.symmetry);
+  std::string storage = schema.storage.name() + ": " +
+                        (schema.storage.values == TableValues::Float16
+                             ? "float16 tables, each slice and wavelength multiplied by its /bsdf_scale (or "
+                               "/bsdf_stderr_scale) power of two"
+                             : "float32 tables");
+  bool someBinErrors = false;
+  for (Component c : schema.components.list()) someBinErrors = someBinErrors || schema.storesBinErrors(c);
+  storage += schema.storage.errors == TableErrors::PerBin ? "; standard errors per bin in /bsdf_stderr"
+             : someBinErrors ? "; standard errors per slice in /stats, and per bin in /bsdf_stderr for incoherent "
+                               "and coherent only (the reciprocity fill's)"
+                             : "; standard errors per slice in /stats";
+  setStringAttr(f, "storage_profile", storage);
   const bool halved = schema.halvesWaveByReciprocity;
   setStringAttr(f, "reciprocity",
                 halved ? "wave term computed once per pair of incidence bins on the same side; the other half of "
@@ -548,7 +642,11 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
   const bool halved = schema.halvesWaveByReciprocity;
   {
     H5Group b(H5Gcreate2(f, "bsdf", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf");
-    H5Group e(H5Gcreate2(f, "bsdf_stderr", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf_stderr");
+    const std::vector<TableRef> tables = tablesOf(schema);
+    const bool binErrors = std::any_of(tables.begin(), tables.end(), [](const TableRef& t) { return t.error; });
+    std::optional<H5Group> e;
+    if (binErrors)
+      e.emplace(H5Gcreate2(f, "bsdf_stderr", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf_stderr");
     H5Group s(H5Gcreate2(f, "stats", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /stats");
     H5Group er(H5Gcreate2(s, "energy_reflected", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
     H5Group et(H5Gcreate2(s, "energy_transmitted", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group");
@@ -562,17 +660,35 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
     h5check(H5DSset_scale(ib, "incidence_bin"), "H5DSset_scale");
     h5check(H5DSset_scale(gt, "exit_bin_theta_deg"), "H5DSset_scale");
     const double nan = std::numeric_limits<double>::quiet_NaN();
+    const bool half = schema.storage.values == TableValues::Float16;
+    const H5Datatype halfT = halfType();
+    std::optional<H5Group> bScale, eScale;  // the half tables' scales
+    if (half) {
+      bScale.emplace(H5Gcreate2(f, "bsdf_scale", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf_scale");
+      if (binErrors)
+        eScale.emplace(H5Gcreate2(f, "bsdf_stderr_scale", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                       "create /bsdf_stderr_scale");
+    }
+    for (const TableRef& t : tables) {
+      const std::string name = componentName(t.c);
+      const bool blocked = halved && (t.c == Component::Incoherent || t.c == Component::Coherent);
+      H5Dataset d = create3D(t.error ? e->get() : b.get(), name, half ? halfT.get() : H5T_NATIVE_FLOAT, nI, nL, nB, nan,
+                             true, blocked ? fillBlock(nI, nL, nB) : 0);
+      const std::string what = t.error ? "standard error of BSDF component " : "bin-averaged BSDF component ";
+      describe(d, "1/sr", what + name + (half ? ", divided by " + scalePathOf(t.path) + " (float16)" : ""));
+      h5check(H5DSattach_scale(d, ib, 0), "attach scale");
+      h5check(H5DSattach_scale(d, wl, 1), "attach scale");
+      h5check(H5DSattach_scale(d, gt, 2), "attach scale");
+      if (half) {
+        H5Dataset sc =
+            create3D(t.error ? eScale->get() : bScale->get(), name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+        describe(sc, "1/sr",
+                 "the power of two by which each slice and wavelength of " + t.path +
+                     " is multiplied: f = stored * scale (the row's peak stored in [2^14, 2^15))");
+      }
+    }
     for (Component c : schema.components.list()) {
       std::string name = componentName(c);
-      for (auto [grp, what] : {std::pair<hid_t, const char*>{b, "bin-averaged BSDF component "},
-                               std::pair<hid_t, const char*>{e, "standard error of BSDF component "}}) {
-        const bool blocked = halved && (c == Component::Incoherent || c == Component::Coherent);
-        H5Dataset d = create3D(grp, name, H5T_NATIVE_FLOAT, nI, nL, nB, nan, true, blocked ? fillBlock(nI, nL, nB) : 0);
-        describe(d, "1/sr", what + name);
-        h5check(H5DSattach_scale(d, ib, 0), "attach scale");
-        h5check(H5DSattach_scale(d, wl, 1), "attach scale");
-        h5check(H5DSattach_scale(d, gt, 2), "attach scale");
-      }
       for (hid_t grp : {er.get(), et.get()}) {
         H5Dataset d = create3D(grp, name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
         describe(d, "1", "hemispherical integral sum(f * projected_solid_angle) of " + name);
@@ -718,7 +834,9 @@ BsdfFileWriter::OpenDataset& BsdfFileWriter::dataset(const std::string& path) {
     OpenDataset o;
     o.d = H5Dataset(H5Dopen2(file_.get(), path.c_str(), H5P_DEFAULT), "open " + path);
     H5Datatype t(H5Dget_type(o.d), "type of " + path);
-    const bool isFloat = H5Tget_class(t) == H5T_FLOAT && H5Tget_size(t) == sizeof(float);
+    o.elemSize = H5Tget_size(t);
+    o.half = H5Tget_class(t) == H5T_FLOAT && o.elemSize == 2;
+    const bool isFloat = H5Tget_class(t) == H5T_FLOAT && (o.half || o.elemSize == sizeof(float));
     // The filters create3D sets (shuffle, then deflate): only then are the chunks ours to make.
     H5Plist dcpl(H5Dget_create_plist(o.d), "creation properties of " + path);
     H5Dataspace s(H5Dget_space(o.d), "H5Dget_space");
@@ -747,20 +865,29 @@ void BsdfFileWriter::putTableRows(const std::vector<std::pair<std::string, const
     hid_t d;
     std::string path;
     hsize_t offset[3];
-    std::vector<float> values;
+    std::vector<unsigned char> values;
+    size_t elemSize;
     int level;
     const std::vector<unsigned char>* ready;  // packed by the rank that computed the tile
     std::vector<unsigned char> packed;
   };
   std::vector<Chunk> chunks;
+  std::vector<ScaledRow> scaled;  // the half tables' rows, scaled
+  scaled.reserve(rows.size());
   for (const auto& [path, v] : rows) {
     OpenDataset& o = dataset(path);
     if (!o.direct) {
-      putRow(path, i, *v);
+      putTable(path, i, *v);
       continue;
     }
     const hsize_t n1 = o.dims[1], n2 = o.dims[2], c1 = o.chunk[1], c2 = o.chunk[2];
     if (v && v->size() != n1 * n2) throw std::runtime_error("HDF5: row size mismatch for " + path);
+    const std::vector<double>* values = v;
+    if (v && o.half) {
+      scaled.push_back(scaleForHalf(*v, size_t(n1)));
+      putRow(scalePathOf(path), i, scaled.back().scales);
+      values = &scaled.back().values;
+    }
     for (hsize_t a = 0; a < n1; a += c1)
       for (hsize_t b = 0; b < n2; b += c2) {
         const std::vector<unsigned char>* ready = packedChunkFor(packed, path, a, b, c1, c2, o.deflateLevel);
@@ -768,19 +895,36 @@ void BsdfFileWriter::putTableRows(const std::vector<std::pair<std::string, const
         chunks.push_back({o.d.get(),
                           path,
                           {hsize_t(i), a, b},
-                          ready ? std::vector<float>{} : chunkValues(*v, n1, n2, a, b, c1, c2),
+                          ready ? std::vector<unsigned char>{} : chunkBytes(*values, n1, n2, a, b, c1, c2, o.elemSize),
+                          o.elemSize,
                           o.deflateLevel,
                           ready,
                           {}});
       }
   }
   tbb::parallel_for(size_t(0), chunks.size(), [&](size_t k) {
-    if (!chunks[k].ready) chunks[k].packed = shuffleDeflate(chunks[k].values, chunks[k].level);
+    if (!chunks[k].ready) chunks[k].packed = shuffleDeflate(chunks[k].values, chunks[k].elemSize, chunks[k].level);
   });
   for (const Chunk& c : chunks) {
     const std::vector<unsigned char>& bytes = c.ready ? *c.ready : c.packed;
     h5check(H5Dwrite_chunk(c.d, H5P_DEFAULT, 0, c.offset, bytes.size(), bytes.data()), "write " + c.path);
   }
+}
+
+void BsdfFileWriter::putTable(const std::string& path, int i, const std::vector<double>& v) {
+  if (!dataset(path).half) return putRow(path, i, v);
+  ScaledRow s = scaleForHalf(v, schema_.lambda_nm.size());
+  putRow(scalePathOf(path), i, s.scales);
+  putRow(path, i, s.values);
+}
+
+std::vector<double> BsdfFileWriter::getTable(const std::string& path, int i) {
+  std::vector<double> v = getRow(path, i);
+  if (!dataset(path).half) return v;
+  const std::vector<double> scales = getRow(scalePathOf(path), i);
+  const size_t nB = v.size() / std::max<size_t>(1, scales.size());
+  for (size_t k = 0; k < v.size(); ++k) v[k] *= scales[k / nB];
+  return v;
 }
 
 void BsdfFileWriter::putRow(const std::string& path, int i, const std::vector<double>& v) {
@@ -813,7 +957,15 @@ void BsdfFileWriter::flushPending() {
       hsize_t start[3] = {hsize_t(run->first), 0, 0}, count[3] = {hsize_t(std::distance(run, end)), dims[1], dims[2]};
       h5check(H5Sselect_hyperslab(file, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
       H5Dataspace memory(H5Screate_simple(rank, count, nullptr), "H5Screate_simple");
-      h5check(H5Dwrite(d, H5T_NATIVE_DOUBLE, memory, file, H5P_DEFAULT, values.data()), "write " + path);
+      if (dataset(path).half) {
+        // Rounded here as the packed chunks are (storeElement), not by HDF5's own conversion.
+        std::vector<unsigned char> bits(values.size() * 2);
+        for (size_t k = 0; k < values.size(); ++k) storeElement(values[k], 2, &bits[2 * k]);
+        const H5Datatype t = halfType();
+        h5check(H5Dwrite(d, t, memory, file, H5P_DEFAULT, bits.data()), "write " + path);
+      } else {
+        h5check(H5Dwrite(d, H5T_NATIVE_DOUBLE, memory, file, H5P_DEFAULT, values.data()), "write " + path);
+      }
       run = end;
     }
   }
@@ -921,28 +1073,37 @@ Rows sliceRows(const TileResult& r, const OutputSchema& schema, const DirectionG
   return rows;
 }
 
-// The slice's table chunks packed as createTables lays the tables out.
-std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid) {
+// The slice's table chunks packed as createTables lays the tables out; a half table's scales go
+// to `rows`.
+std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid,
+                                   Rows& rows) {
   const int nI = int(schema.incidence.size()), nL = int(schema.lambda_nm.size()), nB = grid.binCount();
+  const size_t elemSize = tableElementSize(schema);
   struct Work {
     PackedChunk chunk;
     const std::vector<double>* row;
   };
   std::vector<Work> work;
-  for (Component c : schema.components.list()) {
-    if (!r.has(c)) throw std::runtime_error(std::string("tile lacks component ") + componentName(c));
-    const bool blocked = schema.halvesWaveByReciprocity && (c == Component::Incoherent || c == Component::Coherent);
-    const auto [c1, c2] = sliceChunkShape(hsize_t(nL), hsize_t(nB), sizeof(float), blocked ? fillBlock(nI, nL, nB) : 0);
-    for (const auto& [prefix, row] : {std::pair<std::string, const std::vector<double>*>{"/bsdf/", &r.value[int(c)]},
-                                      {"/bsdf_stderr/", &r.stdError[int(c)]}})
-      for (hsize_t a = 0; a < hsize_t(nL); a += c1)
-        for (hsize_t b = 0; b < hsize_t(nB); b += c2)
-          work.push_back({{prefix + componentName(c), a, b, c1, c2, {}}, row});
+  std::vector<ScaledRow> scaled;
+  scaled.reserve(2 * kComponentCount);
+  for (const TableRef& t : tablesOf(schema)) {
+    if (!r.has(t.c)) throw std::runtime_error(std::string("tile lacks component ") + componentName(t.c));
+    const bool blocked = schema.halvesWaveByReciprocity && (t.c == Component::Incoherent || t.c == Component::Coherent);
+    const auto [c1, c2] = sliceChunkShape(hsize_t(nL), hsize_t(nB), elemSize, blocked ? fillBlock(nI, nL, nB) : 0);
+    const std::vector<double>* row = t.error ? &r.stdError[int(t.c)] : &r.value[int(t.c)];
+    if (elemSize == 2) {
+      scaled.push_back(scaleForHalf(*row, size_t(nL)));
+      rows[scalePathOf(t.path)] = scaled.back().scales;
+      row = &scaled.back().values;
+    }
+    for (hsize_t a = 0; a < hsize_t(nL); a += c1)
+      for (hsize_t b = 0; b < hsize_t(nB); b += c2) work.push_back({{t.path, a, b, c1, c2, {}}, row});
   }
   tbb::parallel_for(size_t(0), work.size(), [&](size_t k) {
     const PackedChunk& c = work[k].chunk;
     work[k].chunk.bytes =
-        shuffleDeflate(chunkValues(*work[k].row, hsize_t(nL), hsize_t(nB), c.a, c.b, c.c1, c.c2), kTableDeflateLevel);
+        shuffleDeflate(chunkBytes(*work[k].row, hsize_t(nL), hsize_t(nB), c.a, c.b, c.c1, c.c2, elemSize), elemSize,
+                       kTableDeflateLevel);
   });
   std::vector<PackedChunk> out;
   for (Work& w : work) out.push_back(std::move(w.chunk));
@@ -952,7 +1113,78 @@ std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& sche
 }  // namespace
 
 PreparedSlice prepareSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid) {
-  return {r.incidenceIndex, sliceRows(r, schema, grid), packSlice(r, schema, grid)};
+  PreparedSlice p{r.incidenceIndex, sliceRows(r, schema, grid), {}};
+  p.chunks = packSlice(r, schema, grid, p.rows);
+  return p;
+}
+
+namespace {
+
+// How many bins of component c of a pilot tile (traced with `pilotPaths` paths) hold a value once
+// `paths` are traced, over how many hold one now: a compressed table's size follows its non-zero
+// bins (zeros cost next to nothing), and a pilot leaves many bins empty that the job fills.
+// A bin's hits are (f / σ)² (one hit of weight w gives f = w / (N Ω), σ = f); a seen bin with
+// c hits is filled at the job's budget with probability 1 − exp(−c N / N_pilot). The bins no pilot
+// path reached are estimated from the bins hit once, twice, … (f1..f4) by the improved Chao1 lower
+// bound of the unseen count (Chiu, Wang, Walther & Chao 2014, eq. 7) and filled at N as Shen, Chao
+// & Lin (2003, eq. 5) extrapolate; at most the empty bins of the hemispheres the row reaches.
+// Bins with a value and no error are deterministic (the facet sum, `exact`): counted as they are.
+double occupancyGrowth(const TileResult& r, Component c, const DirectionGrid& grid, double paths) {
+  const double pilotPaths = double(r.samples);
+  if (pilotPaths <= 0 || paths <= pilotPaths) return 1.0;
+  double now = 0, later = 0;
+  for (int l = 0; l < r.nLambda; ++l) {
+    double f[5] = {0, 0, 0, 0, 0}, seen = 0, expected = 0, empty[2] = {0, 0};
+    bool reaches[2] = {false, false};
+    for (int b = 0; b < r.nBins; ++b) {
+      const double v = r.at(c, l, b), se = r.stdError[int(c)][size_t(l) * size_t(r.nBins) + size_t(b)];
+      const int side = grid.isUpper(b) ? 0 : 1;
+      if (v == 0) {
+        empty[side] += 1;
+        continue;
+      }
+      reaches[side] = true;
+      seen += 1;
+      if (se <= 0) {
+        expected += 1;
+        continue;
+      }
+      const double hits = std::max(1.0, std::round((v / se) * (v / se)));
+      if (hits <= 4) f[int(hits)] += 1;
+      expected += 1 - std::exp(-hits * paths / pilotPaths);
+    }
+    double f0 = f[2] > 0 ? f[1] * f[1] / (2 * f[2]) : f[1] * (f[1] - 1) / 2;
+    if (f[4] > 0) f0 += f[3] / (4 * f[4]) * std::max(0.0, f[1] - f[2] * f[3] / (2 * f[4]));
+    f0 = std::min(f0, (reaches[0] ? empty[0] : 0) + (reaches[1] ? empty[1] : 0));
+    if (f0 > 0 && f[1] > 0)
+      expected += f0 * (1 - std::pow(std::max(0.0, 1 - f[1] / (pilotPaths * f0)), paths - pilotPaths));
+    now += seen;
+    later += expected;
+  }
+  return now > 0 ? later / now : 1.0;
+}
+
+}  // namespace
+
+double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid,
+                           const std::vector<TileResult>& tiles) {
+  double bytes = 0;
+  for (TileResult r : tiles) {
+    for (Component c : schema.components.list())
+      if (!r.has(c)) {
+        r.value[int(c)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+        r.stdError[int(c)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
+      }
+    std::map<std::string, double> growth;  // table path -> occupancy growth of its component
+    for (Component c : schema.components.list()) {
+      const double g = occupancyGrowth(r, c, grid, double(schema.pathsPerSlice));
+      growth[std::string("/bsdf/") + componentName(c)] = growth[std::string("/bsdf_stderr/") + componentName(c)] = g;
+    }
+    const PreparedSlice p = prepareSlice(r, schema, grid);
+    for (const PackedChunk& c : p.chunks) bytes += double(c.bytes.size()) * growth.at(c.path);
+    for (const auto& [path, row] : p.rows) bytes += double(row.size()) * sizeof(double);
+  }
+  return tiles.empty() ? 0.0 : bytes / double(tiles.size());
 }
 
 PreparedSlice BsdfFileWriter::prepare(const TileResult& r) const {
@@ -968,24 +1200,20 @@ EnergyBalance BsdfFileWriter::writePrepared(const PreparedSlice& p, const std::f
   // The tables from the packed chunks; from the raw slice where the file's layout is not the one
   // they were packed for (a resumed file of another layout).
   bool packedFits = true;
-  for (Component c : schema_.components.list())
-    for (const char* prefix : {"/bsdf/", "/bsdf_stderr/"}) {
-      const std::string path = std::string(prefix) + componentName(c);
-      const OpenDataset& o = dataset(path);
-      packedFits = packedFits && o.direct;
-      for (hsize_t a = 0; packedFits && a < o.dims[1]; a += o.chunk[1])
-        for (hsize_t b = 0; packedFits && b < o.dims[2]; b += o.chunk[2])
-          packedFits = packedChunkFor(&p.chunks, path, a, b, o.chunk[1], o.chunk[2], o.deflateLevel) != nullptr;
-    }
+  for (const TableRef& t : tablesOf(schema_)) {
+    const OpenDataset& o = dataset(t.path);
+    packedFits = packedFits && o.direct && (o.half == (tableElementSize(schema_) == 2));
+    for (hsize_t a = 0; packedFits && a < o.dims[1]; a += o.chunk[1])
+      for (hsize_t b = 0; packedFits && b < o.dims[2]; b += o.chunk[2])
+        packedFits = packedChunkFor(&p.chunks, t.path, a, b, o.chunk[1], o.chunk[2], o.deflateLevel) != nullptr;
+  }
   const std::optional<TileResult> slice = packedFits ? std::nullopt : std::optional<TileResult>(raw());
   std::vector<std::pair<std::string, const std::vector<double>*>> tables;
-  for (Component c : schema_.components.list()) {
-    const std::string name = componentName(c);
-    tables.emplace_back("/bsdf/" + name, slice ? &slice->value[int(c)] : nullptr);
-    tables.emplace_back("/bsdf_stderr/" + name, slice ? &slice->stdError[int(c)] : nullptr);
-  }
-  putTableRows(tables, i, slice ? nullptr : &p.chunks);
+  for (const TableRef& t : tablesOf(schema_))
+    tables.emplace_back(t.path, !slice ? nullptr : t.error ? &slice->stdError[int(t.c)] : &slice->value[int(t.c)]);
+  // The rows first: where the tables are compressed here, their scales replace the packed ones.
   for (const auto& [path, row] : p.rows) putRow(path, i, row);
+  putTableRows(tables, i, slice ? nullptr : &p.chunks);
   return energyBalanceOf(schema_, [&](const std::string& path) { return p.rows.at(path); });
 }
 
@@ -1021,8 +1249,15 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
     const hsize_t w = hsize_t(pairs.incidenceBin(e - 1) - c0 + 1);
     // f_ws(j -> bin(i)) = incoherent + coherent of row j, with its variance se_inc² − se_coh²
     // (the two were combined in quadrature, docs/physics.md §3).
-    const std::vector<double> cInc = readColumns(f, inc, hsize_t(c0), w), cIncE = readColumns(f, incE, hsize_t(c0), w),
-                              cCoh = readColumns(f, coh, hsize_t(c0), w), cCohE = readColumns(f, cohE, hsize_t(c0), w);
+    auto columns = [&](const std::string& path) {
+      std::vector<double> v = readColumns(f, path, hsize_t(c0), w);
+      if (dataset(path).half) {  // (nI, nλ, w) stored / scale (nI, nλ)
+        const std::vector<double> scale = readColumns(f, scalePathOf(path), 0, 1);
+        for (size_t k = 0; k < v.size(); ++k) v[k] *= scale[k / w];
+      }
+      return v;
+    };
+    const std::vector<double> cInc = columns(inc), cIncE = columns(incE), cCoh = columns(coh), cCohE = columns(cohE);
     auto col = [&](int j, int l, int bin) { return (size_t(j) * nL + l) * w + size_t(bin - c0); };
     for (int i = a; i < e; ++i) {
       TileResult row;
@@ -1031,9 +1266,9 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
       row.nBins = nB;
       auto& v = row.value[int(Component::Incoherent)];
       auto& se = row.stdError[int(Component::Incoherent)];
-      v = getRow(inc, i);
-      se = getRow(incE, i);
-      const std::vector<double> ch = getRow(coh, i), chE = getRow(cohE, i);
+      v = getTable(inc, i);
+      se = getTable(incE, i);
+      const std::vector<double> ch = getTable(coh, i), chE = getTable(cohE, i);
       const int bi = pairs.incidenceBin(i);
       for (int o = 0; o < nB; ++o) {
         if (pairs.computes(i, o)) continue;
@@ -1049,8 +1284,8 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
                                      std::to_string(bi));
         }
       }
-      putRow(inc, i, v);
-      putRow(incE, i, se);
+      putTable(inc, i, v);
+      putTable(incE, i, se);
       writeSliceStats(row, Component::Incoherent);
       writeEnergyBalance(i);
       for (int l = 0; l < nL; ++l)
@@ -1129,11 +1364,33 @@ std::vector<double> BsdfFileReader::readRow(const std::string& dataset, int inci
   return readRowImpl(file_, dataset, incidence);
 }
 
+std::vector<double> BsdfFileReader::readTable(const std::string& path, int incidence) const {
+  std::vector<double> v = readRow(path, incidence);
+  const std::string scalePath = scalePathOf(path);
+  if (H5Lexists(file_, scalePath.substr(0, scalePath.rfind('/')).c_str(), H5P_DEFAULT) > 0) {
+    const std::vector<double> scales = readRow(scalePath, incidence);
+    const size_t nB = v.size() / std::max<size_t>(1, scales.size());
+    for (size_t k = 0; k < v.size(); ++k) v[k] *= scales[k / nB];
+  }
+  return v;
+}
+
 std::vector<double> BsdfFileReader::slice(const std::string& component, int incidence) const {
-  return readRow("/bsdf/" + component, incidence);
+  return readTable("/bsdf/" + component, incidence);
+}
+bool BsdfFileReader::hasBinErrors(const std::string& component) const {
+  const std::string p = "/bsdf_stderr/" + component;
+  return H5Lexists(file_, "/bsdf_stderr", H5P_DEFAULT) > 0 && H5Lexists(file_, p.c_str(), H5P_DEFAULT) > 0;
 }
 std::vector<double> BsdfFileReader::sliceStdError(const std::string& component, int incidence) const {
-  return readRow("/bsdf_stderr/" + component, incidence);
+  if (!hasBinErrors(component))
+    throw std::runtime_error("the file stores the standard errors of '" + component +
+                             "' per slice only (its storage profile: attribute storage_profile), not per bin");
+  return readTable("/bsdf_stderr/" + component, incidence);
+}
+std::string BsdfFileReader::storageProfile() const {
+  return hasAttribute("storage_profile") ? attribute("storage_profile")
+                                         : "full: float32 tables; standard errors per bin";
 }
 
 SliceStats BsdfFileReader::stats(int incidence) const {

@@ -8,6 +8,11 @@
 //   /bsdf/<component>       float32 (nInc, nλ, nBins), 1/sr, chunk = one incidence slice (split if
 //                           > 4 MiB), shuffle + deflate, fill value NaN (unwritten = visible)
 //   /bsdf_stderr/<component> the standard error of each value, same layout
+//   Storage profiles (core/storage_profile.h, docs/output.md "Storage profiles"): float16 tables
+//   hold each slice and wavelength divided by a power of two, /bsdf_scale/<c> and
+//   /bsdf_stderr_scale/<c> (nInc, nλ, 1), so that neither a specular peak overflows nor a tail
+//   underflows; with errors per slice /bsdf_stderr is left out (but for the tables the reciprocity
+//   fill reads). The root attribute storage_profile says which.
 //   /bsdf/done              uint8 (nInc), 1 when that slice is complete
 //   /stats/...              per slice: samples, wave_samples, seconds, sampling_stop (0 fixed budget, 1 target
 //                           relative error reached, 2 budget spent), truncated/leaked/missed (nInc, nλ),
@@ -126,6 +131,8 @@ class BsdfFileWriter {
     // A table whose chunks the writer compresses itself (float32, 3-D, shuffle + deflate): its
     // dimensions, chunk shape and deflate level.
     bool direct = false;
+    bool half = false;  // float16 (the profile's), scaled per slice and wavelength
+    size_t elemSize = 4;
     hsize_t dims[3] = {0, 0, 0}, chunk[3] = {0, 0, 0};
     int deflateLevel = 0;
   };
@@ -134,6 +141,10 @@ class BsdfFileWriter {
   // consecutive rows with one call: a slice has some thirty small rows, and one write per row was
   // most of rank 0's time per slice. getRow sees the rows held.
   void putRow(const std::string& path, int i, const std::vector<double>& v);
+  // The same for a table (/bsdf/…, /bsdf_stderr/…) given its values: a half table's row is held
+  // scaled, with its scales. getTable gives the values back.
+  void putTable(const std::string& path, int i, const std::vector<double>& v);
+  std::vector<double> getTable(const std::string& path, int i);
   void flushPending();
   // Rows i of several tables (path, values): their chunks compressed in parallel, then written as
   // they are (H5Dwrite_chunk), so that HDF5's one-threaded filter pipeline is not rank 0's limit.
@@ -188,6 +199,10 @@ std::vector<double> energyStdError(const TileResult& r, Component c, int side, c
 // measured by writing up to 3 zero slices to a scratch file in the temporary directory: `plan`'s
 // estimate of rank 0's serial writing.
 double measureWriteSecondsPerSlice(const OutputSchema& schema, const DirectionGrid& grid);
+// Bytes a slice takes in the file, the mean over `tiles`: its table chunks compressed as the writer
+// stores them and its statistics rows (prepareSlice). A component a tile lacks (a guarded skip)
+// counts as zeros. `plan`'s estimate of the file's size.
+double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid, const std::vector<TileResult>& tiles);
 
 class BsdfFileReader {
  public:
@@ -203,7 +218,11 @@ class BsdfFileReader {
   int doneCount() const;
   // One slice of a component: nλ x nBins (λ-major), float converted to double.
   std::vector<double> slice(const std::string& component, int incidence) const;
+  // Its per-bin standard errors; throws where the file keeps them per slice only (hasBinErrors).
   std::vector<double> sliceStdError(const std::string& component, int incidence) const;
+  bool hasBinErrors(const std::string& component) const;
+  // How the tables are stored (the root attribute storage_profile; "full" in files before it).
+  std::string storageProfile() const;
   SliceStats stats(int incidence) const;
   std::string attribute(const std::string& name) const;
   bool hasAttribute(const std::string& name) const;
@@ -213,6 +232,8 @@ class BsdfFileReader {
 
  private:
   std::vector<double> readRow(const std::string& dataset, int incidence) const;
+  // A table's row, multiplied by its scales in a half-precision file.
+  std::vector<double> readTable(const std::string& path, int incidence) const;
   H5File file_;
   std::vector<double> lambda_nm_;
   std::unique_ptr<DirectionGrid> grid_;

@@ -8,6 +8,7 @@
 
 #include "core/direction_grid.h"
 #include "core/file_digest.h"
+#include "core/storage_profile.h"
 #include "scattering/components.h"
 
 namespace mbsdf {
@@ -34,6 +35,15 @@ struct OutputSchema {
   std::vector<IncidenceDirection> incidence;
   ComponentSet components;
   ComponentSet guarded;  // skipped by the effects planner and verified per slice
+  StorageProfile storage;
+
+  // Whether component c has a table of per-bin standard errors: always in the per-bin profile, and
+  // for the two tables the reciprocity fill reads (incoherent and coherent) when the job halves the
+  // wave term, whose filled bins' errors come from them.
+  bool storesBinErrors(Component c) const {
+    return storage.errors == TableErrors::PerBin ||
+           (halvesWaveByReciprocity && (c == Component::Incoherent || c == Component::Coherent));
+  }
 };
 
 }  // namespace mbsdf

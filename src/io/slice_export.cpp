@@ -44,22 +44,25 @@ std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& mo
   if (!comps) throw std::invalid_argument("unknown model '" + model + "' (GS, GM, WS, WM or a component name)");
   auto have = file.components();
   std::vector<double> sum, var;
+  bool binErrors = stdError != nullptr;
+  for (Component c : *comps) binErrors = binErrors && file.hasBinErrors(componentName(c));
   for (Component c : *comps) {
     std::string name = componentName(c);
     if (std::find(have.begin(), have.end(), name) == have.end())
       throw std::invalid_argument("model " + model + " needs component '" + name + "', which the file does not hold");
     auto v = file.slice(name, incidence);
-    auto e = file.sliceStdError(name, incidence);
     if (sum.empty()) {
       sum.assign(v.size(), 0.0);
       var.assign(v.size(), 0.0);
     }
-    for (size_t i = 0; i < v.size(); ++i) {
-      sum[i] += v[i];
-      var[i] += e[i] * e[i];
-    }
+    for (size_t i = 0; i < v.size(); ++i) sum[i] += v[i];
+    if (!binErrors) continue;
+    auto e = file.sliceStdError(name, incidence);
+    for (size_t i = 0; i < v.size(); ++i) var[i] += e[i] * e[i];
   }
-  if (stdError) {
+  if (stdError && !binErrors) {
+    stdError->clear();  // the file keeps its errors per slice (its storage profile)
+  } else if (stdError) {
     stdError->resize(var.size());
     for (size_t i = 0; i < var.size(); ++i) (*stdError)[i] = std::sqrt(var[i]);
   }
@@ -205,7 +208,10 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
     std::ofstream o(outPath);
     if (!o) throw std::runtime_error("cannot write " + outPath);
     o << "# microbsdf slice: model " << req.model << ", incidence theta " << file.incidenceTheta(inc) << " deg, phi "
-      << file.incidencePhi(inc) << " deg; f in 1/sr (bin average), stderr = standard error\n";
+      << file.incidencePhi(inc) << " deg; f in 1/sr (bin average), "
+      << (err.empty() ? "no per-bin standard errors (the file keeps them per slice: microbsdf info)"
+                      : "stderr = standard error")
+      << "\n";
     // The colour a renderer fed with RGB uses, when some wavelength is visible: CIE 1931 XYZ (each
     // sample standing for its band, core/colour.h) and linear sRGB.
     std::optional<SpectrumToColour> colour;
@@ -215,8 +221,10 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
     }
     o << "bin,hemisphere,theta_deg,phi_deg,solid_angle_sr,projected_solid_angle_sr";
     for (double l : lambda) o << ",f_" << l << "nm";
-    for (double l : lambda) o << ",stderr_" << l << "nm";
-    if (colour) o << ",X,Y,Z,R_linear,G_linear,B_linear,stderr_X,stderr_Y,stderr_Z";
+    const bool binErrors = !err.empty();
+    if (binErrors)
+      for (double l : lambda) o << ",stderr_" << l << "nm";
+    if (colour) o << ",X,Y,Z,R_linear,G_linear,B_linear" << (binErrors ? ",stderr_X,stderr_Y,stderr_Z" : "");
     o << "\n";
     o.precision(9);
     for (int b = 0; b < nB; ++b) {
@@ -225,13 +233,18 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
       o << b << "," << (grid.isUpper(b) ? "reflection" : "transmission") << "," << degrees(sphericalTheta(c)) << ","
         << degrees(sphericalPhi(c)) << "," << grid.solidAngle(b) << "," << grid.projectedSolidAngle(b);
       for (int l = 0; l < nL; ++l) o << "," << f[size_t(l) * nB + b];
-      for (int l = 0; l < nL; ++l) o << "," << err[size_t(l) * nB + b];
+      if (binErrors)
+        for (int l = 0; l < nL; ++l) o << "," << err[size_t(l) * nB + b];
       if (colour) {
         std::vector<double> v(static_cast<size_t>(nL));
         for (int l = 0; l < nL; ++l) v[size_t(l)] = f[size_t(l) * nB + b];
         const Colour3 xyz = colour->xyz(v.data()), rgb = xyzToLinearSrgb(xyz);
         for (double x : xyz) o << "," << x;
         for (double x : rgb) o << "," << x;
+        if (!binErrors) {
+          o << "\n";
+          continue;
+        }
         // Σ_λ w_λ se_λ: the standard error of X, Y, Z whatever the correlation between wavelengths
         // (they share paths; the weights are non-negative), an upper bound.
         for (int c = 0; c < 3; ++c) {

@@ -24,7 +24,8 @@ struct SliceRequest {
 // Throws InputError naming --log2-min/--log2-max when a false-colour request has no range.
 void checkFalseColourRange(const SliceRequest& req);
 
-// Sum of the model's components that the file holds (missing ones are an error).
+// Sum of the model's components that the file holds (missing ones are an error); with stdError, its
+// per-bin standard error (left empty where the file keeps errors per slice only).
 std::vector<double> modelSlice(const BsdfFileReader& file, const std::string& model, int incidence,
                                std::vector<double>* stdError = nullptr);
 

@@ -297,6 +297,28 @@ void parseEffects(const ParamDict& eff, Job& job) {
   job.pilotBudget = eff.positive("pilot_budget", 0.5);
 }
 
+// [output] profile, values, errors: how the tables are stored (core/storage_profile.h); the
+// profile names a preset, values and errors override it.
+void parseStorageProfile(const ParamDict& out, Job& job) {
+  const std::string profile = out.getString("profile", "full");
+  if (profile == "full")
+    job.storage = StorageProfile::full();
+  else if (profile == "compact")
+    job.storage = StorageProfile::compact();
+  else
+    out.fail("profile", "must be \"full\" or \"compact\"");
+  if (out.has("values")) {
+    const std::string v = out.getString("values", "");
+    if (v != "float32" && v != "float16") out.fail("values", "must be \"float32\" or \"float16\"");
+    job.storage.values = v == "float16" ? TableValues::Float16 : TableValues::Float32;
+  }
+  if (out.has("errors")) {
+    const std::string e = out.getString("errors", "");
+    if (e != "per-bin" && e != "per-slice") out.fail("errors", "must be \"per-bin\" or \"per-slice\"");
+    job.storage.errors = e == "per-slice" ? TableErrors::PerSlice : TableErrors::PerBin;
+  }
+}
+
 // [sampling]: budgets, seeds and estimators.
 void parseSampling(const ParamDict& samp, Job& job) {
   job.pathsPerSlice = uint64_t(samp.positiveInt("paths_per_slice", 1000000));
@@ -518,6 +540,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   job.outputPath = out.getString("path", "out.h5");
   if (job.outputPath.empty()) out.fail("path", "must not be empty");
   job.previews = out.getBool("previews", false);
+  parseStorageProfile(out, job);
 
   ParamDict geo = root.table("geometry");
   parseGeometry(geo, eff, baseDir, sourceName, job);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/direction_grid.h"
+#include "core/storage_profile.h"
 #include "core/file_digest.h"
 #include "geometry/microgeometry.h"
 #include "microflake/microflake_walk.h"
@@ -113,6 +114,7 @@ struct Job {
   SingleScatteringMode singleScattering = SingleScatteringMode::Auto;
   std::string outputPath = "out.h5";
   bool previews = false;
+  StorageProfile storage;  // [output] profile, values, errors
 
   // The cell the periodic patch repeats, nx x ny times (geometry/lattice_cell.h; 1 x 1 when it does
   // not, or when the job has no windowed wave term to use it for): its order lobes are 2π/L_cell

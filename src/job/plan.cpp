@@ -467,6 +467,13 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
                    {"core_hours", coreHours}};
   const double memoryBytes = memoryBytesPerRank(job, waveBytes);
   p["output_bytes_uncompressed"] = outputBytesUncompressed(job);
+  if (options.storedBytesPerSlice) {
+    const double perSlice = options.storedBytesPerSlice(job, grid, pilotTiles);
+    p["output"] = {{"profile", job.storage.name()},
+                   {"bytes_per_slice", perSlice},
+                   {"slices", nTiles},
+                   {"bytes", perSlice * nTiles + double(grid.binCount()) * 8.0 * 4.0}};
+  }
   p["memory_bytes_per_rank"] = memoryBytes;
   p["sbatch"] = slurmHeader(tileSeconds, waveSetupSeconds, coreHours, computedTiles, cores, memoryBytes);
   return p;
@@ -587,7 +594,13 @@ std::string formatPlan(const nlohmann::json& p) {
                   p["diffraction_check"]["tiles_verified_by_pilots"].dump() + " tiles, by their own wave term on " +
                   p["diffraction_check"]["tiles_checked"].dump() + " (counted in the estimate)\n"
             : std::string())
-    << "output:         " << gb(p["output_bytes_uncompressed"].get<double>()) << " uncompressed (upper bound)\n"
+    << (p.contains("output")
+            ? "output:         " + gb(p["output"]["bytes"].get<double>()) + " (" +
+                  p["output"]["profile"].get<std::string>() +
+                  " profile: " + fmt::format("{:.3g} MB", p["output"]["bytes_per_slice"].get<double>() / 1e6) +
+                  " per slice: the pilots compressed, projected to the job's paths, x " + p["output"]["slices"].dump() +
+                  " slices); " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed\n"
+            : "output:         " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed (upper bound)\n")
     << "memory / rank:  " << gb(p["memory_bytes_per_rank"].get<double>()) << "\n"
     << "suggested Slurm header:\n"
     << p["sbatch"].get<std::string>();

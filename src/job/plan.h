@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "job/job.h"
+#include "scattering/tile_result.h"
 
 namespace mbsdf {
 
@@ -18,6 +19,9 @@ struct PlanOptions {
   // Seconds rank 0 spends writing one slice of this job's layout (the output writer lives above
   // this layer: `microbsdf plan` passes io's measureWriteSecondsPerSlice); unset: not counted.
   std::function<double(const Job&, const DirectionGrid&)> writeSecondsPerSlice;
+  // Bytes one slice takes in the output file in the job's storage profile, measured by compressing
+  // the pilot tiles as the writer stores them (io's storedBytesPerSlice); unset: not reported.
+  std::function<double(const Job&, const DirectionGrid&, const std::vector<TileResult>&)> storedBytesPerSlice;
   // Seconds the caller spent loading the job (its geometry built and checked), which every rank of
   // the run spends again before its first tile; 0: not counted.
   double jobLoadSeconds = 0;

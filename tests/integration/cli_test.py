@@ -225,6 +225,100 @@ def test_reciprocity():
               f"wave samples {ws_on} vs {ws_off} ({ws_on / ws_off:.3f} = expected {expected:.3f}); 1 and 2 ranks identical")
 
 
+def test_storage_profiles():
+    """[output] profile = "compact" against the full profile of the same job (same seeds): every table
+    value equal to the full file's within half precision's rounding (read through python/microbsdf_h5.py,
+    the helper for h5py users), the per-slice statistics identical, no per-bin error tables, 1 and 2
+    ranks byte-identical, `info` naming the profile, and `plan`'s projected bytes per slice within 10 %
+    of what each file stores per slice. Then the reciprocity fill of a halved wave term in float16:
+    the filled table equal to the float32 run's within the same rounding."""
+    sys.path.insert(0, os.path.join(SRC, "python"))
+    import microbsdf_h5 as mh  # noqa: E402
+
+    half_ulp = 2.0 ** -11 + 2.0 ** -23  # rounded through float to half, to nearest
+
+    def close_in_half(x, y, what):
+        peak = np.nanmax(np.abs(y), axis=-1, keepdims=True)
+        bound = half_ulp * np.abs(y) + peak * 2.0 ** -39  # the scaled subnormal step below 2^-29 of the peak
+        assert np.all(np.isfinite(x) == np.isfinite(y)), what
+        bad = np.abs(x - y) > bound
+        assert not np.any(bad[np.isfinite(y)]), (what, np.argwhere(bad)[:5])
+
+    def stored_per_slice(path):
+        with h5py.File(os.path.join(TMP, path), "r") as f:
+            total = 0
+
+            def visit(name, obj):
+                nonlocal total
+                if isinstance(obj, h5py.Dataset) and name.split("/")[0] in ("bsdf", "bsdf_stderr", "bsdf_scale",
+                                                                                "bsdf_stderr_scale", "stats"):
+                    total += obj.id.get_storage_size()
+            f.visititems(visit)
+            return total / f["/bsdf/done"].shape[0]
+
+    src = open(os.path.join(SRC, "jobs", "quickstart.toml")).read()
+    full = os.path.join(TMP, "full.toml")
+    compact = os.path.join(TMP, "compact.toml")
+    open(full, "w").write(src)
+    open(compact, "w").write(src.replace("[output]", '[output]\nprofile = "compact"'))
+    run(["run", full, "-o", "full.h5"])
+    run(["run", compact, "-o", "compact.h5"])
+    run(["run", compact, "-o", "compact2.h5", "--threads", "1"], mpi=2)
+    assert datasets(os.path.join(TMP, "compact.h5")) == datasets(os.path.join(TMP, "compact2.h5")), "1 vs 2 ranks"
+    with h5py.File(os.path.join(TMP, "compact.h5"), "r") as c, h5py.File(os.path.join(TMP, "full.h5"), "r") as f:
+        assert "bsdf_stderr" not in c and c["/bsdf/coherent"].dtype == np.float16
+        assert mh.storage_profile(c).startswith("compact") and mh.storage_profile(f).startswith("full")
+        for comp in ("coherent", "multiple"):
+            close_in_half(mh.table(c, comp), mh.table(f, comp), comp)
+            assert np.array_equal(c[f"/stats/energy_reflected/{comp}"][:], f[f"/stats/energy_reflected/{comp}"][:])
+            assert np.array_equal(c[f"/stats/rel_error/{comp}"][:], f[f"/stats/rel_error/{comp}"][:])
+            assert not mh.has_bin_errors(c, comp) and mh.has_bin_errors(f, comp)
+    assert "storage:     compact" in run(["info", "compact.h5"]).stdout
+    # Every reader of the program reads the compact file: slice (its CSV without per-bin errors),
+    # render (and export, below).
+    run(["slice", "compact.h5", "--model", "GM", "-o", "compact.csv"])
+    header = open(os.path.join(TMP, "compact.csv")).read().split("\n")[:2]
+    assert "per slice" in header[0] and "stderr" not in header[1], header
+    run(["render", "compact.h5", "-o", "compact.png"])
+    sizes = {}
+    for job, out in ((full, "full.h5"), (compact, "compact.h5")):
+        run(["plan", job, "--json", out + ".plan.json"])
+        plan = json.load(open(os.path.join(TMP, out + ".plan.json")))
+        predicted, stored = plan["output"]["bytes_per_slice"], stored_per_slice(out)
+        sizes[out] = (predicted, stored)
+        assert abs(predicted / stored - 1) <= 0.10, (out, predicted, stored)
+    assert sizes["compact.h5"][1] <= 0.5 * sizes["full.h5"][1], sizes
+    # The reciprocity fill in float16.
+    material = 'kind = "conductor"\nname = "Al"'
+    on = reciprocity_job(os.path.join(TMP, "rc-on.toml"), material, "rc-on.h5")
+    half = os.path.join(TMP, "rc-half.toml")
+    open(half, "w").write(open(on).read().replace("[output]", '[output]\nvalues = "float16"').replace(
+        "rc-on.h5", "rc-half.h5"))
+    run(["run", on], mpi=2)
+    run(["run", half], mpi=2)
+    with h5py.File(os.path.join(TMP, "rc-half.h5"), "r") as h, h5py.File(os.path.join(TMP, "rc-on.h5"), "r") as f:
+        inc_bins = h["/incidence/bin"][:]
+        index_of = {int(b): k for k, b in enumerate(inc_bins)}
+        for err in (False, True):
+            close_in_half(mh.table(h, "coherent", err), mh.table(f, "coherent", err), ("coherent", err))
+            x, y = mh.table(h, "incoherent", err), mh.table(f, "incoherent", err)
+            ci, cf = mh.table(h, "coherent", err), mh.table(f, "incoherent", err)
+            assert np.all(np.isfinite(x)), "NaN left in the filled float16 table"
+            # A mirrored entry (i, o) is inc(j -> bin i) + coh(j -> bin i) - coh(i -> o) of stored values
+            # (for the errors, their quadrature): each rounded once to half, the result once more.
+            bound = half_ulp * np.abs(y) + np.nanmax(np.abs(y), axis=-1, keepdims=True) * 2.0 ** -39
+            for i, bi in enumerate(inc_bins):
+                for o, j in index_of.items():
+                    terms = np.abs(cf[j, :, bi]) + np.abs(ci[j, :, bi]) + np.abs(ci[i, :, o]) + np.abs(y[i, :, o])
+                    peaks = np.max(np.abs(cf[j]), axis=-1) + np.max(np.abs(ci[j]), axis=-1) + np.max(np.abs(ci[i]), axis=-1)
+                    bound[i, :, o] = np.maximum(bound[i, :, o], 2 * half_ulp * terms + peaks * 2.0 ** -38)
+            assert np.all(np.abs(x - y) <= bound), ("incoherent", err, np.max(np.abs(x - y) / bound))
+    run(["export", "rc-half.h5", "--format", "rgl", "--model", "WS", "-o", "rc-half.bsdf"])
+    print("compact vs full: every value within half precision, statistics identical; stored per slice "
+          f"(plan / file): full {sizes['full.h5'][0]:.0f} / {sizes['full.h5'][1]:.0f} B, compact "
+          f"{sizes['compact.h5'][0]:.0f} / {sizes['compact.h5'][1]:.0f} B; reciprocity fill in float16 as in float32")
+
+
 def wm_excess_beyond_noise(a, b, brdf_only=False):
     """Per slice and wavelength, how far the auto table `a` (h5py file) differs from the WM model of
     the full table `b` (the same seeds) beyond noise: sum|f_WM - f_auto| * proj. solid angle, less

@@ -66,10 +66,13 @@ path = "{output}"
 
 
 def datasets(path):
-    """SHA-256 of the raw bytes of every /bsdf and /bsdf_stderr dataset."""
+    """SHA-256 of the raw bytes of every table dataset (/bsdf, /bsdf_stderr and, in a float16 file,
+    their scales)."""
     out = {}
     with h5py.File(path, "r") as f:
-        for g in ("bsdf", "bsdf_stderr"):
+        for g in ("bsdf", "bsdf_stderr", "bsdf_scale", "bsdf_stderr_scale"):
+            if g not in f:
+                continue
             for k, d in f[g].items():
                 out[f"{g}/{k}"] = hashlib.sha256(np.ascontiguousarray(d[()]).tobytes()).hexdigest()
     return out

@@ -259,3 +259,116 @@ TEST(BsdfFile, PreparedSlicesWriteTheSameFile) {
   }
   for (const std::string& p : {direct, prepared}) std::filesystem::remove(p);
 }
+
+namespace {
+// A slice whose values span the range a BSDF table holds: a specular bin of 2·10^5 /sr (beyond
+// half precision's 65 504), a tail down to 10^-5 /sr, exact zeros, and errors of 10 % of each value.
+TileResult wideRangeTile(const Job& job, const DirectionGrid& g, int index) {
+  TileResult r = tile(job, g, index, 0.0);
+  for (int l = 0; l < 2; ++l)
+    for (int b = 0; b < g.binCount(); ++b) {
+      const double f = b == 3 ? 2e5 * (l + 1) : b % 5 == 0 ? 0.0 : std::pow(10.0, -5.0 + 0.37 * b) * (1 + 0.1 * l);
+      r.at(Component::Coherent, l, b) = f;
+      r.stdError[int(Component::Coherent)][size_t(l) * g.binCount() + b] = 0.1 * f;
+      r.at(Component::Multiple, l, b) = 1e-3 * f;
+    }
+  return r;
+}
+Job compactJob() {
+  Job job = smallJob();
+  job.storage = StorageProfile::compact();
+  return job;
+}
+}  // namespace
+
+// The compact profile: float16 tables scaled per slice and wavelength hold a 2·10^5 /sr specular bin
+// and a 10^-5 /sr tail to half precision's rounding (2^-11 relative, double-rounded through float:
+// 2^-11 + 2^-23) or its scaled subnormal step below 2^-29 of the row's peak; zeros stay zeros, no
+// value becomes infinite, an unwritten slice reads NaN; the per-bin errors are not stored (a reader
+// asking for them gets a clear error) while the per-slice statistics are those of the exact values.
+TEST(BsdfFile, HalfPrecisionKeepsEveryScale) {
+  const Job job = compactJob();
+  DirectionGrid g(job.gridLayout);
+  const std::string path = (std::filesystem::temp_directory_path() / "microbsdf_half_test.h5").string();
+  std::filesystem::remove(path);
+  const TileResult r = wideRangeTile(job, g, 1);
+  {
+    BsdfFileWriter w(path, outputSchemaOf(job), g);
+    w.writeTile(r);
+    w.finish();
+  }
+  BsdfFileReader f(path);
+  EXPECT_NE(f.storageProfile().find("compact"), std::string::npos) << f.storageProfile();
+  for (const char* name : {"coherent", "multiple"}) {
+    const Component c = *componentFromName(name);
+    const std::vector<double> back = f.slice(name, 1);
+    ASSERT_EQ(back.size(), r.value[int(c)].size());
+    for (int l = 0; l < 2; ++l) {
+      double peak = 0;
+      for (int b = 0; b < g.binCount(); ++b) peak = std::max(peak, r.at(c, l, b));
+      for (int b = 0; b < g.binCount(); ++b) {
+        const double x = r.at(c, l, b), y = back[size_t(l) * g.binCount() + b];
+        ASSERT_TRUE(std::isfinite(y)) << name << " " << b;
+        EXPECT_LE(std::abs(y - x), (std::ldexp(1.0, -11) + std::ldexp(1.0, -23)) * x + peak * std::ldexp(1.0, -39))
+            << name << " λ " << l << " bin " << b << ": " << x << " read as " << y;
+        if (x == 0) {
+          EXPECT_EQ(y, 0.0);
+        }
+      }
+    }
+    EXPECT_TRUE(std::isnan(f.slice(name, 0)[3]));
+    EXPECT_FALSE(f.hasBinErrors(name));
+    EXPECT_THROW(f.sliceStdError(name, 1), std::runtime_error);
+  }
+  SliceStats st = f.stats(1);
+  double e = 0, all = 0, var = 0;
+  for (int b = 0; b < g.binCount(); ++b) {
+    const double fo = r.at(Component::Coherent, 0, b) * g.projectedSolidAngle(b);
+    if (g.isUpper(b)) e += fo;
+    all += fo;
+    var += 0.01 * fo * fo;
+  }
+  EXPECT_DOUBLE_EQ(st.energyReflected["coherent"][0], e);
+  EXPECT_NEAR(st.relError["coherent"][0], std::sqrt(var) / all, 1e-12);
+  std::filesystem::remove(path);
+}
+
+// In the compact profile too, a slice prepared on a worker, one compressed by rank 0 from the raw
+// values (a misfit layout) and one written directly make the same datasets, and a resumed file
+// keeps the finished slices' stored values bit for bit.
+TEST(BsdfFile, HalfPrecisionPreparedAndResumedAreTheSame) {
+  const Job job = compactJob();
+  DirectionGrid g(job.gridLayout);
+  const OutputSchema schema = outputSchemaOf(job);
+  const std::string direct = (std::filesystem::temp_directory_path() / "microbsdf_half_direct.h5").string(),
+                    prepared = (std::filesystem::temp_directory_path() / "microbsdf_half_prepared.h5").string();
+  for (const std::string& p : {direct, prepared})
+    for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(p + ext);
+  const TileResult a = wideRangeTile(job, g, 0), b = wideRangeTile(job, g, 1);
+  {
+    BsdfFileWriter w(direct, schema, g);
+    w.writeTile(a);
+    w.writeTile(b);
+    w.finish();
+  }
+  {
+    BsdfFileWriter w(prepared, schema, g);
+    w.writePrepared(deserializePrepared(serializePrepared(prepareSlice(a, schema, g))), [&] { return a; });
+    w.commitSlices({0});
+    // destroyed without finish(): a stopped run, resumed below
+  }
+  {
+    BsdfFileWriter w(prepared, schema, g, /*resume=*/true);
+    ASSERT_EQ(w.resumedTiles(), std::vector<int>{0});
+    PreparedSlice misfit = prepareSlice(b, schema, g);
+    for (PackedChunk& c : misfit.chunks) c.c2 += 1;
+    w.writePrepared(misfit, [&] { return b; });
+    w.commitSlices({1});
+    w.finish();
+  }
+  BsdfFileReader x(direct), y(prepared);
+  for (int i = 0; i < 2; ++i)
+    for (const char* c : {"coherent", "multiple"}) EXPECT_EQ(x.slice(c, i), y.slice(c, i)) << c << " " << i;
+  EXPECT_EQ(x.stats(1).energyReflected, y.stats(1).energyReflected);
+  for (const std::string& p : {direct, prepared}) std::filesystem::remove(p);
+}

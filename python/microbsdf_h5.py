@@ -1,0 +1,59 @@
+"""Reading microbsdf output files with h5py (docs/output.md).
+
+The tables /bsdf/<component> and /bsdf_stderr/<component> are (incidence, wavelength, exit bin)
+arrays in 1/sr. In the `full` storage profile they are float32 and read as they are. In a profile
+with float16 values each slice and wavelength is stored divided by a power of two, kept in
+/bsdf_scale/<component> (and /bsdf_stderr_scale/<component>) as an (incidence, wavelength, 1) array;
+these functions multiply it back, so a script reads every file the same way:
+
+    import h5py, microbsdf_h5
+    with h5py.File("out.h5", "r") as f:
+        f_ws = microbsdf_h5.slice(f, "coherent", 3) + microbsdf_h5.slice(f, "incoherent", 3)
+        err = microbsdf_h5.slice(f, "coherent", 3, error=True)   # where the file keeps per-bin errors
+
+Put this file's folder (python/ in the source tree) on PYTHONPATH, or copy the file beside a script.
+It needs only numpy and h5py.
+"""
+
+import numpy as np
+
+__all__ = ["table", "slice", "has_bin_errors", "storage_profile"]
+
+
+def _paths(component, error):
+    group = "bsdf_stderr" if error else "bsdf"
+    return f"/{group}/{component}", f"/{group}_scale/{component}"
+
+
+def has_bin_errors(f, component):
+    """Whether the file keeps a per-bin standard error table for `component`."""
+    return _paths(component, True)[0] in f
+
+
+def storage_profile(f):
+    """How the file stores its tables (the root attribute storage_profile; "full" before it)."""
+    v = f.attrs.get("storage_profile", "full: float32 tables; standard errors per bin")
+    return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def _read(f, component, error, index):
+    path, scale_path = _paths(component, error)
+    if path not in f:
+        if error and f"/bsdf/{component}" in f:
+            raise KeyError(f"{f.filename} stores the standard errors of '{component}' per slice only "
+                           f"(/stats; storage profile: {storage_profile(f)})")
+        raise KeyError(f"{f.filename} has no component '{component}'")
+    values = f[path][index].astype(np.float64)
+    if scale_path in f:
+        values *= f[scale_path][index]  # (…, nλ, 1) broadcasts over the exit bins
+    return values
+
+
+def table(f, component, error=False):
+    """The whole table of `component` (its standard errors with error=True): (incidence, λ, bin), 1/sr."""
+    return _read(f, component, error, np.s_[...])
+
+
+def slice(f, component, incidence, error=False):  # noqa: A001 (the file's own word for it)
+    """One incidence slice of `component` (its standard errors with error=True): (λ, bin), 1/sr."""
+    return _read(f, component, error, np.s_[int(incidence)])
