@@ -1,7 +1,9 @@
 """Reading microbsdf output files with h5py (docs/output.md).
 
-The tables /bsdf/<component> and /bsdf_stderr/<component> are (incidence, wavelength, exit bin)
-arrays in 1/sr. In the `full` storage profile they are float32 and read as they are. In a profile
+The tables /bsdf/<component> and /bsdf_stderr/<component> are (incidence, row, exit bin) arrays in
+1/sr, a row per wavelength (/spectrum/wavelength_nm) or, in a file stored in colour, per channel
+(X, Y, Z or linear sRGB's R, G, B: `channels`; /colour/weights holds the conversion from the
+computed wavelengths, whose per-slice statistics /stats keeps). In the `full` storage profile they are float32 and read as they are. In a profile
 with float16 values each slice and wavelength is stored divided by a power of two, kept in
 /bsdf_scale/<component> (and /bsdf_stderr_scale/<component>) as an (incidence, wavelength, 1) array;
 these functions multiply it back, so a script reads every file the same way:
@@ -17,12 +19,20 @@ It needs only numpy and h5py.
 
 import numpy as np
 
-__all__ = ["table", "slice", "has_bin_errors", "storage_profile"]
+__all__ = ["table", "slice", "channels", "has_bin_errors", "storage_profile"]
 
 
 def _paths(component, error):
     group = "bsdf_stderr" if error else "bsdf"
     return f"/{group}/{component}", f"/{group}_scale/{component}"
+
+
+def channels(f):
+    """The tables' rows: ["450nm", ...] per wavelength, or ["X", "Y", "Z"] / ["R", "G", "B"] in colour."""
+    if "colour" in f:
+        v = f["colour"].attrs["channels"]
+        return (v.decode() if isinstance(v, bytes) else str(v)).split(",")
+    return [f"{l:g}nm" for l in f["/spectrum/wavelength_nm"][:]]
 
 
 def has_bin_errors(f, component):
@@ -50,10 +60,10 @@ def _read(f, component, error, index):
 
 
 def table(f, component, error=False):
-    """The whole table of `component` (its standard errors with error=True): (incidence, λ, bin), 1/sr."""
+    """The whole table of `component` (its standard errors with error=True): (incidence, row, bin), 1/sr."""
     return _read(f, component, error, np.s_[...])
 
 
 def slice(f, component, incidence, error=False):  # noqa: A001 (the file's own word for it)
-    """One incidence slice of `component` (its standard errors with error=True): (λ, bin), 1/sr."""
+    """One incidence slice of `component` (its standard errors with error=True): (row, bin), 1/sr."""
     return _read(f, component, error, np.s_[int(incidence)])

@@ -75,11 +75,14 @@ Command addEvalCommand(CLI::App& app) {
     }
     const std::string model = modelOrFullest(f, o->model, o->h5Path);
     const BsdfLookup lookup(f, model);
-    const std::vector<double>& nm = f.wavelengths_nm();
+    const std::vector<std::string>& rowNames = f.channelNames();  // "450nm", … or "X", "Y", "Z"
     std::string rows;  // every value first: an error leaves no half-written table
     if (o->pairs.empty()) {
       for (int l = 0; l < lookup.wavelengthCount(); ++l)
-        rows += fmt::format("{:g},{:.8g}\n", nm[size_t(l)], lookup.eval(directions[0].first, directions[0].second, l));
+        rows += f.spectral() ? fmt::format("{:g},{:.8g}\n", f.wavelengths_nm()[size_t(l)],
+                                           lookup.eval(directions[0].first, directions[0].second, l))
+                             : fmt::format("{},{:.8g}\n", rowNames[size_t(l)],
+                                           lookup.eval(directions[0].first, directions[0].second, l));
     } else {
       for (const auto& [in, out] : directions) {
         rows += fmt::format("{:.10g},{:.10g},{:.10g},{:.10g}", degrees(safeAcos(in.z)), degrees(sphericalPhi(in)),
@@ -91,10 +94,10 @@ Command addEvalCommand(CLI::App& app) {
     std::cout << "# " << model << " of " << o->h5Path << ", f in 1/sr; incidence " << lookup.incidenceRule()
               << ", exit interpolated between bins\n";
     if (o->pairs.empty()) {
-      std::cout << "lambda_nm,f\n" << rows;
+      std::cout << (f.spectral() ? "lambda_nm,f\n" : "channel,f\n") << rows;
     } else {
       std::cout << "theta_i,phi_i,theta_o,phi_o";
-      for (double l : nm) std::cout << fmt::format(",f_{:g}nm", l);
+      for (const std::string& n : rowNames) std::cout << ",f_" << n;
       std::cout << "\n" << rows;
     }
     return 0;

@@ -129,7 +129,20 @@ Command addExportCommand(CLI::App& app) {
     BsdfFileReader f(o->h5Path);
     const std::string model = modelOrFullest(f, o->model, o->h5Path);
     const BsdfLookup lookup(f, model);
-    const std::vector<int> which = wavelengthIndices(f, o->lambda_nm, o->h5Path);
+    if (!f.spectral()) {
+      // A table stored in colour (its storage profile) has no wavelengths to pick: it goes out as
+      // the colour each format holds.
+      if (!o->lambda_nm.empty())
+        throw InputError("--lambda-nm: " + o->h5Path + " stores its tables in colour (" + f.colourSpace() +
+                         "), not per wavelength");
+      if (o->colour == "spectral") {
+        o->colour = o->format == "zemax" ? "xyz" : "rgb";
+        std::cerr << "note: " << o->h5Path << " stores its tables in colour (" << f.colourSpace() << "): writing "
+                  << (o->colour == "xyz" ? "CIE XYZ" : "linear sRGB") << "\n";
+      }
+    }
+    const std::vector<int> which =
+        f.spectral() ? wavelengthIndices(f, o->lambda_nm, o->h5Path) : std::vector<int>{0, 1, 2};
     const bool transmission = o->side == "transmission";
     if (transmission && o->format != "zemax")
       throw InputError(
@@ -156,9 +169,9 @@ Command addExportCommand(CLI::App& app) {
       for (size_t i = 0; i < std::min<size_t>(rgl.unresolved.size(), 5); ++i) {
         const auto& u = rgl.unresolved[i];
         std::cerr << fmt::format(
-            "warning: at theta_i {:g} deg, phi_i {:g} deg, {:g} nm the file reflects {:.3g} where the table reflects "
+            "warning: at theta_i {:g} deg, phi_i {:g} deg, {} the file reflects {:.3g} where the table reflects "
             "{:.3g}: the format's nodes do not resolve this lobe (left unscaled)\n",
-            u.theta_deg, u.phi_deg, u.lambda_nm, u.fileAlbedo, u.tableAlbedo);
+            u.theta_deg, u.phi_deg, u.band, u.fileAlbedo, u.tableAlbedo);
       }
       if (rgl.unresolved.size() > 5) std::cerr << "warning: " << rgl.unresolved.size() - 5 << " more such incidences\n";
       noteClamped(rgl.negativeClamped, rgl.nodes);

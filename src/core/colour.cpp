@@ -106,6 +106,12 @@ SpectrumToColour::SpectrumToColour(std::vector<double> lambda_nm) : lambda_(std:
     for (double& c : w) c /= ySum;
 }
 
+SpectrumToColour SpectrumToColour::fromChannels(std::vector<Colour3> xyzPerChannel) {
+  SpectrumToColour c;
+  c.w_ = std::move(xyzPerChannel);
+  return c;
+}
+
 Colour3 SpectrumToColour::xyz(const double* v) const {
   Colour3 r{0, 0, 0};
   for (size_t i = 0; i < w_.size(); ++i)
@@ -122,6 +128,10 @@ Colour3 SpectrumToColour::cieRgb(const double* v) const {
 Colour3 xyzToLinearSrgb(const Colour3& xyz) {
   static const Mat3 m = mul(kXyzToSrgb, adaptEToD65());
   return mul(m, xyz);
+}
+Colour3 linearSrgbToXyz(const Colour3& rgb) {
+  static const Mat3 m = inverse(mul(kXyzToSrgb, adaptEToD65()));
+  return mul(m, rgb);
 }
 Colour3 xyzToCieRgb(const Colour3& xyz) {
   return mul(kXyzToCieRgb, xyz);

@@ -20,17 +20,22 @@ Colour3 cieXyzIntegral(double a_nm, double b_nm);
 class SpectrumToColour {
  public:
   explicit SpectrumToColour(std::vector<double> lambda_nm);
+  // The conversion of values already in colour channels: each channel's contribution to XYZ (a
+  // table stored in XYZ: the unit vectors; in linear sRGB: the columns of linearSrgbToXyz).
+  static SpectrumToColour fromChannels(std::vector<Colour3> xyzPerChannel);
   Colour3 xyz(const double* values) const;
   Colour3 linearSrgb(const double* values) const;
   Colour3 cieRgb(const double* values) const;
   const std::vector<Colour3>& weights() const { return w_; }
 
  private:
+  SpectrumToColour() = default;
   std::vector<double> lambda_;
   std::vector<Colour3> w_;  // per sample: band integral of x̄, ȳ, z̄ divided by Σ band ∫ȳ
 };
 
 Colour3 xyzToLinearSrgb(const Colour3& xyz);  // with E -> D65 Bradford adaptation
+Colour3 linearSrgbToXyz(const Colour3& rgb);  // its inverse
 Colour3 xyzToCieRgb(const Colour3& xyz);
 
 }  // namespace mbsdf

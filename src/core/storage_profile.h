@@ -1,6 +1,7 @@
 // How the output file stores its BSDF tables (docs/output.md "Storage profiles"): the values in
-// single precision, or in half precision scaled per slice and wavelength; the standard errors per
-// bin, or only per slice (the file's /stats). A value type shared by the job (which parses it from
+// single precision, or in half precision scaled per slice and channel; the standard errors per
+// bin, or only per slice (the file's /stats); the spectrum as computed, or its colour (CIE 1931
+// XYZ or linear sRGB, core/colour.h). A value type shared by the job (which parses it from
 // [output]) and the writer.
 #pragma once
 #include <string>
@@ -9,20 +10,26 @@ namespace mbsdf {
 
 enum class TableValues { Float32, Float16 };
 enum class TableErrors { PerBin, PerSlice };
+enum class TableColour { Spectral, Xyz, LinearSrgb };
 
 struct StorageProfile {
   TableValues values = TableValues::Float32;
   TableErrors errors = TableErrors::PerBin;
+  TableColour colour = TableColour::Spectral;
+  std::string preset = "full";  // the [output] profile these settings started from
 
   static StorageProfile full() { return {}; }
-  static StorageProfile compact() { return {TableValues::Float16, TableErrors::PerSlice}; }
+  static StorageProfile compact() { return {TableValues::Float16, TableErrors::PerSlice, TableColour::Xyz, "compact"}; }
   bool operator==(const StorageProfile&) const = default;
-  // "full", "compact", or its settings ("values = float16, errors = per-bin").
+  bool spectral() const { return colour == TableColour::Spectral; }
+  static const char* colourName(TableColour c) {
+    return c == TableColour::Xyz ? "xyz" : c == TableColour::LinearSrgb ? "linear-srgb" : "spectral";
+  }
+  // "compact (values = float16, errors = per-slice, colour = xyz)": the preset and what it became.
   std::string name() const {
-    if (*this == full()) return "full";
-    if (*this == compact()) return "compact";
-    return std::string("values = ") + (values == TableValues::Float16 ? "float16" : "float32") +
-           ", errors = " + (errors == TableErrors::PerSlice ? "per-slice" : "per-bin");
+    return preset + " (values = " + (values == TableValues::Float16 ? "float16" : "float32") +
+           ", errors = " + (errors == TableErrors::PerSlice ? "per-slice" : "per-bin") +
+           ", colour = " + colourName(colour) + ")";
   }
 };
 

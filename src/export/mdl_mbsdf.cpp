@@ -154,7 +154,7 @@ MbsdfFile mbsdfFile(const BsdfFileReader& file, const BsdfLookup& lookup, const 
   }
   if (!above) throw InputError("the table holds no incidence above the surface: an MBSDF file needs light from above");
   const bool rgb = o.colour == MbsdfExport::Colour::rgb;
-  const SpectrumToColour colour(file.wavelengths_nm());
+  const SpectrumToColour colour = file.toColour();
   const std::vector<double> azimuths = incidenceAzimuths(file, lookup);
   MbsdfFile out;
   out.transmission = transmits;

@@ -191,7 +191,7 @@ std::vector<std::vector<double>> spectraSlice(const Reflectance& r, int k, int l
 // factor 2 is not scaled away: the nodes do not resolve that lobe, and `out` lists it.
 void conserveEnergy(std::vector<std::vector<double>>& values, const Reflectance& r, int k, int l, const UGrid& d,
                     double sigma, const PiecewiseBilinearWarp& warp, const std::vector<int>& lambdas,
-                    const std::vector<double>& nm, int n, RglFile& out) {
+                    const std::vector<std::string>& bands, int n, RglFile& out) {
   const Vec3 wi = r.wi(k, l);
   const int q = 2 * n;  // quadrature points per axis
   std::vector<double> albedo(lambdas.size(), 0.0);
@@ -220,7 +220,7 @@ void conserveEnergy(std::vector<std::vector<double>>& values, const Reflectance&
     if (!(target > 1e-12)) continue;
     if (!(albedo[w] > 0) || target / albedo[w] < 0.5 || target / albedo[w] > 2) {
       out.unresolved.push_back(
-          {degrees(r.theta[size_t(k)]), degrees(r.isotropic ? 0.0 : r.phi[size_t(l)]), nm[w], albedo[w], target});
+          {degrees(r.theta[size_t(k)]), degrees(r.isotropic ? 0.0 : r.phi[size_t(l)]), bands[w], albedo[w], target});
       continue;
     }
     out.energyCorrection = std::max(out.energyCorrection, std::abs(target / albedo[w] - 1));
@@ -241,11 +241,19 @@ RglFile rglBsdfFile(const BsdfFileReader& file, const BsdfLookup& lookup, const 
   std::vector<int> lambdas = o.wavelengths;
   if (lambdas.empty())
     for (size_t q = 0; q < table_nm.size(); ++q) lambdas.push_back(int(q));
+  // A colour table (storage profile) holds channels, not wavelengths: the file holds its RGB.
+  if (!file.spectral() && o.colour != RglExport::Colour::rgb)
+    throw std::invalid_argument("the table is stored in colour (" + file.colourSpace() + "): export it as rgb");
+  if (!file.spectral()) lambdas = {0, 1, 2};
   std::vector<double> nm;
-  for (int q : lambdas) nm.push_back(table_nm[size_t(q)]);
+  std::vector<std::string> bands;
+  for (int q : lambdas) {
+    nm.push_back(file.spectral() ? table_nm[size_t(q)] : std::nan(""));
+    bands.push_back(file.spectral() ? fmt::format("{:g} nm", table_nm[size_t(q)]) : file.channelNames()[size_t(q)]);
+  }
   const UGrid d = ndfFromTable(r, lambdas, o);
   const UGrid s = sigmaOf(d, r.isotropic);
-  const SpectrumToColour colour(nm);
+  const SpectrumToColour colour = file.spectral() ? SpectrumToColour(nm) : file.toColour();
   // Luminance weights: CIE Y per wavelength; outside the visible, equal weights.
   std::vector<double> yWeight;
   double ySum = 0;
@@ -264,7 +272,7 @@ RglFile rglBsdfFile(const BsdfFileReader& file, const BsdfLookup& lookup, const 
       vndf.insert(vndf.end(), slice.begin(), slice.end());
       const PiecewiseBilinearWarp warp(slice, d.nx, d.ny);
       auto spectra = spectraSlice(r, int(k), int(l), d, sigma, warp, lambdas, o.nSample);
-      conserveEnergy(spectra, r, int(k), int(l), d, sigma, warp, lambdas, nm, o.nSample, out);
+      conserveEnergy(spectra, r, int(k), int(l), d, sigma, warp, lambdas, bands, o.nSample, out);
       std::vector<double> lum(n2, 0.0);
       std::vector<std::vector<double>> stored(channels, std::vector<double>(n2));
       for (size_t node = 0; node < n2; ++node) {

@@ -49,7 +49,9 @@ struct RglExport {
 struct RglFile {
   std::string bytes;
   struct Unresolved {  // an incidence whose albedo the file misses by more than a factor 2 (left unscaled)
-    double theta_deg, phi_deg, lambda_nm, fileAlbedo, tableAlbedo;
+    double theta_deg, phi_deg;
+    std::string band;  // "450 nm", or a colour table's channel
+    double fileAlbedo, tableAlbedo;
   };
   std::vector<Unresolved> unresolved;
   double energyCorrection = 0;  // the largest relative scale that made an incidence's albedo the table's

@@ -57,8 +57,9 @@ std::string zemaxHeader(const BsdfFileReader& file, const BsdfLookup& lookup, co
                         const std::string& source, const std::vector<double>& rotation,
                         const std::vector<double>& angle) {
   const std::string side = o.transmission ? "transmission (BTDF, 1/sr)" : "reflection (BRDF, 1/sr)";
-  std::string out = o.xyz ? fmt::format("# microbsdf: {}, model {}, CIE XYZ of {} wavelengths, {}\n", source,
-                                        lookup.model(), file.wavelengths_nm().size(), side)
+  std::string out = o.xyz ? fmt::format("# microbsdf: {}, model {}, CIE XYZ of {} wavelengths{}, {}\n", source,
+                                        lookup.model(), file.wavelengths_nm().size(),
+                                        file.spectral() ? "" : " (stored in colour: " + file.colourSpace() + ")", side)
                           : fmt::format("# microbsdf: {}, model {}, wavelength {:g} nm, {}\n", source, lookup.model(),
                                         file.wavelengths_nm().at(size_t(o.wavelength)), side);
   out += std::string("# computed from the microgeometry (the format's only Source keyword is Measured); TIS is the ") +
@@ -148,7 +149,7 @@ std::string zemaxBsdfText(const BsdfFileReader& file, const BsdfLookup& lookup, 
   const std::vector<double>& nm = file.wavelengths_nm();
   std::vector<std::vector<double>> weights;
   if (options.xyz) {
-    const SpectrumToColour colour(nm);
+    const SpectrumToColour colour = file.toColour();  // of the wavelengths, or of a colour table's channels
     for (int c = 0; c < 3; ++c) {
       weights.emplace_back();
       for (const Colour3& w : colour.weights()) weights.back().push_back(w[size_t(c)]);

@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
 #include <libdeflate.h>
@@ -25,6 +26,7 @@
 #include <set>
 #include <limits>
 
+#include "core/colour.h"
 #include "core/error.h"
 #include "core/vecmath.h"
 #include "io/output_target.h"
@@ -256,6 +258,37 @@ std::vector<TableRef> tablesOf(const OutputSchema& schema) {
 }
 size_t tableElementSize(const OutputSchema& schema) {
   return schema.storage.values == TableValues::Float16 ? 2 : sizeof(float);
+}
+
+// Rows of a table per slice: the wavelengths, or three colour channels.
+int channelCount(const OutputSchema& schema) {
+  return schema.storage.spectral() ? int(schema.lambda_nm.size()) : 3;
+}
+
+// Each wavelength's weight in each colour channel (core/colour.h: CIE 1931 XYZ, each sample standing
+// for its band, Y = 1 for a spectrum of 1; linear sRGB through the E -> D65 adaptation).
+std::vector<Colour3> channelWeights(const OutputSchema& schema) {
+  std::vector<Colour3> w = SpectrumToColour(schema.lambda_nm).weights();
+  if (schema.storage.colour == TableColour::LinearSrgb)
+    for (Colour3& c : w) c = xyzToLinearSrgb(c);
+  return w;
+}
+
+// The row a table stores for one slice (nλ x nBins as computed): the same, or its colour, channel
+// c = Σ_λ w_λc f_λ; for a table of standard errors Σ_λ |w_λc| σ_λ, exact where the wavelengths'
+// errors are fully correlated (they share their paths) and an upper bound otherwise.
+std::vector<double> storedRow(const std::vector<double>& v, bool error, const OutputSchema& schema,
+                              const std::vector<Colour3>& weights) {
+  if (schema.storage.spectral()) return v;
+  const size_t nL = weights.size(), nB = nL ? v.size() / nL : 0;
+  std::vector<double> out(3 * nB, 0.0);
+  for (size_t l = 0; l < nL; ++l)
+    for (size_t c = 0; c < 3; ++c) {
+      const double w = error ? std::abs(weights[l][c]) : weights[l][c];
+      if (w == 0) continue;
+      for (size_t b = 0; b < nB; ++b) out[c * nB + b] += w * v[l * nB + b];
+    }
+  return out;
 }
 
 // The chunk at (a, b) of table `path` among `packed` if it was packed for this layout (chunks of
@@ -573,9 +606,13 @@ static void writeProvenance(hid_t f, const OutputSchema& schema) {
   setStringAttr(f, "symmetry", schema.symmetry);
   std::string storage = schema.storage.name() + ": " +
                         (schema.storage.values == TableValues::Float16
-                             ? "float16 tables, each slice and wavelength multiplied by its /bsdf_scale (or "
-                               "/bsdf_stderr_scale) power of two"
+                             ? "float16 tables, each slice and row (wavelength or colour channel) multiplied by its "
+                               "/bsdf_scale (or /bsdf_stderr_scale) power of two"
                              : "float32 tables");
+  storage += schema.storage.spectral() ? "; spectral tables (a row per wavelength)"
+             : schema.storage.colour == TableColour::Xyz
+                 ? "; tables in CIE XYZ (rows X, Y, Z; /colour/weights from the wavelengths)"
+                 : "; tables in linear sRGB (rows R, G, B; /colour/weights from the wavelengths)";
   bool someBinErrors = false;
   for (Component c : schema.components.list()) someBinErrors = someBinErrors || schema.storesBinErrors(c);
   storage += schema.storage.errors == TableErrors::PerBin ? "; standard errors per bin in /bsdf_stderr"
@@ -596,6 +633,26 @@ static void writeAxes(hid_t f, const OutputSchema& schema, const DirectionGrid& 
   {
     H5Group g(H5Gcreate2(f, "spectrum", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /spectrum");
     write1D(g, "wavelength_nm", H5T_NATIVE_DOUBLE, schema.lambda_nm, "nm", "vacuum wavelength");
+  }
+  if (!schema.storage.spectral()) {
+    // The tables' channels and the conversion that made them from the computed spectrum.
+    const bool xyz = schema.storage.colour == TableColour::Xyz;
+    H5Group g(H5Gcreate2(f, "colour", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /colour");
+    setStringAttr(g, "space",
+                  xyz ? "CIE 1931 XYZ (2 degree observer)"
+                      : "linear sRGB (D65 white; from CIE 1931 XYZ with a Bradford adaptation E -> D65)");
+    setStringAttr(g, "channels", xyz ? "X,Y,Z" : "R,G,B");
+    const std::vector<Colour3> w = channelWeights(schema);
+    std::vector<double> flat;
+    for (const Colour3& c : w) flat.insert(flat.end(), c.begin(), c.end());
+    hsize_t dims[2] = {w.size(), 3};
+    H5Dataspace sp(H5Screate_simple(2, dims, nullptr), "H5Screate_simple");
+    H5Dataset d(H5Dcreate2(g, "weights", H5T_NATIVE_DOUBLE, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                "create /colour/weights");
+    h5check(H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, flat.data()), "write /colour/weights");
+    describe(d, "1",
+             "channel c of every table = sum over the wavelengths l of weights[l][c] * f(l) (each wavelength standing "
+             "for its band, Y = 1 for a spectrum of 1); a table of standard errors sums |weights[l][c]| * stderr(l)");
   }
   {
     H5Group g(H5Gcreate2(f, "grid", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /grid");
@@ -638,7 +695,8 @@ static void writeAxes(hid_t f, const OutputSchema& schema, const DirectionGrid& 
 
 // /bsdf, /bsdf_stderr and /stats, every slice not yet written (NaN, done = 0).
 static void createTables(hid_t f, const OutputSchema& schema, const DirectionGrid& grid) {
-  const int nB = grid.binCount(), nL = int(schema.lambda_nm.size()), nI = int(schema.incidence.size());
+  const int nB = grid.binCount(), nL = int(schema.lambda_nm.size()), nI = int(schema.incidence.size()),
+            nC = channelCount(schema);
   const bool halved = schema.halvesWaveByReciprocity;
   {
     H5Group b(H5Gcreate2(f, "bsdf", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf");
@@ -672,16 +730,16 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
     for (const TableRef& t : tables) {
       const std::string name = componentName(t.c);
       const bool blocked = halved && (t.c == Component::Incoherent || t.c == Component::Coherent);
-      H5Dataset d = create3D(t.error ? e->get() : b.get(), name, half ? halfT.get() : H5T_NATIVE_FLOAT, nI, nL, nB, nan,
-                             true, blocked ? fillBlock(nI, nL, nB) : 0);
+      H5Dataset d = create3D(t.error ? e->get() : b.get(), name, half ? halfT.get() : H5T_NATIVE_FLOAT, nI, nC, nB, nan,
+                             true, blocked ? fillBlock(nI, nC, nB) : 0);
       const std::string what = t.error ? "standard error of BSDF component " : "bin-averaged BSDF component ";
       describe(d, "1/sr", what + name + (half ? ", divided by " + scalePathOf(t.path) + " (float16)" : ""));
       h5check(H5DSattach_scale(d, ib, 0), "attach scale");
-      h5check(H5DSattach_scale(d, wl, 1), "attach scale");
+      if (schema.storage.spectral()) h5check(H5DSattach_scale(d, wl, 1), "attach scale");
       h5check(H5DSattach_scale(d, gt, 2), "attach scale");
       if (half) {
         H5Dataset sc =
-            create3D(t.error ? eScale->get() : bScale->get(), name, H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+            create3D(t.error ? eScale->get() : bScale->get(), name, H5T_NATIVE_DOUBLE, nI, nC, 1, nan, false);
         describe(sc, "1/sr",
                  "the power of two by which each slice and wavelength of " + t.path +
                      " is multiplied: f = stored * scale (the row's peak stored in [2^14, 2^15))");
@@ -913,7 +971,7 @@ void BsdfFileWriter::putTableRows(const std::vector<std::pair<std::string, const
 
 void BsdfFileWriter::putTable(const std::string& path, int i, const std::vector<double>& v) {
   if (!dataset(path).half) return putRow(path, i, v);
-  ScaledRow s = scaleForHalf(v, schema_.lambda_nm.size());
+  ScaledRow s = scaleForHalf(v, size_t(channelCount(schema_)));
   putRow(scalePathOf(path), i, s.scales);
   putRow(path, i, s.values);
 }
@@ -1077,8 +1135,9 @@ Rows sliceRows(const TileResult& r, const OutputSchema& schema, const DirectionG
 // to `rows`.
 std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid,
                                    Rows& rows) {
-  const int nI = int(schema.incidence.size()), nL = int(schema.lambda_nm.size()), nB = grid.binCount();
+  const int nI = int(schema.incidence.size()), nL = channelCount(schema), nB = grid.binCount();
   const size_t elemSize = tableElementSize(schema);
+  const std::vector<Colour3> weights = schema.storage.spectral() ? std::vector<Colour3>{} : channelWeights(schema);
   struct Work {
     PackedChunk chunk;
     const std::vector<double>* row;
@@ -1090,12 +1149,13 @@ std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& sche
     if (!r.has(t.c)) throw std::runtime_error(std::string("tile lacks component ") + componentName(t.c));
     const bool blocked = schema.halvesWaveByReciprocity && (t.c == Component::Incoherent || t.c == Component::Coherent);
     const auto [c1, c2] = sliceChunkShape(hsize_t(nL), hsize_t(nB), elemSize, blocked ? fillBlock(nI, nL, nB) : 0);
-    const std::vector<double>* row = t.error ? &r.stdError[int(t.c)] : &r.value[int(t.c)];
+    // Each table's row as stored (its colour, its scaled half values) kept until it is packed.
+    scaled.push_back({storedRow(t.error ? r.stdError[int(t.c)] : r.value[int(t.c)], t.error, schema, weights), {}});
     if (elemSize == 2) {
-      scaled.push_back(scaleForHalf(*row, size_t(nL)));
+      scaled.back() = scaleForHalf(scaled.back().values, size_t(nL));
       rows[scalePathOf(t.path)] = scaled.back().scales;
-      row = &scaled.back().values;
     }
+    const std::vector<double>* row = &scaled.back().values;
     for (hsize_t a = 0; a < hsize_t(nL); a += c1)
       for (hsize_t b = 0; b < hsize_t(nB); b += c2) work.push_back({{t.path, a, b, c1, c2, {}}, row});
   }
@@ -1208,9 +1268,16 @@ EnergyBalance BsdfFileWriter::writePrepared(const PreparedSlice& p, const std::f
         packedFits = packedChunkFor(&p.chunks, t.path, a, b, o.chunk[1], o.chunk[2], o.deflateLevel) != nullptr;
   }
   const std::optional<TileResult> slice = packedFits ? std::nullopt : std::optional<TileResult>(raw());
+  const std::vector<TableRef> refs = tablesOf(schema_);
+  std::vector<std::vector<double>> stored;  // the raw slice's rows as stored (its colour)
+  if (slice) {
+    const std::vector<Colour3> weights = schema_.storage.spectral() ? std::vector<Colour3>{} : channelWeights(schema_);
+    for (const TableRef& t : refs)
+      stored.push_back(
+          storedRow(t.error ? slice->stdError[int(t.c)] : slice->value[int(t.c)], t.error, schema_, weights));
+  }
   std::vector<std::pair<std::string, const std::vector<double>*>> tables;
-  for (const TableRef& t : tablesOf(schema_))
-    tables.emplace_back(t.path, !slice ? nullptr : t.error ? &slice->stdError[int(t.c)] : &slice->value[int(t.c)]);
+  for (size_t k = 0; k < refs.size(); ++k) tables.emplace_back(refs[k].path, slice ? &stored[k] : nullptr);
   // The rows first: where the tables are compressed here, their scales replace the packed ones.
   for (const auto& [path, row] : p.rows) putRow(path, i, row);
   putTableRows(tables, i, slice ? nullptr : &p.chunks);
@@ -1234,6 +1301,7 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
   hid_t f = file_.get();
   const int nI = int(schema_.incidence.size()), nL = int(schema_.lambda_nm.size()), nB = grid_.binCount();
   if (pairs.incidenceCount() != nI) throw std::logic_error("completeReciprocal: pairs do not match the job");
+  if (!schema_.storage.spectral()) throw std::logic_error("completeReciprocal: a colour file is not halved");
   const std::vector<uint8_t> done = read1D<uint8_t>(f, "/bsdf/done", H5T_NATIVE_UINT8);
   if (std::count(done.begin(), done.end(), 0) != 0)
     throw std::logic_error("completeReciprocal: not every slice is done");
@@ -1334,6 +1402,16 @@ BsdfFileReader::BsdfFileReader(const std::string& path) {
   incTheta_ = read1D<double>(file_, "/incidence/theta_deg", H5T_NATIVE_DOUBLE);
   incPhi_ = read1D<double>(file_, "/incidence/phi_deg", H5T_NATIVE_DOUBLE);
   done_ = read1D<uint8_t>(file_, "/bsdf/done", H5T_NATIVE_UINT8);
+  if (H5Lexists(file_, "/colour", H5P_DEFAULT) > 0) {
+    H5Group c(H5Gopen2(file_, "/colour", H5P_DEFAULT), "open /colour");
+    colourSpace_ = readStringAttr(c, "space");
+    std::stringstream names(readStringAttr(c, "channels"));
+    for (std::string n; std::getline(names, n, ',');) channels_.push_back(n);
+    if (channels_.size() != 3)
+      throw std::runtime_error(path + ": /colour names " + std::to_string(channels_.size()) + " channels, not 3");
+  } else {
+    for (double l : lambda_nm_) channels_.push_back(fmt::format("{:g}nm", l));
+  }
   H5Group g(H5Gopen2(file_, "/grid", H5P_DEFAULT), "open /grid");
   auto intAttr = [&](const char* name) {
     int64_t v = 0;
@@ -1345,6 +1423,17 @@ BsdfFileReader::BsdfFileReader(const std::string& path) {
     grid_ = std::make_unique<DirectionGrid>(ThetaPhiGrid{intAttr("n_theta"), intAttr("n_phi")});
   else
     grid_ = std::make_unique<DirectionGrid>(DiskGrid{intAttr("width"), intAttr("height")});
+}
+
+SpectrumToColour BsdfFileReader::toColour() const {
+  if (spectral()) return SpectrumToColour(lambda_nm_);
+  std::vector<Colour3> perChannel(3);
+  for (int c = 0; c < 3; ++c) {
+    Colour3 unit{0, 0, 0};
+    unit[size_t(c)] = 1;
+    perChannel[size_t(c)] = colourSpace_.rfind("CIE 1931 XYZ", 0) == 0 ? unit : linearSrgbToXyz(unit);
+  }
+  return SpectrumToColour::fromChannels(perChannel);
 }
 
 int BsdfFileReader::doneCount() const {

@@ -52,6 +52,7 @@
 #include <string>
 #include <vector>
 
+#include "core/colour.h"
 #include "core/direction_grid.h"
 #include "io/hdf5_handle.h"
 #include "io/output_schema.h"
@@ -207,7 +208,16 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
 class BsdfFileReader {
  public:
   explicit BsdfFileReader(const std::string& path);
+  // The computed wavelengths (the axis of /stats; of the tables too unless they hold colour).
   const std::vector<double>& wavelengths_nm() const { return lambda_nm_; }
+  // The tables' rows per slice: one per wavelength, or three colour channels (storage profile).
+  bool spectral() const { return colourSpace_.empty(); }
+  int channelCount() const { return int(channels_.size()); }
+  const std::vector<std::string>& channelNames() const { return channels_; }  // "450nm", … or "X", "Y", "Z"
+  const std::string& colourSpace() const { return colourSpace_; }             // "" when spectral
+  // The conversion of a bin's rows to CIE XYZ (of the wavelengths, or of the stored colour);
+  // std::invalid_argument when a spectral table has no visible wavelength.
+  SpectrumToColour toColour() const;
   const DirectionGrid& grid() const { return *grid_; }
   int incidenceCount() const { return int(incBin_.size()); }
   int incidenceBin(int i) const { return incBin_[i]; }
@@ -236,6 +246,8 @@ class BsdfFileReader {
   std::vector<double> readTable(const std::string& path, int incidence) const;
   H5File file_;
   std::vector<double> lambda_nm_;
+  std::vector<std::string> channels_;
+  std::string colourSpace_;
   std::unique_ptr<DirectionGrid> grid_;
   std::vector<int> incBin_;
   std::vector<double> incTheta_, incPhi_;

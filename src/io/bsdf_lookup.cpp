@@ -12,7 +12,7 @@ namespace mbsdf {
 
 BsdfLookup::BsdfLookup(const BsdfFileReader& file, const std::string& model)
     : file_(file), grid_(file.grid()), model_(model), isotropic_(tableIsIsotropic(file)) {
-  nL_ = int(file.wavelengths_nm().size());
+  nL_ = file.channelCount();
   nB_ = grid_.binCount();
   slices_.resize(size_t(file.incidenceCount()));
   incidenceOfBin_.assign(size_t(nB_), -1);

@@ -35,6 +35,8 @@ class BsdfLookup {
   // one of its components). Not for use from several threads at once.
   BsdfLookup(const BsdfFileReader& file, const std::string& model);
 
+  // The table's rows: its wavelengths, or its colour channels (BsdfFileReader::channelCount); "at
+  // wavelength l" below means at row l.
   int wavelengthCount() const { return nL_; }
   // f of incidence slice `incidence` towards wo (any length, either hemisphere) at wavelength l.
   double eval(int incidence, const Vec3& wo, int l) const;

@@ -87,7 +87,7 @@ namespace {
 // (NaN outside the disk).
 std::vector<double> diskSpectra(const BsdfFileReader& file, const std::vector<double>& f, const SliceRequest& req) {
   const DirectionGrid& grid = file.grid();
-  const int nL = int(file.wavelengths_nm().size()), nB = grid.binCount();
+  const int nL = file.channelCount(), nB = grid.binCount();
   const int S = req.size, W = req.both ? 2 * S : S;
   std::vector<double> spec(size_t(W) * S * nL, std::nan(""));
   for (int j = 0; j < S; ++j)
@@ -106,12 +106,12 @@ std::vector<double> diskSpectra(const BsdfFileReader& file, const std::vector<do
 
 // The PNG picture of a model table f (nλ x nBins) of the file.
 RgbImage sliceImage(const BsdfFileReader& file, const std::vector<double>& f, const SliceRequest& req) {
-  const auto& lambda = file.wavelengths_nm();
-  const int nL = int(lambda.size());
+  const int nL = file.channelCount();
   const int S = req.size, W = req.both ? 2 * S : S;
-  // True colour needs visible wavelengths; false colour (log2 of the spectral mean) works for any.
+  // True colour needs visible wavelengths; false colour (log2 of the spectral mean, or of Y for a
+  // table stored in colour) works for any.
   std::optional<SpectrumToColour> colour;
-  if (req.style != "false") colour.emplace(lambda);
+  if (req.style != "false" || !file.spectral()) colour.emplace(file.toColour());
   checkFalseColourRange(req);
   const std::vector<double> spec = diskSpectra(file, f, req);
   const int bar = req.style == "false" ? colourBarHeight(S) : 0;
@@ -130,6 +130,7 @@ RgbImage sliceImage(const BsdfFileReader& file, const std::vector<double>& f, co
       if (req.style == "false") {
         double mean = 0;
         for (int l = 0; l < nL; ++l) mean += v[l] / nL;
+        if (!file.spectral()) mean = colour->xyz(v)[1];
         double t = mean > 0 ? (std::log2(mean) - req.log2Min) / (req.log2Max - req.log2Min) : 0.0;
         put(i, j, falseColour(t));
       } else {
@@ -166,8 +167,8 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
   std::vector<double> err;
   std::vector<double> f = modelSlice(file, req.model, inc, &err);
   const DirectionGrid& grid = file.grid();
-  const auto& lambda = file.wavelengths_nm();
-  const int nL = int(lambda.size()), nB = grid.binCount();
+  const int nL = file.channelCount(), nB = grid.binCount();
+  const std::vector<std::string>& rowNames = file.channelNames();  // "450nm", … or "X", "Y", "Z"
   std::string ext = std::filesystem::path(outPath).extension().string();
   if (ext == ".png") {
     writePng(outPath, sliceImage(file, f, req));
@@ -176,14 +177,18 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
     // R, G, B and Y channels only when some wavelength is visible (an 850 nm job has none).
     std::optional<SpectrumToColour> colour;
     try {
-      colour.emplace(lambda);
+      colour.emplace(file.toColour());
     } catch (const std::invalid_argument&) {
     }
     const std::vector<double> spec = diskSpectra(file, f, req);
     std::vector<ExrChannel> ch;
     for (int l = 0; l < nL; ++l) {
       char name[32];
-      std::snprintf(name, sizeof name, "%.1fnm", lambda[l]);
+      // A colour table's own rows as "stored.X" (its R, G, B, Y follow, computed as for a spectrum).
+      if (file.spectral())
+        std::snprintf(name, sizeof name, "%.1fnm", file.wavelengths_nm()[size_t(l)]);
+      else
+        std::snprintf(name, sizeof name, "stored.%s", rowNames[size_t(l)].c_str());
       ch.push_back({name, std::vector<float>(size_t(W) * S, 0.f)});
     }
     ch.push_back({"mean", std::vector<float>(size_t(W) * S, 0.f)});
@@ -216,14 +221,14 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
     // sample standing for its band, core/colour.h) and linear sRGB.
     std::optional<SpectrumToColour> colour;
     try {
-      colour.emplace(lambda);
+      colour.emplace(file.toColour());
     } catch (const std::invalid_argument&) {
     }
     o << "bin,hemisphere,theta_deg,phi_deg,solid_angle_sr,projected_solid_angle_sr";
-    for (double l : lambda) o << ",f_" << l << "nm";
+    for (const std::string& n : rowNames) o << ",f_" << n;
     const bool binErrors = !err.empty();
     if (binErrors)
-      for (double l : lambda) o << ",stderr_" << l << "nm";
+      for (const std::string& n : rowNames) o << ",stderr_" << n;
     if (colour) o << ",X,Y,Z,R_linear,G_linear,B_linear" << (binErrors ? ",stderr_X,stderr_Y,stderr_Z" : "");
     o << "\n";
     o.precision(9);

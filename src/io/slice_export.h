@@ -42,6 +42,8 @@ std::vector<std::string> availableModels(const BsdfFileReader& file);
 //  .csv: one row per exit bin: f and its standard error per wavelength, then (when a wavelength
 //        is visible) X, Y, Z and linear sRGB of the spectrum, and the standard errors of X, Y, Z
 //        (Σ_λ w_λ se_λ: an upper bound whatever the correlation between wavelengths).
+// A table stored in colour (storage profile) has its channels where the wavelengths were: "stored.X"
+// … in the EXR, f_X … in the CSV; its false colour shows log2 Y.
 // Returns the incidence index used.
 int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::string& outPath);
 

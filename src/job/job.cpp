@@ -1,5 +1,7 @@
 #include "job/job.h"
 
+#include "core/colour.h"
+
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -317,6 +319,39 @@ void parseStorageProfile(const ParamDict& out, Job& job) {
     if (e != "per-bin" && e != "per-slice") out.fail("errors", "must be \"per-bin\" or \"per-slice\"");
     job.storage.errors = e == "per-slice" ? TableErrors::PerSlice : TableErrors::PerBin;
   }
+  if (out.has("colour")) {
+    const std::string c = out.getString("colour", "");
+    if (c != "spectral" && c != "xyz" && c != "linear-srgb")
+      out.fail("colour", "must be \"spectral\", \"xyz\" or \"linear-srgb\"");
+    job.storage.colour = c == "xyz"           ? TableColour::Xyz
+                         : c == "linear-srgb" ? TableColour::LinearSrgb
+                                              : TableColour::Spectral;
+  }
+}
+
+// The colour of the tables, once the job is known: a colour needs visible wavelengths (an explicit
+// one is an error without them). The compact profile's XYZ is kept only where it pays and costs
+// nothing: more than three wavelengths, and no wave term that reciprocity would halve (the
+// mirrored half needs spectral tables); otherwise that profile stores the spectrum.
+void resolveStorageColour(const ParamDict& out, Job& job) {
+  if (job.storage.spectral()) return;
+  bool visible = true;
+  try {
+    SpectrumToColour check(job.lambda_nm);
+  } catch (const std::invalid_argument&) {
+    visible = false;
+  }
+  if (out.has("colour")) {
+    if (!visible) out.fail("colour", "the job's wavelengths hold no visible light: there is no colour to store");
+    return;
+  }
+  if (!visible || job.lambda_nm.size() <= 3) {
+    job.storage.colour = TableColour::Spectral;
+    return;
+  }
+  job.storage.colour = TableColour::Spectral;
+  const bool halves = job.halvesWaveByReciprocity();
+  if (!halves) job.storage.colour = TableColour::Xyz;
 }
 
 // [sampling]: budgets, seeds and estimators.
@@ -547,6 +582,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   checkSingleScattering(samp, job);
   decideSymmetry(dirs, symmetry, job);
   checkWaveTerm(samp, job);
+  resolveStorageColour(out, job);
 
   root.reportUnused();
   return job;
@@ -605,6 +641,9 @@ std::string Job::reciprocityOffReason() const {
   if (const WaveEstimatorKind e = resolvedWaveEstimator();
       e != WaveEstimatorKind::Area && e != WaveEstimatorKind::Paper)
     return "the " + waveEstimatorName(e) + " estimator's cost is per incidence sample, not per exit bin";
+  if (!storage.spectral())
+    return "[output] colour: the mirrored half's per-wavelength energies need the spectral tables, which a colour "
+           "file does not keep";
   return "";
 }
 

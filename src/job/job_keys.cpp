@@ -120,9 +120,12 @@ const std::vector<JobKey>& jobKeys() {
       {"output.path", String, "\"out.h5\"", "", "output HDF5 file (-o overrides it)"},
       {"output.previews", Boolean, "false", "", "validated; previews come from `microbsdf slice`"},
       {"output.profile", String, "\"full\"", "full, compact",
-       "how the tables are stored: full (float32 values, per-bin errors) or compact (float16, errors per slice)"},
+       "how the tables are stored: full (float32, per-bin errors, spectral) or compact (float16, errors per "
+       "slice, XYZ colour)"},
       {"output.values", String, "the profile's", "float32, float16",
        "table values: float32, or float16 scaled per slice and wavelength"},
+      {"output.colour", String, "the profile's", "spectral, xyz, linear-srgb",
+       "tables per wavelength, or their colour (CIE 1931 XYZ or linear sRGB; the conversion is in the file)"},
       {"output.errors", String, "the profile's", "per-bin, per-slice",
        "standard errors: a table per component, or only the per-slice statistics"},
   };

@@ -595,9 +595,9 @@ std::string formatPlan(const nlohmann::json& p) {
                   p["diffraction_check"]["tiles_checked"].dump() + " (counted in the estimate)\n"
             : std::string())
     << (p.contains("output")
-            ? "output:         " + gb(p["output"]["bytes"].get<double>()) + " (" +
-                  p["output"]["profile"].get<std::string>() +
-                  " profile: " + fmt::format("{:.3g} MB", p["output"]["bytes_per_slice"].get<double>() / 1e6) +
+            ? "output:         " + gb(p["output"]["bytes"].get<double>()) + " (profile " +
+                  p["output"]["profile"].get<std::string>() + ": " +
+                  fmt::format("{:.3g} MB", p["output"]["bytes_per_slice"].get<double>() / 1e6) +
                   " per slice: the pilots compressed, projected to the job's paths, x " + p["output"]["slices"].dump() +
                   " slices); " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed\n"
             : "output:         " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed (upper bound)\n")

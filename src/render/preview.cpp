@@ -42,11 +42,10 @@ Microgeometry unitSphere(int nLat, int nLon) {
 RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
   const std::vector<std::string> models = req.models.empty() ? availableModels(file) : req.models;
   if (models.empty()) throw std::runtime_error("the file holds no complete model");
-  const auto& lambda = file.wavelengths_nm();
-  const int nL = int(lambda.size());
+  const int nL = file.channelCount();
   std::optional<SpectrumToColour> colour;
   try {
-    colour.emplace(lambda);
+    colour.emplace(file.toColour());
   } catch (const std::invalid_argument&) {
   }
   const Microgeometry sphere = unitSphere(96, 192);

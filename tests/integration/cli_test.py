@@ -314,9 +314,37 @@ def test_storage_profiles():
                     bound[i, :, o] = np.maximum(bound[i, :, o], 2 * half_ulp * terms + peaks * 2.0 ** -38)
             assert np.all(np.abs(x - y) <= bound), ("incoherent", err, np.max(np.abs(x - y) / bound))
     run(["export", "rc-half.h5", "--format", "rgl", "--model", "WS", "-o", "rc-half.bsdf"])
+    # Colour: quickstart at 8 wavelengths, compact (XYZ) against full: each channel is the full
+    # table's spectrum through /colour/weights, to half precision; the statistics stay spectral.
+    eight = src.replace("wavelengths_nm = [450.0, 550.0, 650.0]", "wavelengths_nm = { min = 400.0, max = 700.0, count = 8 }")
+    assert eight != src
+    open(os.path.join(TMP, "full8.toml"), "w").write(eight)
+    open(os.path.join(TMP, "compact8.toml"), "w").write(eight.replace("[output]", '[output]\nprofile = "compact"'))
+    run(["run", "full8.toml", "-o", "full8.h5"])
+    run(["run", "compact8.toml", "-o", "compact8.h5"])
+    with h5py.File(os.path.join(TMP, "compact8.h5"), "r") as c, h5py.File(os.path.join(TMP, "full8.h5"), "r") as f:
+        assert mh.channels(c) == ["X", "Y", "Z"] and len(mh.channels(f)) == 8
+        w = c["/colour/weights"][:]
+        for comp in ("coherent", "multiple"):
+            xyz = np.einsum("ilb,lc->icb", mh.table(f, comp), w)  # float32 spectra: their own rounding
+            rel = np.abs(mh.table(c, comp) - xyz) / np.maximum(np.abs(xyz), 1e-300)
+            assert np.all((rel <= half_ulp + 8 * 2.0 ** -24) | (np.abs(xyz) < 2.0 ** -20 * np.max(np.abs(xyz)))), comp
+            assert np.array_equal(c[f"/stats/energy_reflected/{comp}"][:], f[f"/stats/energy_reflected/{comp}"][:])
+    colour_size = stored_per_slice("compact8.h5")
+    # Exports of a colour table (incidence = "all": the reciprocity job, whose halving the colour turns off).
+    xyz_job = os.path.join(TMP, "rc-xyz.toml")
+    open(xyz_job, "w").write(open(on).read().replace("[output]", '[output]\ncolour = "xyz"').replace("rc-on.h5", "rc-xyz.h5"))
+    assert "not used: [output] colour" in run(["plan", xyz_job]).stdout
+    run(["run", xyz_job], mpi=2)
+    r = run(["export", "rc-xyz.h5", "--format", "rgl", "--model", "WS", "-o", "rc-xyz.bsdf"])
+    assert "stores its tables in colour" in r.stderr, r.stderr
+    run(["export", "rc-xyz.h5", "--format", "zemax", "--model", "WS", "-o", "rc-xyz.zmx.bsdf"])
+    run(["export", "rc-xyz.h5", "--format", "mbsdf", "--model", "WS", "-o", "rc-xyz.mbsdf"])
+    assert run(["export", "rc-xyz.h5", "--format", "zemax", "--lambda-nm", "450", "-o", "x.bsdf"], expect=2).returncode == 2
     print("compact vs full: every value within half precision, statistics identical; stored per slice "
           f"(plan / file): full {sizes['full.h5'][0]:.0f} / {sizes['full.h5'][1]:.0f} B, compact "
-          f"{sizes['compact.h5'][0]:.0f} / {sizes['compact.h5'][1]:.0f} B; reciprocity fill in float16 as in float32")
+          f"{sizes['compact.h5'][0]:.0f} / {sizes['compact.h5'][1]:.0f} B; reciprocity fill in float16 as in float32; "
+          f"8 wavelengths in XYZ {colour_size:.0f} B per slice")
 
 
 def wm_excess_beyond_noise(a, b, brdf_only=False):

@@ -277,6 +277,7 @@ TileResult wideRangeTile(const Job& job, const DirectionGrid& g, int index) {
 Job compactJob() {
   Job job = smallJob();
   job.storage = StorageProfile::compact();
+  job.storage.colour = TableColour::Spectral;  // (as the profile resolves for two wavelengths)
   return job;
 }
 }  // namespace
@@ -298,7 +299,7 @@ TEST(BsdfFile, HalfPrecisionKeepsEveryScale) {
     w.finish();
   }
   BsdfFileReader f(path);
-  EXPECT_NE(f.storageProfile().find("compact"), std::string::npos) << f.storageProfile();
+  EXPECT_NE(f.storageProfile().find("values = float16, errors = per-slice"), std::string::npos) << f.storageProfile();
   for (const char* name : {"coherent", "multiple"}) {
     const Component c = *componentFromName(name);
     const std::vector<double> back = f.slice(name, 1);
@@ -371,4 +372,60 @@ TEST(BsdfFile, HalfPrecisionPreparedAndResumedAreTheSame) {
     for (const char* c : {"coherent", "multiple"}) EXPECT_EQ(x.slice(c, i), y.slice(c, i)) << c << " " << i;
   EXPECT_EQ(x.stats(1).energyReflected, y.stats(1).energyReflected);
   for (const std::string& p : {direct, prepared}) std::filesystem::remove(p);
+}
+
+// Tables stored in colour: each channel is Σ_λ w_λc f_λ with the CIE weights of core/colour.h (read
+// back through the reader's own conversion as the XYZ of the spectrum), the standard errors
+// Σ_λ |w_λc| σ_λ; the per-slice statistics stay spectral; /colour records the weights.
+TEST(BsdfFile, ColourTablesAreTheSpectrumsColour) {
+  Job job = loadJobFromString(
+      "[directions]\nn_theta = 2\nn_phi = 4\nincidence = [[10.0, 0.0], [50.0, 0.0]]\n"
+      "[spectrum]\nwavelengths_nm = [420.0, 470.0, 520.0, 570.0, 620.0, 670.0]\n"
+      "[effects]\ncomponents = [\"coherent\", \"multiple\"]\n[output]\ncolour = \"xyz\"\n",
+      "t.toml", "");
+  DirectionGrid g(job.gridLayout);
+  TileResult r;
+  r.incidenceIndex = 1;
+  r.nLambda = 6;
+  r.nBins = g.binCount();
+  r.samples = 1000;
+  r.truncated = r.leaked = r.missed = std::vector<double>(6, 0.0);
+  for (Component c : {Component::Coherent, Component::Multiple})
+    for (int l = 0; l < 6; ++l)
+      for (int b = 0; b < g.binCount(); ++b) {
+        r.value[int(c)].push_back(0.1 * (b + 1) * (1 + 0.3 * l) * (c == Component::Multiple ? 0.01 : 1.0));
+        r.stdError[int(c)].push_back(0.01 * (l + 1));
+      }
+  for (const TableColour colour : {TableColour::Xyz, TableColour::LinearSrgb}) {
+    job.storage.colour = colour;
+    const std::string path = (std::filesystem::temp_directory_path() / "microbsdf_colour_test.h5").string();
+    std::filesystem::remove(path);
+    {
+      BsdfFileWriter w(path, outputSchemaOf(job), g);
+      w.writeTile(r);
+      w.finish();
+    }
+    BsdfFileReader f(path);
+    ASSERT_FALSE(f.spectral());
+    EXPECT_EQ(f.channelCount(), 3);
+    EXPECT_EQ(f.channelNames()[0], colour == TableColour::Xyz ? "X" : "R");
+    const SpectrumToColour cie(job.lambda_nm), stored = f.toColour();
+    const std::vector<double> v = f.slice("coherent", 1), e = f.sliceStdError("coherent", 1);
+    ASSERT_EQ(v.size(), size_t(3 * g.binCount()));
+    for (int b = 0; b < g.binCount(); ++b) {
+      std::vector<double> spectrum, channels, errors;
+      for (int l = 0; l < 6; ++l) spectrum.push_back(r.at(Component::Coherent, l, b));
+      for (int c = 0; c < 3; ++c) channels.push_back(v[size_t(c * g.binCount() + b)]);
+      const Colour3 want = cie.xyz(spectrum.data()), got = stored.xyz(channels.data());
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[c], want[c], 1e-6 * std::abs(want[1])) << b << " " << c;
+      if (colour == TableColour::Xyz)
+        for (int c = 0; c < 3; ++c) {
+          double se = 0;
+          for (int l = 0; l < 6; ++l) se += std::abs(cie.weights()[size_t(l)][size_t(c)]) * 0.01 * (l + 1);
+          EXPECT_NEAR(e[size_t(c * g.binCount() + b)], se, 1e-6 * se);
+        }
+    }
+    EXPECT_EQ(f.stats(1).energyReflected["coherent"].size(), 6u) << "statistics stay spectral";
+    std::filesystem::remove(path);
+  }
 }

@@ -343,3 +343,43 @@ TEST(Job, RepeatedWavelengthAndTexelLimitNameTheKey) {
   EXPECT_NE(e.find("at most 2048"), std::string::npos) << e;
   EXPECT_EQ(errorOf("[geometry]\nkind = \"gaussian\"\nsize_um = [204.8, 10.0]\ntexel_um = 0.1\n"), "");
 }
+
+// [output] profile, values, errors, colour: the compact profile stores XYZ where that pays and costs
+// nothing (more than three visible wavelengths, no wave term halved by reciprocity), the spectrum
+// otherwise; an explicit colour without visible light is an error naming the key, and an explicit
+// colour turns the reciprocity halving off with the reason.
+TEST(Job, StorageProfileAndItsColour) {
+  const std::string eight = "[spectrum]\nwavelengths_nm = { min = 400.0, max = 700.0, count = 8 }\n";
+  Job full = loadJobFromString(eight, "t.toml", "");
+  EXPECT_EQ(full.storage, StorageProfile::full());
+  Job compact = loadJobFromString(eight + "[output]\nprofile = \"compact\"\n", "t.toml", "");
+  EXPECT_EQ(compact.storage, StorageProfile::compact());
+  EXPECT_EQ(compact.storage.name(), "compact (values = float16, errors = per-slice, colour = xyz)");
+  Job three = loadJobFromString("[spectrum]\nwavelengths_nm = [450.0, 550.0, 650.0]\n[output]\nprofile = \"compact\"\n",
+                                "t.toml", "");
+  EXPECT_EQ(three.storage.colour, TableColour::Spectral);
+  EXPECT_EQ(three.storage.values, TableValues::Float16);
+  const std::string halved =
+      eight +
+      "[directions]\nn_theta = 4\nn_phi = 8\nincidence = \"all\"\n[geometry]\nkind = \"gaussian\"\nsize_um = 10.0\n"
+      "rms_um = 0.3\ncorrelation_um = 1.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n"
+      "[sampling]\nwave_estimator = \"area\"\n";
+  Job keeps = loadJobFromString(halved + "[output]\nprofile = \"compact\"\n", "t.toml", "");
+  EXPECT_EQ(keeps.storage.colour, TableColour::Spectral);
+  EXPECT_TRUE(keeps.halvesWaveByReciprocity());
+  Job colour = loadJobFromString(halved + "[output]\nprofile = \"compact\"\ncolour = \"xyz\"\n", "t.toml", "");
+  EXPECT_EQ(colour.storage.colour, TableColour::Xyz);
+  EXPECT_FALSE(colour.halvesWaveByReciprocity());
+  EXPECT_NE(colour.reciprocityOffReason().find("[output] colour"), std::string::npos);
+  Job srgb = loadJobFromString(eight + "[output]\nvalues = \"float16\"\ncolour = \"linear-srgb\"\n", "t.toml", "");
+  EXPECT_EQ(srgb.storage.name(), "full (values = float16, errors = per-bin, colour = linear-srgb)");
+  const std::string infrared =
+      "[material]\nkind = \"dielectric\"\nior = 1.5\n[spectrum]\nwavelengths_nm = [1000.0, 1100.0, 1200.0, 1300.0]\n";
+  EXPECT_EQ(loadJobFromString(infrared + "[output]\nprofile = \"compact\"\n", "t.toml", "").storage.colour,
+            TableColour::Spectral);
+  EXPECT_NE(errorOf(infrared + "[output]\ncolour = \"xyz\"\n").find("output.colour"), std::string::npos);
+  for (const char* bad : {"profile = \"small\"", "values = \"float64\"", "errors = \"none\"", "colour = \"rgb\""}) {
+    const std::string e = errorOf(std::string("[output]\n") + bad + "\n");
+    EXPECT_NE(e.find("test.toml:2"), std::string::npos) << bad << ": " << e;
+  }
+}
