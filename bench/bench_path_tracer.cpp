@@ -319,13 +319,15 @@ BENCHMARK(BM_GratingPathTile)->Unit(benchmark::kMillisecond)->UseRealTime()->Ite
 
 namespace mbsdf {
 void printWriterSummary();  // bench_writer.cpp
-}
+void printReadSummary();    // bench_writer.cpp
+}  // namespace mbsdf
 
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   mbsdf::printWriterSummary();
+  mbsdf::printReadSummary();
   if (gOurs > 0 && gRaw > 0)
     std::printf("\npath tracer: %.3g rays/s   raw rtcIntersect1: %.3g rays/s   ratio: %.2f (target >= 0.6)\n", gOurs,
                 gRaw, gOurs / gRaw);

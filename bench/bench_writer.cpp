@@ -148,7 +148,112 @@ void BM_RawSliceWrites(benchmark::State& state) {
 }
 BENCHMARK(BM_RawSliceWrites)->Arg(60)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(1);
 
+// Reading a table whose pairs are stored once (square blocks; every slice read with its mirrored
+// half) against the same table stored both ways (one slice per chunk row), as `slice`, `export` and
+// `render` read them: one slice, and the whole table in order. A full-sphere job's table: 16 x 64 bins
+// per hemisphere, every upper bin an incidence (1024 slices), 8 wavelengths stored as XYZ in float16,
+// three components. Also the fold's own time at the end of the run.
+struct ReadFixture {
+  DirectionGrid grid{ThetaPhiGrid{16, 64}};
+  std::string once, both;
+  double foldSeconds = 0;
+  ReadFixture() {
+    WriterFixture w(1);
+    OutputSchema schema = w.schema;
+    schema.incidence.clear();
+    for (int b = 0; b < grid.binsPerHemisphere(); ++b) schema.incidence.push_back({45.0, 0.0, b});
+    for (int b = 0; b < grid.binsPerHemisphere(); ++b) schema.sourceTile.push_back(b);
+    schema.storage = StorageProfile::compact();
+    const WriterFixture lobes(1);
+    for (const auto& [path, pairs] :
+         {std::pair<std::string*, TablePairs>{&once, TablePairs::Once}, {&both, TablePairs::Both}}) {
+      *path = (std::filesystem::temp_directory_path() /
+               (std::string("microbsdf_bench_read_") + (pairs == TablePairs::Once ? "once" : "both") + ".h5"))
+                  .string();
+      schema.storage.pairs = pairs;
+      for (const char* ext : {"", ".partial", ".journal"}) std::filesystem::remove(*path + ext);
+      BsdfFileWriter writer(*path, schema, grid);
+      for (int i = 0; i < int(schema.incidence.size()); ++i) {
+        TileResult r = sliceOn(i);
+        writer.writeTile(r);
+      }
+      const auto t0 = std::chrono::steady_clock::now();
+      writer.finish();
+      if (pairs == TablePairs::Once)
+        foldSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+  }
+  // A noisy lobe about the mirror direction of incidence i.
+  TileResult sliceOn(int i) const {
+    TileResult r;
+    r.incidenceIndex = i;
+    r.nLambda = kLambda;
+    r.nBins = grid.binCount();
+    r.samples = 1000000;
+    r.truncated = r.leaked = r.missed = std::vector<double>(kLambda, 0.0);
+    const Vec3 wi = grid.centre(i), m{-wi.x, -wi.y, wi.z};
+    uint64_t state = 0x9E3779B97F4A7C15ull * uint64_t(i + 1);
+    for (Component c : {Component::Coherent, Component::Incoherent, Component::Multiple}) {
+      auto& v = r.value[int(c)];
+      v.resize(size_t(kLambda) * r.nBins);
+      r.stdError[int(c)].assign(v.size(), 0.0);
+      for (int l = 0; l < kLambda; ++l)
+        for (int b = 0; b < r.nBins; ++b) {
+          state ^= state << 13, state ^= state >> 7, state ^= state << 17;
+          const Vec3 d = grid.centre(b);
+          const double lobe = d.z > 0 ? std::exp(-(1 - dot(d, m)) * 8.0) : 0.0;
+          v[size_t(l) * r.nBins + b] = lobe * (1 + 0.05 * (double(state >> 11) * 0x1.0p-53 - 0.5));
+        }
+      r.pathMoments[int(c)] = std::vector<double>(kLambda, 0.5);
+    }
+    return r;
+  }
+};
+const ReadFixture& readFixture() {
+  static const ReadFixture f;
+  return f;
+}
+
+double gReadOnce[2] = {0, 0}, gReadBoth[2] = {0, 0};  // [one slice, whole table] seconds
+
+void BM_ReadTable(benchmark::State& state) {
+  const bool folded = state.range(0) != 0, whole = state.range(1) != 0;
+  const ReadFixture& f = readFixture();
+  double seconds = 0;
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    BsdfFileReader r(folded ? f.once : f.both);  // opened anew: no chunk cached from the last pass
+    const int n = whole ? r.incidenceCount() : 1;
+    for (int i = 0; i < n; ++i)
+      for (const char* c : {"coherent", "incoherent", "multiple"})
+        benchmark::DoNotOptimize(r.slice(c, whole ? i : 500));
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  (folded ? gReadOnce : gReadBoth)[whole ? 1 : 0] = seconds / double(state.iterations());
+  state.counters["seconds"] = seconds / double(state.iterations());
+}
+BENCHMARK(BM_ReadTable)
+    ->Args({0, 0})
+    ->Args({1, 0})
+    ->Args({0, 1})
+    ->Args({1, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(3);
+
 }  // namespace
+
+void printReadSummary() {
+  if (gReadBoth[0] <= 0 || gReadOnce[1] <= 0) return;
+  const ReadFixture& f = readFixture();
+  std::printf(
+      "reading a full-sphere table (1024 slices of 16x64 bins per hemisphere, XYZ float16, 3 components): one slice "
+      "%.2f ms with pairs stored once, %.2f ms stored both ways (ratio %.2f); the whole table %.2f s and %.2f s "
+      "(ratio %.2f); file %.2f MB and %.2f MB; the fold at the end of the run %.2f s\n",
+      1e3 * gReadOnce[0], 1e3 * gReadBoth[0], gReadOnce[0] / gReadBoth[0], gReadOnce[1], gReadBoth[1],
+      gReadOnce[1] / gReadBoth[1], double(std::filesystem::file_size(f.once)) / 1e6,
+      double(std::filesystem::file_size(f.both)) / 1e6, f.foldSeconds);
+}
 
 void printWriterSummary() {
   if (gRaw <= 0) return;

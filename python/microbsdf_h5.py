@@ -6,7 +6,9 @@ The tables /bsdf/<component> and /bsdf_stderr/<component> are (incidence, row, e
 computed wavelengths, whose per-slice statistics /stats keeps). In the `full` storage profile they are float32 and read as they are. In a profile
 with float16 values each slice and wavelength is stored divided by a power of two, kept in
 /bsdf_scale/<component> (and /bsdf_stderr_scale/<component>) as an (incidence, wavelength, 1) array;
-these functions multiply it back, so a script reads every file the same way:
+these functions multiply it back, and where the file stores each same-side pair of incidence bins
+once (`pairs = "once"`: the entry (i, o) with o the bin of incidence j < i lives at (j, bin of i))
+they fill in the mirrored half, so a script reads every file the same way:
 
     import h5py, microbsdf_h5
     with h5py.File("out.h5", "r") as f:
@@ -55,15 +57,48 @@ def _read(f, component, error, index):
         raise KeyError(f"{f.filename} has no component '{component}'")
     values = f[path][index].astype(np.float64)
     if scale_path in f:
-        values *= f[scale_path][index]  # (…, nλ, 1) broadcasts over the exit bins
+        values *= f[scale_path][index]  # (…, rows, 1) broadcasts over the exit bins
     return values
 
 
+def _pairs(f, component, error):
+    """Whether the table stores each same-side pair of incidence bins once, and the incidences' bins
+    and sides."""
+    path = _paths(component, error)[0]
+    if "pairs" not in f[path].attrs:
+        return None
+    bins = f["/incidence/bin"][:].astype(int)
+    upper = f["/grid/theta_deg"][:][bins] < 90
+    return bins, upper
+
+
 def table(f, component, error=False):
-    """The whole table of `component` (its standard errors with error=True): (incidence, row, bin), 1/sr."""
-    return _read(f, component, error, np.s_[...])
+    """The whole table of `component` (its standard errors with error=True): (incidence, row, bin), 1/sr.
+
+    Where the file stores each same-side pair of incidence bins once (storage profile), entry (i, o)
+    with o the bin of incidence j < i lives at (j, bin of i): filled in here."""
+    t = _read(f, component, error, np.s_[...])
+    pairs = _pairs(f, component, error)
+    if pairs is not None:
+        bins, upper = pairs
+        i, j = np.tril_indices(len(bins), -1)  # j < i
+        same = upper[i] == upper[j]
+        i, j = i[same], j[same]
+        t[i, :, bins[j]] = t[j, :, bins[i]]
+    return t
 
 
 def slice(f, component, incidence, error=False):  # noqa: A001 (the file's own word for it)
     """One incidence slice of `component` (its standard errors with error=True): (row, bin), 1/sr."""
-    return _read(f, component, error, np.s_[int(incidence)])
+    i = int(incidence)
+    row = _read(f, component, error, np.s_[i])
+    pairs = _pairs(f, component, error)
+    if pairs is not None:
+        bins, upper = pairs
+        path, scale_path = _paths(component, error)
+        column = f[path][:, :, bins[i]].astype(np.float64)  # (incidence, row): f(j -> bin of i)
+        if scale_path in f:
+            column *= f[scale_path][:, :, 0]
+        j = np.nonzero((np.arange(len(bins)) < i) & (upper == upper[i]))[0]
+        row[:, bins[j]] = column[j, :].T
+    return row

@@ -1,5 +1,9 @@
 #include "cluster/output_schema_of.h"
 
+#include <optional>
+
+#include "job/symmetry.h"
+
 namespace mbsdf {
 namespace {
 
@@ -38,6 +42,11 @@ OutputSchema outputSchemaOf(const Job& job) {
   s.components = job.components;
   s.guarded = job.guarded;
   s.storage = job.storage;
+  s.sourceTile.resize(job.incidence.size());
+  std::optional<AzimuthalSymmetry> symmetry;
+  if (job.symmetryReduced()) symmetry.emplace(job, DirectionGrid(job.gridLayout));
+  for (size_t i = 0; i < job.incidence.size(); ++i)
+    s.sourceTile[i] = symmetry ? symmetry->representative(int(i)) : int(i);
   return s;
 }
 

@@ -517,10 +517,25 @@ void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
   // Finish (close, fsync, rename) or close; a failure of either is a write failure, which leaves the
   // partial file and its journal (every slice in the journal is on disk) and any old output as they were.
   try {
-    if (writeFailure_.empty() && !incomplete)
+    if (writeFailure_.empty() && !incomplete) {
+      if (job_.storage.pairs == TablePairs::Once) spdlog::info("storing each same-side pair of incidence bins once");
+      const auto tf = std::chrono::steady_clock::now();
       writer_.finish();
-    else
+      if (job_.storage.pairs == TablePairs::Once) spdlog::info("pairs folded in {:.2f} s", since(tf));
+      // The two estimates of every pair, compared: reciprocity holds within their errors when the
+      // mean z² is about 1 (docs/output.md "Pairs stored once").
+      for (const auto& [component, check] : writer_.pairsReport().items()) {
+        const uint64_t tested = check["tested_pairs"].get<uint64_t>();
+        spdlog::info("pairs of {}: {} stored once (relative L1 difference of the two estimates {:.4f}); {}", component,
+                     check["pairs"].get<uint64_t>(), check["relative_l1_difference"].get<double>(),
+                     tested ? fmt::format("reciprocity check over {} pairs of independent estimates: mean z² {:.3f}, "
+                                          "max |z| {:.2f}",
+                                          tested, check["mean_z2"].get<double>(), check["max_abs_z"].get<double>())
+                            : std::string("no per-bin errors kept (storage profile): no z-scores"));
+      }
+    } else {
       writer_.close();
+    }
   } catch (const WriteError& e) {
     if (writeFailure_.empty()) writeFailure_ = e.what();
   }

@@ -11,15 +11,20 @@ namespace mbsdf {
 enum class TableValues { Float32, Float16 };
 enum class TableErrors { PerBin, PerSlice };
 enum class TableColour { Spectral, Xyz, LinearSrgb };
+// Each same-side pair of incidence bins stored once (the mean of both estimates) or both ways.
+enum class TablePairs { Both, Once };
 
 struct StorageProfile {
   TableValues values = TableValues::Float32;
   TableErrors errors = TableErrors::PerBin;
   TableColour colour = TableColour::Spectral;
+  TablePairs pairs = TablePairs::Both;
   std::string preset = "full";  // the [output] profile these settings started from
 
   static StorageProfile full() { return {}; }
-  static StorageProfile compact() { return {TableValues::Float16, TableErrors::PerSlice, TableColour::Xyz, "compact"}; }
+  static StorageProfile compact() {
+    return {TableValues::Float16, TableErrors::PerSlice, TableColour::Xyz, TablePairs::Once, "compact"};
+  }
   bool operator==(const StorageProfile&) const = default;
   bool spectral() const { return colour == TableColour::Spectral; }
   static const char* colourName(TableColour c) {
@@ -29,7 +34,7 @@ struct StorageProfile {
   std::string name() const {
     return preset + " (values = " + (values == TableValues::Float16 ? "float16" : "float32") +
            ", errors = " + (errors == TableErrors::PerSlice ? "per-slice" : "per-bin") +
-           ", colour = " + colourName(colour) + ")";
+           ", colour = " + colourName(colour) + ", pairs = " + (pairs == TablePairs::Once ? "once" : "both") + ")";
   }
 };
 

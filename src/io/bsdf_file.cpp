@@ -87,15 +87,24 @@ std::pair<hsize_t, hsize_t> sliceChunkShape(hsize_t n1, hsize_t n2, size_t typeS
 // slice rewrites a few kilobytes per dataset.
 constexpr hsize_t kStatsChunkSlices = 64;
 
-// A (nInc, a, b) dataset: a compressed table in chunks of one slice (sliceChunkShape), per-slice
-// statistics in chunks of kStatsChunkSlices slices.
+// The square blocks of a table whose pairs are stored once: kPairBlock incidences x kPairBlock exit
+// bins per chunk, so that a slice (a row of blocks) and its mirrored half (a column of blocks) each
+// touch n/kPairBlock chunks of a few tens of kilobytes.
+constexpr hsize_t kPairBlock = 64;
+
+// A (nInc, a, b) dataset: a compressed table in chunks of one slice (sliceChunkShape) or, with
+// `pairBlocks`, in square blocks of the pair matrix (kPairBlock); per-slice statistics in chunks of
+// kStatsChunkSlices slices.
 H5Dataset create3D(hid_t loc, const std::string& name, hid_t type, hsize_t n0, hsize_t n1, hsize_t n2, double fill,
-                   bool compress, hsize_t maxC2 = 0) {
+                   bool compress, hsize_t maxC2 = 0, bool pairBlocks = false) {
   hsize_t dims[3] = {n0, n1, n2};
   H5Dataspace s(H5Screate_simple(3, dims, nullptr), "H5Screate_simple");
   H5Plist p(H5Pcreate(H5P_DATASET_CREATE), "H5Pcreate");
-  const auto [c1, c2] = sliceChunkShape(n1, n2, H5Tget_size(type), maxC2);
-  hsize_t chunk[3] = {compress ? 1 : std::min<hsize_t>(n0, kStatsChunkSlices), c1, c2};
+  const auto [c1, c2] = sliceChunkShape(n1, n2, H5Tget_size(type), pairBlocks ? kPairBlock : maxC2);
+  hsize_t chunk[3] = {pairBlocks ? std::min(n0, kPairBlock)
+                      : compress ? 1
+                                 : std::min<hsize_t>(n0, kStatsChunkSlices),
+                      c1, c2};
   h5check(H5Pset_chunk(p, 3, chunk), "H5Pset_chunk");
   if (compress) {
     h5check(H5Pset_shuffle(p), "H5Pset_shuffle");
@@ -694,7 +703,9 @@ static void writeAxes(hid_t f, const OutputSchema& schema, const DirectionGrid& 
 }
 
 // /bsdf, /bsdf_stderr and /stats, every slice not yet written (NaN, done = 0).
-static void createTables(hid_t f, const OutputSchema& schema, const DirectionGrid& grid) {
+// pairLayout: the final file of a run that stores pairs once (BsdfFileWriter::foldPairs): the folded
+// tables in square blocks, the others as during the run.
+static void createTables(hid_t f, const OutputSchema& schema, const DirectionGrid& grid, bool pairLayout = false) {
   const int nB = grid.binCount(), nL = int(schema.lambda_nm.size()), nI = int(schema.incidence.size()),
             nC = channelCount(schema);
   const bool halved = schema.halvesWaveByReciprocity;
@@ -730,8 +741,13 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
     for (const TableRef& t : tables) {
       const std::string name = componentName(t.c);
       const bool blocked = halved && (t.c == Component::Incoherent || t.c == Component::Coherent);
+      const bool folded = pairLayout && schema.foldsPairs(t.c);
       H5Dataset d = create3D(t.error ? e->get() : b.get(), name, half ? halfT.get() : H5T_NATIVE_FLOAT, nI, nC, nB, nan,
-                             true, blocked ? fillBlock(nI, nC, nB) : 0);
+                             true, blocked ? fillBlock(nI, nC, nB) : 0, folded);
+      if (folded)
+        setStringAttr(d, "pairs",
+                      "stored once: entry (i, o) with o the bin of incidence j on i's side holds the mean of f(i -> o) "
+                      "and f(j -> bin of i) where j >= i and NaN where j < i (read (j, bin of i) there)");
       const std::string what = t.error ? "standard error of BSDF component " : "bin-averaged BSDF component ";
       describe(d, "1/sr", what + name + (half ? ", divided by " + scalePathOf(t.path) + " (float16)" : ""));
       h5check(H5DSattach_scale(d, ib, 0), "attach scale");
@@ -834,7 +850,7 @@ void BsdfFileWriter::create(const std::string& filename) {
   const hid_t f = file_.get();
   writeProvenance(f, schema_);
   writeAxes(f, schema_, grid_);
-  createTables(f, schema_, grid_);
+  createTables(f, schema_, grid_, false);
   // From here on only dataset writes: the file stays readable if the writer dies.
   h5check(H5Fstart_swmr_write(f), "H5Fstart_swmr_write");
 }
@@ -1235,9 +1251,25 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
         r.value[int(c)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
         r.stdError[int(c)].assign(size_t(r.nLambda) * size_t(r.nBins), 0.0);
       }
-    std::map<std::string, double> growth;  // table path -> occupancy growth of its component
+    // Pairs stored once: a slice keeps half of its entries at the other incidence bins of its side
+    // (the mirrored half is NaN, which compresses to next to nothing).
+    std::vector<char> incidenceBin(size_t(r.nBins), 0);
+    for (const IncidenceDirection& d : schema.incidence) incidenceBin[size_t(d.bin)] = 1;
+    const int own = schema.incidence[size_t(r.incidenceIndex)].bin;
+    std::map<std::string, double> growth;  // table path -> occupancy growth of its component, pairs kept
     for (Component c : schema.components.list()) {
-      const double g = occupancyGrowth(r, c, grid, double(schema.pathsPerSlice));
+      double kept = 1;
+      if (schema.foldsPairs(c)) {
+        double all = 0, paired = 0;
+        for (int l = 0; l < r.nLambda; ++l)
+          for (int b = 0; b < r.nBins; ++b)
+            if (r.at(c, l, b) != 0) {
+              all += 1;
+              paired += incidenceBin[size_t(b)] && b != own && grid.isUpper(b) == grid.isUpper(own);
+            }
+        kept = all > 0 ? 1 - 0.5 * paired / all : 1;
+      }
+      const double g = occupancyGrowth(r, c, grid, double(schema.pathsPerSlice)) * kept;
       growth[std::string("/bsdf/") + componentName(c)] = growth[std::string("/bsdf_stderr/") + componentName(c)] = g;
     }
     const PreparedSlice p = prepareSlice(r, schema, grid);
@@ -1366,14 +1398,228 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
   return energy / std::max(1, nI * nL);
 }
 
+namespace {
+
+// A dataset copied from one file to another of the same layout: whole when small, else row by row
+// (a table of the paper's size is tens of gigabytes as doubles).
+void copyDataset(hid_t from, hid_t to, const std::string& path) {
+  H5Dataset a(H5Dopen2(from, path.c_str(), H5P_DEFAULT), "open " + path);
+  H5Dataset b(H5Dopen2(to, path.c_str(), H5P_DEFAULT), "open " + path);
+  H5Dataspace s(H5Dget_space(a), "H5Dget_space");
+  const hssize_t n = H5Sget_simple_extent_npoints(s);
+  if (n <= (1 << 22) || H5Sget_simple_extent_ndims(s) < 2) {
+    std::vector<double> v(size_t(std::max<hssize_t>(n, 0)));
+    if (n > 0) h5check(H5Dread(a, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), "read " + path);
+    if (n > 0) h5check(H5Dwrite(b, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), "write " + path);
+  } else {
+    hsize_t dims[3] = {0, 0, 0};
+    H5Sget_simple_extent_dims(s, dims, nullptr);
+    for (hsize_t i = 0; i < dims[0]; ++i) writeRowTo(b, path, int(i), readRowFrom(a, path, int(i)), H5T_NATIVE_DOUBLE);
+  }
+  b.close("write " + path);
+}
+
+// Rows [a, a + n) of a (nInc, rows, cols) float dataset: (n, rows, cols) as floats; or columns
+// [a, a + n) of every row: (nInc, rows, n).
+std::vector<float> readBlock(hid_t d, const std::string& path, hsize_t a, hsize_t n, bool columns) {
+  H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
+  hsize_t dims[3] = {0, 0, 0};
+  H5Sget_simple_extent_dims(fs, dims, nullptr);
+  hsize_t start[3] = {columns ? 0 : a, 0, columns ? a : 0};
+  hsize_t count[3] = {columns ? dims[0] : n, dims[1], columns ? n : dims[2]};
+  h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
+  H5Dataspace ms(H5Screate_simple(3, count, nullptr), "H5Screate_simple");
+  std::vector<float> v(count[0] * count[1] * count[2]);
+  h5check(H5Dread(d, H5T_NATIVE_FLOAT, ms, fs, H5P_DEFAULT, v.data()), "read " + path);
+  return v;
+}
+
+// Rows [a, a + n) of a table from doubles (n x rows x cols): float32, or float16 bits as the writer
+// rounds them (storeElement).
+void writeBlock(hid_t d, const std::string& path, hsize_t a, const std::vector<double>& v, hsize_t rows, hsize_t cols,
+                bool half) {
+  H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
+  const hsize_t n = v.size() / (rows * cols);
+  hsize_t start[3] = {a, 0, 0}, count[3] = {n, rows, cols};
+  h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
+  H5Dataspace ms(H5Screate_simple(3, count, nullptr), "H5Screate_simple");
+  if (!half) {
+    h5check(H5Dwrite(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, v.data()), "write " + path);
+    return;
+  }
+  std::vector<unsigned char> bits(v.size() * 2);
+  for (size_t k = 0; k < v.size(); ++k) storeElement(v[k], 2, &bits[2 * k]);
+  const H5Datatype t = halfType();
+  h5check(H5Dwrite(d, t, ms, fs, H5P_DEFAULT, bits.data()), "write " + path);
+}
+
+// What the fold found, per component: the reciprocity test of every pair of independent estimates.
+struct PairCheck {
+  uint64_t pairs = 0, tested = 0;
+  double sumZ2 = 0, maxZ = 0, diffL1 = 0, sumL1 = 0;
+};
+
+}  // namespace
+
+nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
+  const OutputSchema& schema = schema_;
+  const int nI = int(schema.incidence.size()), nC = channelCount(schema), nB = grid_.binCount();
+  const bool half = schema.storage.values == TableValues::Float16;
+  H5Plist fapl(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate");
+  h5check(H5Pset_libver_bounds(fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST), "H5Pset_libver_bounds");
+  H5File out(H5Fcreate(target.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), "create " + target);
+  writeProvenance(out, schema);
+  writeAxes(out, schema, grid_);
+  createTables(out, schema, grid_, true);
+  std::set<std::string> folded;
+  for (const TableRef& t : tablesOf(schema))
+    if (schema.foldsPairs(t.c)) folded.insert({t.path, scalePathOf(t.path)});
+  for (const std::string& d : rowDatasets(schema))
+    if (!folded.count(d)) copyDataset(file_.get(), out.get(), d);
+  std::vector<int> incOf(size_t(nB), -1);
+  for (int i = 0; i < nI; ++i) incOf[size_t(schema.incidence[size_t(i)].bin)] = i;
+  auto upper = [&](int i) { return grid_.isUpper(schema.incidence[size_t(i)].bin); };
+  const std::string scratchPath = target + ".scratch";
+  nlohmann::json report = nlohmann::json::object();
+  for (Component c : schema.components.list()) {
+    if (!schema.foldsPairs(c)) continue;
+    const std::string name = componentName(c), v = "/bsdf/" + name, e = "/bsdf_stderr/" + name;
+    const bool errors = schema.storesBinErrors(c);
+    // Two estimates of a pair are independent unless one tile made both (symmetry) or one is the
+    // other mirrored (the wave term halved by reciprocity): then their mean's error is at most the
+    // mean of their errors.
+    auto independent = [&](int i, int j) {
+      return schema.sourceTile[size_t(i)] != schema.sourceTile[size_t(j)] &&
+             !(c == Component::Incoherent && schema.halvesWaveByReciprocity);
+    };
+    // Phase 1: the pair matrix P[i][row][j] = f(i -> bin of j) in square blocks (a scratch file), so
+    // that phase 2 reads f(j -> bin of i) for a block of i as one column of blocks.
+    {
+      H5File scratch(H5Fcreate(scratchPath.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), "create " + scratchPath);
+      for (const std::string& p : errors ? std::vector<std::string>{v, e} : std::vector<std::string>{v}) {
+        H5Dataset d = create3D(scratch, p == v ? "v" : "e", H5T_NATIVE_FLOAT, hsize_t(nI), hsize_t(nC), hsize_t(nI),
+                               0.0, true, 0, true);
+        for (int a = 0; a < nI; a += int(kPairBlock)) {
+          const int n = std::min(int(kPairBlock), nI - a);
+          std::vector<double> band(size_t(n) * nC * nI);
+          for (int i = a; i < a + n; ++i) {
+            const std::vector<double> row = getTable(p, i);
+            for (int ch = 0; ch < nC; ++ch)
+              for (int j = 0; j < nI; ++j)
+                band[(size_t(i - a) * nC + ch) * nI + j] = row[size_t(ch) * nB + schema.incidence[size_t(j)].bin];
+          }
+          writeBlock(d, scratchPath, hsize_t(a), band, hsize_t(nC), hsize_t(nI), false);
+        }
+        d.close("write " + scratchPath);
+      }
+      scratch.close("close " + scratchPath);
+    }
+    // Phase 2: per block of incidences, the mean of f(i -> o) and f(j -> bin of i) where j >= i.
+    H5File scratch(H5Fopen(scratchPath.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), "open " + scratchPath);
+    H5Dataset sv(H5Dopen2(scratch, "v", H5P_DEFAULT), "open scratch"), se;
+    if (errors) se = H5Dataset(H5Dopen2(scratch, "e", H5P_DEFAULT), "open scratch");
+    H5Dataset ov(H5Dopen2(out, v.c_str(), H5P_DEFAULT), "open " + v), oe;
+    if (errors) oe = H5Dataset(H5Dopen2(out, e.c_str(), H5P_DEFAULT), "open " + e);
+    PairCheck check;
+    for (int a = 0; a < nI; a += int(kPairBlock)) {
+      const int n = std::min(int(kPairBlock), nI - a);
+      const std::vector<float> colV = readBlock(sv, scratchPath, hsize_t(a), hsize_t(n), true);
+      const std::vector<float> colE = errors ? readBlock(se, scratchPath, hsize_t(a), hsize_t(n), true) : colV;
+      std::vector<double> bandV, bandE;
+      for (int i = a; i < a + n; ++i) {
+        std::vector<double> row = getTable(v, i), err = errors ? getTable(e, i) : std::vector<double>{};
+        for (int j = 0; j < nI; ++j) {
+          if (j == i || upper(j) != upper(i)) continue;
+          const size_t o = size_t(schema.incidence[size_t(j)].bin);
+          for (int ch = 0; ch < nC; ++ch) {
+            const size_t x = size_t(ch) * nB + o, y = (size_t(j) * nC + ch) * n + size_t(i - a);
+            if (j < i) {  // stored at (j, bin of i)
+              row[x] = std::nan("");
+              if (errors) err[x] = std::nan("");
+              continue;
+            }
+            const double f1 = row[x], f2 = colV[y];
+            row[x] = 0.5 * (f1 + f2);
+            ++check.pairs;
+            check.diffL1 += std::abs(f1 - f2);
+            check.sumL1 += std::abs(f1) + std::abs(f2);
+            if (!errors) continue;
+            const double s1 = err[x], s2 = colE[y];
+            if (independent(i, j)) {
+              err[x] = 0.5 * std::sqrt(s1 * s1 + s2 * s2);
+              if (s1 * s1 + s2 * s2 > 0) {
+                const double z = (f1 - f2) / std::sqrt(s1 * s1 + s2 * s2);
+                ++check.tested;
+                check.sumZ2 += z * z;
+                check.maxZ = std::max(check.maxZ, std::abs(z));
+              }
+            } else {
+              err[x] = 0.5 * (s1 + s2);
+            }
+          }
+        }
+        if (half) {
+          for (const auto& [path, r] : {std::pair<std::string, std::vector<double>*>{v, &row}, {e, &err}}) {
+            if (r->empty()) continue;
+            ScaledRow s = scaleForHalf(*r, size_t(nC));
+            H5Dataset sc(H5Dopen2(out, scalePathOf(path).c_str(), H5P_DEFAULT), "open " + scalePathOf(path));
+            writeRowTo(sc, scalePathOf(path), i, s.scales, H5T_NATIVE_DOUBLE);
+            sc.close("write " + scalePathOf(path));
+            *r = std::move(s.values);
+          }
+        }
+        bandV.insert(bandV.end(), row.begin(), row.end());
+        bandE.insert(bandE.end(), err.begin(), err.end());
+      }
+      writeBlock(ov, v, hsize_t(a), bandV, hsize_t(nC), hsize_t(nB), half);
+      if (errors) writeBlock(oe, e, hsize_t(a), bandE, hsize_t(nC), hsize_t(nB), half);
+    }
+    ov.close("write " + v);
+    if (errors) oe.close("write " + e);
+    report[name] = {{"pairs", check.pairs},
+                    {"relative_l1_difference", check.sumL1 > 0 ? check.diffL1 / check.sumL1 : 0.0},
+                    {"tested_pairs", check.tested},
+                    {"mean_z2", check.tested ? check.sumZ2 / double(check.tested) : 0.0},
+                    {"max_abs_z", check.maxZ}};
+  }
+  std::filesystem::remove(scratchPath);
+  setStringAttr(out, "pairs",
+                "stored once for " + std::string(report.empty() ? "no component" : "the components below") +
+                    ": same-side pairs of incidence bins hold the mean of f(i -> o) and f(o -> i) (the reciprocity "
+                    "check of each: " +
+                    report.dump() + ")");
+  out.close("close " + target);
+  return report;
+}
+
 void BsdfFileWriter::finish() {
   // Every byte on disk before the rename: a failure here leaves the partial file and its journal
   // (resumable) and the old output, if any, untouched.
   flushPending();
-  closeDatasets();
-  file_.close("close " + partial_);
-  syncPath(partial_);
-  renameChecked(partial_, path_);
+  if (schema_.storage.pairs == TablePairs::Once) {
+    // The final file is written anew with each pair stored once; the partial file stays until it
+    // has its name (a kill during the fold is resumed by folding again).
+    const std::string folded = path_ + ".pairs";
+    try {
+      pairsReport_ = foldPairs(folded);
+    } catch (...) {
+      std::error_code ec;
+      std::filesystem::remove(folded, ec);
+      std::filesystem::remove(folded + ".scratch", ec);
+      throw;
+    }
+    syncPath(folded);
+    closeDatasets();
+    file_.close("close " + partial_);
+    renameChecked(folded, path_);
+    std::error_code ec;
+    std::filesystem::remove(partial_, ec);
+  } else {
+    closeDatasets();
+    file_.close("close " + partial_);
+    syncPath(partial_);
+    renameChecked(partial_, path_);
+  }
   std::filesystem::path dir = std::filesystem::path(path_).parent_path();
   syncPath(dir.empty() ? "." : dir.string());
   std::error_code ec;
@@ -1453,13 +1699,52 @@ std::vector<double> BsdfFileReader::readRow(const std::string& dataset, int inci
   return readRowImpl(file_, dataset, incidence);
 }
 
-std::vector<double> BsdfFileReader::readTable(const std::string& path, int incidence) const {
-  std::vector<double> v = readRow(path, incidence);
+const BsdfFileReader::OpenTable& BsdfFileReader::table(const std::string& path) const {
+  auto it = tables_.find(path);
+  if (it != tables_.end()) return it->second;
+  // A chunk cache that holds a row and a column of square blocks (pairs stored once), so that
+  // reading the slices in order decompresses each block about once.
+  H5Plist dapl(H5Pcreate(H5P_DATASET_ACCESS), "H5Pcreate");
+  h5check(H5Pset_chunk_cache(dapl, 12421, 64u << 20, 1.0), "H5Pset_chunk_cache");
+  OpenTable t;
+  t.d = H5Dataset(H5Dopen2(file_, path.c_str(), dapl), "open " + path);
+  t.folded = H5Aexists(t.d, "pairs") > 0;
   const std::string scalePath = scalePathOf(path);
   if (H5Lexists(file_, scalePath.substr(0, scalePath.rfind('/')).c_str(), H5P_DEFAULT) > 0) {
-    const std::vector<double> scales = readRow(scalePath, incidence);
-    const size_t nB = v.size() / std::max<size_t>(1, scales.size());
+    t.scale = H5Dataset(H5Dopen2(file_, scalePath.c_str(), H5P_DEFAULT), "open " + scalePath);
+    if (t.folded) {  // a finished file (the fold writes the final one): its scales do not change
+      H5Dataspace fs(H5Dget_space(t.scale), "H5Dget_space");
+      t.scales.resize(size_t(H5Sget_simple_extent_npoints(fs)));
+      h5check(H5Dread(t.scale, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, t.scales.data()), "read " + scalePath);
+    }
+  }
+  return tables_.emplace(path, std::move(t)).first->second;
+}
+
+std::vector<double> BsdfFileReader::readTable(const std::string& path, int incidence) const {
+  const OpenTable& t = table(path);
+  std::vector<double> v = readRowFrom(t.d, path, incidence);
+  const size_t nB = size_t(grid_->binCount()), nC = v.size() / nB, nI = incBin_.size();
+  if (t.scale.valid()) {
+    // Read with the row: a partial file's slices get their scales as they are written.
+    const std::vector<double> scales = readRowFrom(t.scale, scalePathOf(path), incidence);
     for (size_t k = 0; k < v.size(); ++k) v[k] *= scales[k / nB];
+  }
+  if (!t.folded) return v;
+  // Pairs stored once: the same-side entries of incidences j < i are at (j, bin of i), one column
+  // of the table.
+  const int bi = incBin_[size_t(incidence)];
+  H5Dataspace fs(H5Dget_space(t.d), "H5Dget_space");
+  hsize_t start[3] = {0, 0, hsize_t(bi)}, count[3] = {hsize_t(nI), hsize_t(nC), 1};
+  h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
+  H5Dataspace ms(H5Screate_simple(3, count, nullptr), "H5Screate_simple");
+  std::vector<double> col(nI * nC);
+  h5check(H5Dread(t.d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, col.data()), "read " + path);
+  const bool upper = grid_->isUpper(bi);
+  for (size_t j = 0; j < size_t(incidence); ++j) {
+    if (grid_->isUpper(incBin_[j]) != upper) continue;
+    for (size_t c = 0; c < nC; ++c)
+      v[c * nB + size_t(incBin_[j])] = col[j * nC + c] * (t.scales.empty() ? 1.0 : t.scales[j * nC + c]);
   }
   return v;
 }

@@ -45,6 +45,8 @@
 // so that the fill reads a block of columns of every row once; it only writes entries a tile did
 // not compute, so it is idempotent (a kill during the fill is resumed by running it again).
 #pragma once
+#include <nlohmann/json.hpp>
+
 #include <cmath>
 #include <functional>
 #include <map>
@@ -115,8 +117,11 @@ class BsdfFileWriter {
   // Fills the reciprocal half of /bsdf/incoherent (see above); every slice must be done. Returns
   // the mean over slices and wavelengths of the incoherent Σ f·Ω⊥.
   double completeReciprocal(const ReciprocalPairs& pairs);
-  // Closes the file and renames it to its final path; removes the journal.
+  // Closes the file and renames it to its final path; removes the journal. With pairs stored once
+  // (storage profile) the final file is written anew from the partial one (foldPairs).
   void finish();
+  // The reciprocity check of the fold (per component: pairs, mean z² of independent pairs, …).
+  const nlohmann::json& pairsReport() const { return pairsReport_; }
   // Closes the partial file cleanly without finishing (clean stop); it stays resumable.
   void close();
   // Incidence indices whose slices are already complete (after a resume).
@@ -124,6 +129,9 @@ class BsdfFileWriter {
 
  private:
   void create(const std::string& file);
+  // Writes `target`: this file with the reciprocal components' same-side pairs stored once (the
+  // mean of both estimates, with its error) in square blocks; every other dataset copied.
+  nlohmann::json foldPairs(const std::string& target);
   void appendJournal(const std::vector<int>& tiles);
   // The row datasets stay open while the writer runs (opening one per row cost more than the
   // write); closed, checked, before the file closes.
@@ -167,6 +175,7 @@ class BsdfFileWriter {
   std::map<std::string, OpenDataset> datasets_;                        // declared after file_: closed before it
   std::map<std::string, std::map<int, std::vector<double>>> pending_;  // path → row → values (putRow)
   std::vector<int> resumed_;
+  nlohmann::json pairsReport_ = nlohmann::json::object();
   bool finished_ = false;
 };
 
@@ -242,9 +251,18 @@ class BsdfFileReader {
 
  private:
   std::vector<double> readRow(const std::string& dataset, int incidence) const;
-  // A table's row, multiplied by its scales in a half-precision file.
+  // A table's row, multiplied by its scales in a half-precision file, its mirrored half filled
+  // where pairs are stored once.
   std::vector<double> readTable(const std::string& path, int incidence) const;
+  struct OpenTable {
+    H5Dataset d;
+    bool folded = false;         // pairs stored once (the dataset's attribute `pairs`)
+    H5Dataset scale;             // a float16 table's scales
+    std::vector<double> scales;  // (nInc, rows), read once for a folded table
+  };
+  const OpenTable& table(const std::string& path) const;
   H5File file_;
+  mutable std::map<std::string, OpenTable> tables_;  // declared after file_: closed before it
   std::vector<double> lambda_nm_;
   std::vector<std::string> channels_;
   std::string colourSpace_;

@@ -36,6 +36,16 @@ struct OutputSchema {
   ComponentSet components;
   ComponentSet guarded;  // skipped by the effects planner and verified per slice
   StorageProfile storage;
+  // Per incidence index, the computed tile its slice comes from (itself, or its representative
+  // under the job's symmetry): two slices from one tile are not independent estimates.
+  std::vector<int> sourceTile;
+  // The components whose same-side pairs the file stores once (storage.pairs = once): the
+  // reciprocal ones, f(i -> o) = f(o -> i) in reflection (docs/physics.md §8): coherent, incoherent,
+  // multiple. Not lost (the masked power is not reciprocal) nor geo_masked.
+  bool foldsPairs(Component c) const {
+    return storage.pairs == TablePairs::Once && components.has(c) &&
+           (c == Component::Coherent || c == Component::Incoherent || c == Component::Multiple);
+  }
 
   // Whether component c has a table of per-bin standard errors: always in the per-bin profile, and
   // for the two tables the reciprocity fill reads (incoherent and coherent) when the job halves the

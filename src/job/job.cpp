@@ -319,6 +319,11 @@ void parseStorageProfile(const ParamDict& out, Job& job) {
     if (e != "per-bin" && e != "per-slice") out.fail("errors", "must be \"per-bin\" or \"per-slice\"");
     job.storage.errors = e == "per-slice" ? TableErrors::PerSlice : TableErrors::PerBin;
   }
+  if (out.has("pairs")) {
+    const std::string p = out.getString("pairs", "");
+    if (p != "once" && p != "both") out.fail("pairs", "must be \"once\" or \"both\"");
+    job.storage.pairs = p == "once" ? TablePairs::Once : TablePairs::Both;
+  }
   if (out.has("colour")) {
     const std::string c = out.getString("colour", "");
     if (c != "spectral" && c != "xyz" && c != "linear-srgb")
@@ -334,6 +339,15 @@ void parseStorageProfile(const ParamDict& out, Job& job) {
 // nothing: more than three wavelengths, and no wave term that reciprocity would halve (the
 // mirrored half needs spectral tables); otherwise that profile stores the spectrum.
 void resolveStorageColour(const ParamDict& out, Job& job) {
+  // Pairs of incidence bins exist with every bin of a side as an incidence (incidence = "all") and
+  // bin-averaged incidence (a bin-centre beam is not reciprocal bin to bin).
+  if (job.storage.pairs == TablePairs::Once && (!job.incidenceAll || job.exactIncidence)) {
+    if (out.has("pairs"))
+      out.fail("pairs", job.exactIncidence ? "\"once\" needs bin-averaged incidence (incidence_sampling = \"exact\" "
+                                             "is not reciprocal bin to bin)"
+                                           : "\"once\" needs incidence = \"all\" (pairs of incidence bins)");
+    job.storage.pairs = TablePairs::Both;
+  }
   if (job.storage.spectral()) return;
   bool visible = true;
   try {

@@ -126,6 +126,8 @@ const std::vector<JobKey>& jobKeys() {
        "table values: float32, or float16 scaled per slice and wavelength"},
       {"output.colour", String, "the profile's", "spectral, xyz, linear-srgb",
        "tables per wavelength, or their colour (CIE 1931 XYZ or linear sRGB; the conversion is in the file)"},
+      {"output.pairs", String, "the profile's", "once, both",
+       "incidence = \"all\": each same-side bin pair stored once, the mean of both estimates, or both ways"},
       {"output.errors", String, "the profile's", "per-bin, per-slice",
        "standard errors: a table per component, or only the per-slice statistics"},
   };

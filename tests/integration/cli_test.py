@@ -347,6 +347,96 @@ def test_storage_profiles():
           f"8 wavelengths in XYZ {colour_size:.0f} B per slice")
 
 
+def test_pairs_stored_once():
+    """[output] pairs = "once" on a full-sphere job (rough gold, coherent + multiple, 2 ranks): every
+    slice read back whole (C++ `slice`, and python/microbsdf_h5.py) equals the mean of both estimates
+    of the same job stored both ways, f(i -> o) and f(o -> i); against a reference run with 16 times
+    the paths (another seed) the stored table's z-scores have mean square 1 within the estimator's
+    own spread, and its measured deviation from the reference falls by about sqrt(2) against a
+    single estimate's; the reciprocity check recorded in the file has mean z² about 1; the file is
+    about half the size of the one storing both."""
+    sys.path.insert(0, os.path.join(SRC, "python"))
+    import microbsdf_h5 as mh  # noqa: E402
+
+    def job(name, extra, paths=20000, seed=1):
+        path = os.path.join(TMP, name + ".toml")
+        open(path, "w").write(f"""[geometry]
+kind = "gaussian"
+size_um = [10.0, 10.0]
+rms_um = 0.4
+correlation_um = 1.0
+[material]
+name = "Au"
+[spectrum]
+wavelengths_nm = [500.0, 650.0]
+[directions]
+n_theta = 4
+n_phi = 8
+incidence = "all"
+[effects]
+components = ["coherent", "multiple"]
+[sampling]
+paths_per_slice = {paths}
+seed = {seed}
+[output]
+path = "{name}.h5"
+{extra}
+""")
+        return path
+
+    run(["run", job("both", 'pairs = "both"')], mpi=2)
+    run(["run", job("once", 'pairs = "once"')], mpi=2)
+    run(["run", job("once1", 'pairs = "once"'), "--threads", "1"])
+    assert datasets(os.path.join(TMP, "once.h5")) == datasets(os.path.join(TMP, "once1.h5")), "1 vs 2 ranks"
+    run(["run", job("ref", 'pairs = "both"', paths=320000, seed=7)], mpi=2)
+    with h5py.File(os.path.join(TMP, "once.h5"), "r") as o, h5py.File(os.path.join(TMP, "both.h5"), "r") as b, \
+            h5py.File(os.path.join(TMP, "ref.h5"), "r") as r:
+        bins = b["/incidence/bin"][:].astype(int)
+        n = len(bins)
+        report = json.loads(o.attrs["pairs"].decode().split("check of each: ", 1)[1][:-1])
+        for comp in ("coherent", "multiple"):
+            fo, so = mh.table(o, comp), mh.table(o, comp, error=True)
+            fb, sb = mh.table(b, comp), mh.table(b, comp, error=True)
+            fr, sr = mh.table(r, comp), mh.table(r, comp, error=True)
+            assert np.all(np.isfinite(fo)) and np.all(np.isfinite(so))
+            raw = o[f"/bsdf/{comp}"][:]
+            assert np.isnan(raw).sum() == n * (n - 1) // 2 * raw.shape[1], "the mirrored half is not stored"
+            # The mean of both estimates, bin by bin.
+            mean = fb.copy()
+            pair = fb[:, :, bins]  # (i, row, j) = f(i -> bin j)
+            mean[:, :, bins] = 0.5 * (pair + np.transpose(pair, (2, 1, 0)))
+            assert np.allclose(fo, mean, rtol=1e-6, atol=1e-12), comp
+            for i in (0, n // 2, n - 1):
+                assert np.allclose(mh.slice(o, comp, i), fo[i], rtol=1e-12, atol=0), (comp, i)
+            # Against the reference: z-scores of the stored table and of a single estimate.
+            sel = np.zeros(fb.shape, bool)
+            sel[:, :, bins] = True
+            for i in range(n):
+                sel[i, :, bins[i]] = False  # the diagonal is one estimate either way
+            sel &= (sb > 0) & (sr > 0)
+            z_once = ((fo - fr) / np.sqrt(so ** 2 + sr ** 2))[sel]
+            z_both = ((fb - fr) / np.sqrt(sb ** 2 + sr ** 2))[sel]
+            spread = 5 * np.sqrt(2.0 / sel.sum())
+            assert abs(np.mean(z_once ** 2) - 1) < spread + 0.1, (comp, np.mean(z_once ** 2), sel.sum())
+            assert abs(np.mean(z_both ** 2) - 1) < spread + 0.1, (comp, np.mean(z_both ** 2))
+            # The measured deviation from the reference (its own variance taken out) and the stored error.
+            dev_once = np.mean((fo - fr)[sel] ** 2 - sr[sel] ** 2)
+            dev_both = np.mean((fb - fr)[sel] ** 2 - sr[sel] ** 2)
+            ratio = np.sqrt(dev_once / dev_both)
+            err_ratio = np.median(so[sel] / sb[sel])
+            assert 0.6 < ratio < 0.82 and 0.6 < err_ratio < 0.82, (comp, ratio, err_ratio)
+            check = report[comp]
+            assert check["tested_pairs"] > 100 and abs(check["mean_z2"] - 1) < 5 * np.sqrt(2.0 / check["tested_pairs"]) + 0.1, check
+            print(f"{comp}: stored = mean of both estimates; mean z² {np.mean(z_once ** 2):.3f} (once) "
+                  f"{np.mean(z_both ** 2):.3f} (both) over {sel.sum()} bins; deviation from the reference "
+                  f"{ratio:.3f} x, stored error {err_ratio:.3f} x a single estimate's; reciprocity check mean z² "
+                  f"{check['mean_z2']:.3f} over {check['tested_pairs']} pairs")
+    sizes = [os.path.getsize(os.path.join(TMP, f)) for f in ("once.h5", "both.h5")]
+    print("file sizes (once, both):", sizes)
+    r = run(["slice", "once.h5", "--model", "GM", "-o", "once.csv"])
+    assert "wrote once.csv" in r.stdout + r.stderr
+
+
 def wm_excess_beyond_noise(a, b, brdf_only=False):
     """Per slice and wavelength, how far the auto table `a` (h5py file) differs from the WM model of
     the full table `b` (the same seeds) beyond noise: sum|f_WM - f_auto| * proj. solid angle, less

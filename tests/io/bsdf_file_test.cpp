@@ -277,7 +277,8 @@ TileResult wideRangeTile(const Job& job, const DirectionGrid& g, int index) {
 Job compactJob() {
   Job job = smallJob();
   job.storage = StorageProfile::compact();
-  job.storage.colour = TableColour::Spectral;  // (as the profile resolves for two wavelengths)
+  job.storage.colour = TableColour::Spectral;  // (as the profile resolves for two wavelengths
+  job.storage.pairs = TablePairs::Both;        // and listed incidences)
   return job;
 }
 }  // namespace
@@ -428,4 +429,79 @@ TEST(BsdfFile, ColourTablesAreTheSpectrumsColour) {
     EXPECT_EQ(f.stats(1).energyReflected["coherent"].size(), 6u) << "statistics stay spectral";
     std::filesystem::remove(path);
   }
+}
+
+// Pairs stored once: from the same tiles, a file with pairs = "once" reads back (every slice whole)
+// as the mean of both estimates of a file that keeps both, f(i -> o) and f(j -> bin of i), with the
+// error of a mean of independent estimates, sqrt(σ1² + σ2²)/2 — or, for two slices of one tile
+// (symmetry), at most the mean of their errors; the table itself holds each pair once (NaN in the
+// mirrored half); the transmitted bins and the diagonal are kept as computed.
+TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
+  Job job = loadJobFromString(
+      "[directions]\nn_theta = 2\nn_phi = 4\nincidence = \"all\"\nsymmetry = \"none\"\n"
+      "[spectrum]\nwavelengths_nm = [450.0, 650.0]\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n"
+      "[output]\npairs = \"once\"\n",
+      "t.toml", "");
+  DirectionGrid g(job.gridLayout);
+  const int nI = int(job.incidence.size()), nB = g.binCount();
+  ASSERT_EQ(nI, 8);
+  OutputSchema once = outputSchemaOf(job);
+  once.sourceTile[5] = 3;  // slice 5 a copy of tile 3's estimate (as symmetry makes them)
+  OutputSchema both = once;
+  both.storage.pairs = TablePairs::Both;
+  std::vector<TileResult> tiles;
+  for (int i = 0; i < nI; ++i) {
+    TileResult r = tile(job, g, i, 0.0);
+    for (Component c : {Component::Coherent, Component::Multiple})
+      for (int l = 0; l < 2; ++l)
+        for (int b = 0; b < nB; ++b) {
+          r.at(c, l, b) = 1.0 + 0.1 * i + 0.01 * b + 0.5 * l + (c == Component::Multiple ? 3.0 : 0.0);
+          r.stdError[int(c)][size_t(l) * nB + b] = 0.01 * (1 + (i + b) % 3);
+        }
+    tiles.push_back(r);
+  }
+  const std::string a = (std::filesystem::temp_directory_path() / "microbsdf_pairs_once.h5").string(),
+                    b = (std::filesystem::temp_directory_path() / "microbsdf_pairs_both.h5").string();
+  for (const auto& [path, schema] : {std::pair<std::string, const OutputSchema*>{a, &once}, {b, &both}}) {
+    for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(path + ext);
+    BsdfFileWriter w(path, *schema, g);
+    for (const TileResult& r : tiles) w.writeTile(r);
+    w.finish();
+    if (schema == &once) {
+      EXPECT_EQ(w.pairsReport()["coherent"]["pairs"].get<int>(), nI * (nI - 1) / 2 * 2);
+      EXPECT_GT(w.pairsReport()["coherent"]["tested_pairs"].get<int>(), 0);
+    }
+  }
+  EXPECT_FALSE(std::filesystem::exists(a + ".partial"));
+  BsdfFileReader x(a), y(b);
+  for (const char* name : {"coherent", "multiple"})
+    for (int i = 0; i < nI; ++i) {
+      const std::vector<double> v = x.slice(name, i), e = x.sliceStdError(name, i);
+      const std::vector<double> vi = y.slice(name, i), ei = y.sliceStdError(name, i);
+      for (int l = 0; l < 2; ++l)
+        for (int o = 0; o < nB; ++o) {
+          const size_t k = size_t(l) * nB + o;
+          double want = vi[k], wantE = ei[k];
+          if (g.isUpper(o) && o != job.incidence[size_t(i)].bin) {
+            const int j = o;  // incidence index = bin on this grid
+            const double f2 = y.slice(name, j)[size_t(l) * nB + job.incidence[size_t(i)].bin];
+            const double s2 = y.sliceStdError(name, j)[size_t(l) * nB + job.incidence[size_t(i)].bin];
+            want = 0.5 * (vi[k] + f2);
+            const bool shared = once.sourceTile[size_t(i)] == once.sourceTile[size_t(j)];
+            wantE = shared ? 0.5 * (ei[k] + s2) : 0.5 * std::sqrt(ei[k] * ei[k] + s2 * s2);
+          }
+          EXPECT_NEAR(v[k], want, 1e-6 * std::abs(want)) << name << " i " << i << " o " << o;
+          EXPECT_NEAR(e[k], wantE, 1e-6 * wantE) << name << " i " << i << " o " << o;
+        }
+    }
+  {  // the stored table: the mirrored half is NaN
+    H5File f(H5Fopen(a.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), "open");
+    H5Dataset d(H5Dopen2(f, "/bsdf/coherent", H5P_DEFAULT), "open");
+    std::vector<float> all(size_t(nI) * 2 * nB);
+    h5check(H5Dread(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, all.data()), "read");
+    EXPECT_TRUE(std::isnan(all[(size_t(5) * 2 + 0) * nB + 2]));    // (5, bin 2): stored at (2, bin 5)
+    EXPECT_FALSE(std::isnan(all[(size_t(2) * 2 + 0) * nB + 5]));   // (2, bin 5)
+    EXPECT_FALSE(std::isnan(all[(size_t(5) * 2 + 0) * nB + 12]));  // a transmitted bin
+  }
+  for (const std::string& p : {a, b}) std::filesystem::remove(p);
 }

@@ -354,7 +354,7 @@ TEST(Job, StorageProfileAndItsColour) {
   EXPECT_EQ(full.storage, StorageProfile::full());
   Job compact = loadJobFromString(eight + "[output]\nprofile = \"compact\"\n", "t.toml", "");
   EXPECT_EQ(compact.storage, StorageProfile::compact());
-  EXPECT_EQ(compact.storage.name(), "compact (values = float16, errors = per-slice, colour = xyz)");
+  EXPECT_EQ(compact.storage.name(), "compact (values = float16, errors = per-slice, colour = xyz, pairs = once)");
   Job three = loadJobFromString("[spectrum]\nwavelengths_nm = [450.0, 550.0, 650.0]\n[output]\nprofile = \"compact\"\n",
                                 "t.toml", "");
   EXPECT_EQ(three.storage.colour, TableColour::Spectral);
@@ -372,7 +372,7 @@ TEST(Job, StorageProfileAndItsColour) {
   EXPECT_FALSE(colour.halvesWaveByReciprocity());
   EXPECT_NE(colour.reciprocityOffReason().find("[output] colour"), std::string::npos);
   Job srgb = loadJobFromString(eight + "[output]\nvalues = \"float16\"\ncolour = \"linear-srgb\"\n", "t.toml", "");
-  EXPECT_EQ(srgb.storage.name(), "full (values = float16, errors = per-bin, colour = linear-srgb)");
+  EXPECT_EQ(srgb.storage.name(), "full (values = float16, errors = per-bin, colour = linear-srgb, pairs = both)");
   const std::string infrared =
       "[material]\nkind = \"dielectric\"\nior = 1.5\n[spectrum]\nwavelengths_nm = [1000.0, 1100.0, 1200.0, 1300.0]\n";
   EXPECT_EQ(loadJobFromString(infrared + "[output]\nprofile = \"compact\"\n", "t.toml", "").storage.colour,
