@@ -8,6 +8,7 @@
 
 namespace mbsdf {
 
+// (The order of each set is that of its names in the job keys: job.cpp parses them by index.)
 enum class TableValues { Float32, Float16 };
 enum class TableErrors { PerBin, PerSlice };
 enum class TableColour { Spectral, Xyz, LinearSrgb };

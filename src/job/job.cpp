@@ -302,36 +302,26 @@ void parseEffects(const ParamDict& eff, Job& job) {
 // [output] profile, values, errors: how the tables are stored (core/storage_profile.h); the
 // profile names a preset, values and errors override it.
 void parseStorageProfile(const ParamDict& out, Job& job) {
-  const std::string profile = out.getString("profile", "full");
-  if (profile == "full")
-    job.storage = StorageProfile::full();
-  else if (profile == "compact")
-    job.storage = StorageProfile::compact();
-  else
-    out.fail("profile", "must be \"full\" or \"compact\"");
-  if (out.has("values")) {
-    const std::string v = out.getString("values", "");
-    if (v != "float32" && v != "float16") out.fail("values", "must be \"float32\" or \"float16\"");
-    job.storage.values = v == "float16" ? TableValues::Float16 : TableValues::Float32;
-  }
-  if (out.has("errors")) {
-    const std::string e = out.getString("errors", "");
-    if (e != "per-bin" && e != "per-slice") out.fail("errors", "must be \"per-bin\" or \"per-slice\"");
-    job.storage.errors = e == "per-slice" ? TableErrors::PerSlice : TableErrors::PerBin;
-  }
-  if (out.has("pairs")) {
-    const std::string p = out.getString("pairs", "");
-    if (p != "once" && p != "both") out.fail("pairs", "must be \"once\" or \"both\"");
-    job.storage.pairs = p == "once" ? TablePairs::Once : TablePairs::Both;
-  }
-  if (out.has("colour")) {
-    const std::string c = out.getString("colour", "");
-    if (c != "spectral" && c != "xyz" && c != "linear-srgb")
-      out.fail("colour", "must be \"spectral\", \"xyz\" or \"linear-srgb\"");
-    job.storage.colour = c == "xyz"           ? TableColour::Xyz
-                         : c == "linear-srgb" ? TableColour::LinearSrgb
-                                              : TableColour::Spectral;
-  }
+  // The value of `key` among `names` (its index), `fallback` when absent; another value is an error
+  // naming the key and listing the names.
+  auto choice = [&out](const char* key, std::initializer_list<const char*> names, int fallback) {
+    if (!out.has(key)) return fallback;
+    const std::string v = out.getString(key, "");
+    int k = 0;
+    for (const char* n : names) {
+      if (v == n) return k;
+      ++k;
+    }
+    std::string list;
+    for (const char* n : names) list += (list.empty() ? "\"" : ", \"") + std::string(n) + "\"";
+    out.fail(key, "must be one of " + list);
+  };
+  job.storage = choice("profile", {"full", "compact"}, 0) == 1 ? StorageProfile::compact() : StorageProfile::full();
+  StorageProfile& s = job.storage;
+  s.values = TableValues(choice("values", {"float32", "float16"}, int(s.values)));
+  s.errors = TableErrors(choice("errors", {"per-bin", "per-slice"}, int(s.errors)));
+  s.pairs = TablePairs(choice("pairs", {"both", "once"}, int(s.pairs)));
+  s.colour = TableColour(choice("colour", {"spectral", "xyz", "linear-srgb"}, int(s.colour)));
 }
 
 // The colour of the tables, once the job is known: a colour needs visible wavelengths (an explicit
