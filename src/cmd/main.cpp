@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
                                          addCheckCommand(app),           addKeysCommand(app),   addPlanCommand(app),
                                          addCompareSmithCommand(app),    addExportCommand(app), addEvalCommand(app)};
 
-  silenceHdf5Diagnostics();
+  setUpHdf5();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1465,8 +1465,11 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
   const OutputSchema& schema = schema_;
   const int nI = int(schema.incidence.size()), nC = channelCount(schema), nB = grid_.binCount();
   const bool half = schema.storage.values == TableValues::Float16;
+  // Both files closed with every object in them (a close after a failed write, a full disk, must
+  // not leave HDF5 a half-open file to flush when the process exits).
   H5Plist fapl(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate");
   h5check(H5Pset_libver_bounds(fapl, H5F_LIBVER_LATEST, H5F_LIBVER_LATEST), "H5Pset_libver_bounds");
+  h5check(H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG), "H5Pset_fclose_degree");
   H5File out(H5Fcreate(target.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), "create " + target);
   writeProvenance(out, schema);
   writeAxes(out, schema, grid_);
@@ -1495,7 +1498,7 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
     // Phase 1: the pair matrix P[i][row][j] = f(i -> bin of j) in square blocks (a scratch file), so
     // that phase 2 reads f(j -> bin of i) for a block of i as one column of blocks.
     {
-      H5File scratch(H5Fcreate(scratchPath.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), "create " + scratchPath);
+      H5File scratch(H5Fcreate(scratchPath.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), "create " + scratchPath);
       for (const std::string& p : errors ? std::vector<std::string>{v, e} : std::vector<std::string>{v}) {
         H5Dataset d = create3D(scratch, p == v ? "v" : "e", H5T_NATIVE_FLOAT, hsize_t(nI), hsize_t(nC), hsize_t(nI),
                                0.0, true, 0, true);

@@ -42,7 +42,8 @@ void h5fail(const std::string& what) {
   throw std::runtime_error("HDF5: " + what + " failed" + (t.innermost.empty() ? "" : ": " + t.innermost));
 }
 
-void silenceHdf5Diagnostics() {
+void setUpHdf5() {
+  H5dont_atexit();
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
 }
 

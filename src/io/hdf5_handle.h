@@ -12,8 +12,11 @@ namespace mbsdf {
 
 // Throws for the failed operation `what`, with the reason from HDF5's error stack (which it clears).
 [[noreturn]] void h5fail(const std::string& what);
-// HDF5 prints its error stack on stderr by default; the exceptions above say what failed instead.
-void silenceHdf5Diagnostics();
+// Before any other HDF5 call: HDF5 prints its error stack on stderr by default (the exceptions
+// above say what failed instead), and at exit closes what is still open — after a close that a
+// full disk made fail, a file HDF5 cannot flush, where its exit handler crashed (Debian's 1.10.8).
+// Every file is closed, checked, before the program ends; HDF5's exit handler is not installed.
+void setUpHdf5();
 
 template <herr_t (*Close)(hid_t)>
 class H5Handle {

@@ -68,6 +68,52 @@ def mount_tmpfs(path, size):
                           capture_output=True).returncode == 0
 
 
+def test_disk_full_during_fold():
+    """A file system with room for the run's partial file but not for the fold of pairs stored once
+    (pairs = "once"): exit 4 naming ENOSPC, no crash, the partial file and its journal kept, the fold's
+    files removed; --resume where there is room folds into the same table as a clean run."""
+    job = os.path.join(TMP, "fold.toml")
+    with open(job, "w") as f:
+        f.write("""[geometry]
+kind = "gaussian"
+size_um = [10.0, 10.0]
+rms_um = 0.4
+correlation_um = 1.0
+[material]
+name = "Au"
+[spectrum]
+wavelengths_nm = { min = 400.0, max = 700.0, count = 8 }
+[directions]
+n_theta = 16
+n_phi = 64
+incidence = "all"
+[effects]
+components = ["coherent", "multiple"]
+[sampling]
+paths_per_slice = 2000
+[output]
+profile = "compact"
+""")
+    run(["run", job, "-o", "ref.h5"])
+    disk = os.path.join(TMP, "disk")
+    partial = 6 * 1024 * 1024  # the partial file takes 6.2 MB; the fold needs some 6 MB more
+    if not mount_tmpfs(disk, f"{partial * 13 // 10 // 1024}k"):
+        sys.exit("FAIL: cannot mount a tmpfs (the test needs root, as CI has)")
+    try:
+        expect(["run", job, "-o", "disk/out.h5"], EXIT_WRITE_FAILED, "No space left on device (ENOSPC)",
+               "1024/1024 slices are safe in", "--resume")
+        left = sorted(os.listdir(disk))
+        assert left == ["out.h5.journal", "out.h5.logs", "out.h5.partial"], left
+        for name in ("out.h5.journal", "out.h5.partial"):
+            shutil.copy(os.path.join(disk, name), os.path.join(TMP, name))
+    finally:
+        subprocess.run(["umount", disk], capture_output=True)
+    r = run(["run", job, "-o", "out.h5", "--resume"])
+    assert "1024 of 1024 slices already complete" in r.stdout + r.stderr
+    assert datasets(os.path.join(TMP, "out.h5")) == datasets(os.path.join(TMP, "ref.h5"))
+    print("full disk during the fold: exit 4 (ENOSPC), partial file and journal kept; resumed: the same table")
+
+
 def test_disk_full():
     """A full output file system: exit 4 naming the file and ENOSPC, the old output untouched, the
     partial file resumable once there is room, and the resumed table identical to a clean run."""
