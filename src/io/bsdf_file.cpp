@@ -205,6 +205,19 @@ void storeElement(double x, size_t elemSize, unsigned char* out) {
   }
 }
 
+// Writes doubles to the selection `file` of a table: float32 by HDF5's conversion, or float16 bits
+// rounded here as the packed chunks are (storeElement), not by HDF5's own conversion.
+void writeValues(hid_t d, hid_t memory, hid_t file, const std::vector<double>& v, bool half, const std::string& path) {
+  if (!half) {
+    h5check(H5Dwrite(d, H5T_NATIVE_DOUBLE, memory, file, H5P_DEFAULT, v.data()), "write " + path);
+    return;
+  }
+  std::vector<unsigned char> bits(v.size() * 2);
+  for (size_t k = 0; k < v.size(); ++k) storeElement(v[k], 2, &bits[2 * k]);
+  const H5Datatype t = halfType();
+  h5check(H5Dwrite(d, t, memory, file, H5P_DEFAULT, bits.data()), "write " + path);
+}
+
 // The bytes of chunk (a, b) of shape c1 x c2 of an n1 x n2 row, elements of `elemSize` bytes; an
 // edge chunk is stored whole, the part outside the dataset holding the fill value (NaN).
 std::vector<unsigned char> chunkBytes(const std::vector<double>& v, hsize_t n1, hsize_t n2, hsize_t a, hsize_t b,
@@ -757,7 +770,7 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
         H5Dataset sc =
             create3D(t.error ? eScale->get() : bScale->get(), name, H5T_NATIVE_DOUBLE, nI, nC, 1, nan, false);
         describe(sc, "1/sr",
-                 "the power of two by which each slice and wavelength of " + t.path +
+                 "the power of two by which each slice and row (wavelength or colour channel) of " + t.path +
                      " is multiplied: f = stored * scale (the row's peak stored in [2^14, 2^15))");
       }
     }
@@ -1031,15 +1044,7 @@ void BsdfFileWriter::flushPending() {
       hsize_t start[3] = {hsize_t(run->first), 0, 0}, count[3] = {hsize_t(std::distance(run, end)), dims[1], dims[2]};
       h5check(H5Sselect_hyperslab(file, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
       H5Dataspace memory(H5Screate_simple(rank, count, nullptr), "H5Screate_simple");
-      if (dataset(path).half) {
-        // Rounded here as the packed chunks are (storeElement), not by HDF5's own conversion.
-        std::vector<unsigned char> bits(values.size() * 2);
-        for (size_t k = 0; k < values.size(); ++k) storeElement(values[k], 2, &bits[2 * k]);
-        const H5Datatype t = halfType();
-        h5check(H5Dwrite(d, t, memory, file, H5P_DEFAULT, bits.data()), "write " + path);
-      } else {
-        h5check(H5Dwrite(d, H5T_NATIVE_DOUBLE, memory, file, H5P_DEFAULT, values.data()), "write " + path);
-      }
+      writeValues(d, memory, file, values, dataset(path).half, path);
       run = end;
     }
   }
@@ -1434,8 +1439,8 @@ std::vector<float> readBlock(hid_t d, const std::string& path, hsize_t a, hsize_
   return v;
 }
 
-// Rows [a, a + n) of a table from doubles (n x rows x cols): float32, or float16 bits as the writer
-// rounds them (storeElement).
+// Rows [a, a + n) of a (nInc, rows, cols) dataset from doubles (n x rows x cols): a table's values
+// (writeValues: float32, or float16 with `half`), or its scales.
 void writeBlock(hid_t d, const std::string& path, hsize_t a, const std::vector<double>& v, hsize_t rows, hsize_t cols,
                 bool half) {
   H5Dataspace fs(H5Dget_space(d), "H5Dget_space");
@@ -1443,14 +1448,7 @@ void writeBlock(hid_t d, const std::string& path, hsize_t a, const std::vector<d
   hsize_t start[3] = {a, 0, 0}, count[3] = {n, rows, cols};
   h5check(H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr), "select " + path);
   H5Dataspace ms(H5Screate_simple(3, count, nullptr), "H5Screate_simple");
-  if (!half) {
-    h5check(H5Dwrite(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, v.data()), "write " + path);
-    return;
-  }
-  std::vector<unsigned char> bits(v.size() * 2);
-  for (size_t k = 0; k < v.size(); ++k) storeElement(v[k], 2, &bits[2 * k]);
-  const H5Datatype t = halfType();
-  h5check(H5Dwrite(d, t, ms, fs, H5P_DEFAULT, bits.data()), "write " + path);
+  writeValues(d, ms, fs, v, half, path);
 }
 
 // What the fold found, per component: the reciprocity test of every pair of independent estimates.
@@ -1521,14 +1519,16 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
     H5File scratch(H5Fopen(scratchPath.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), "open " + scratchPath);
     H5Dataset sv(H5Dopen2(scratch, "v", H5P_DEFAULT), "open scratch"), se;
     if (errors) se = H5Dataset(H5Dopen2(scratch, "e", H5P_DEFAULT), "open scratch");
-    H5Dataset ov(H5Dopen2(out, v.c_str(), H5P_DEFAULT), "open " + v), oe;
+    H5Dataset ov(H5Dopen2(out, v.c_str(), H5P_DEFAULT), "open " + v), oe, svOut, seOut;
     if (errors) oe = H5Dataset(H5Dopen2(out, e.c_str(), H5P_DEFAULT), "open " + e);
+    if (half) svOut = H5Dataset(H5Dopen2(out, scalePathOf(v).c_str(), H5P_DEFAULT), "open " + scalePathOf(v));
+    if (half && errors) seOut = H5Dataset(H5Dopen2(out, scalePathOf(e).c_str(), H5P_DEFAULT), "open " + scalePathOf(e));
     PairCheck check;
     for (int a = 0; a < nI; a += int(kPairBlock)) {
       const int n = std::min(int(kPairBlock), nI - a);
       const std::vector<float> colV = readBlock(sv, scratchPath, hsize_t(a), hsize_t(n), true);
       const std::vector<float> colE = errors ? readBlock(se, scratchPath, hsize_t(a), hsize_t(n), true) : colV;
-      std::vector<double> bandV, bandE;
+      std::vector<double> bandV, bandE, scalesV, scalesE;  // the band's rows and, for float16, their scales
       for (int i = a; i < a + n; ++i) {
         std::vector<double> row = getTable(v, i), err = errors ? getTable(e, i) : std::vector<double>{};
         for (int j = 0; j < nI; ++j) {
@@ -1562,12 +1562,11 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
           }
         }
         if (half) {
-          for (const auto& [path, r] : {std::pair<std::string, std::vector<double>*>{v, &row}, {e, &err}}) {
+          for (const auto& [r, scales] :
+               {std::pair<std::vector<double>*, std::vector<double>*>{&row, &scalesV}, {&err, &scalesE}}) {
             if (r->empty()) continue;
             ScaledRow s = scaleForHalf(*r, size_t(nC));
-            H5Dataset sc(H5Dopen2(out, scalePathOf(path).c_str(), H5P_DEFAULT), "open " + scalePathOf(path));
-            writeRowTo(sc, scalePathOf(path), i, s.scales, H5T_NATIVE_DOUBLE);
-            sc.close("write " + scalePathOf(path));
+            scales->insert(scales->end(), s.scales.begin(), s.scales.end());
             *r = std::move(s.values);
           }
         }
@@ -1576,7 +1575,11 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
       }
       writeBlock(ov, v, hsize_t(a), bandV, hsize_t(nC), hsize_t(nB), half);
       if (errors) writeBlock(oe, e, hsize_t(a), bandE, hsize_t(nC), hsize_t(nB), half);
+      if (half) writeBlock(svOut, scalePathOf(v), hsize_t(a), scalesV, hsize_t(nC), 1, false);
+      if (half && errors) writeBlock(seOut, scalePathOf(e), hsize_t(a), scalesE, hsize_t(nC), 1, false);
     }
+    if (half) svOut.close("write " + scalePathOf(v));
+    if (half && errors) seOut.close("write " + scalePathOf(e));
     ov.close("write " + v);
     if (errors) oe.close("write " + e);
     report[name] = {{"pairs", check.pairs},

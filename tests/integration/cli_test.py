@@ -358,32 +358,7 @@ def test_pairs_stored_once():
     sys.path.insert(0, os.path.join(SRC, "python"))
     import microbsdf_h5 as mh  # noqa: E402
 
-    def job(name, extra, paths=20000, seed=1):
-        path = os.path.join(TMP, name + ".toml")
-        open(path, "w").write(f"""[geometry]
-kind = "gaussian"
-size_um = [10.0, 10.0]
-rms_um = 0.4
-correlation_um = 1.0
-[material]
-name = "Au"
-[spectrum]
-wavelengths_nm = [500.0, 650.0]
-[directions]
-n_theta = 4
-n_phi = 8
-incidence = "all"
-[effects]
-components = ["coherent", "multiple"]
-[sampling]
-paths_per_slice = {paths}
-seed = {seed}
-[output]
-path = "{name}.h5"
-{extra}
-""")
-        return path
-
+    job = full_sphere_job
     run(["run", job("both", 'pairs = "both"')], mpi=2)
     run(["run", job("once", 'pairs = "once"')], mpi=2)
     run(["run", job("once1", 'pairs = "once"'), "--threads", "1"])
@@ -435,9 +410,7 @@ path = "{name}.h5"
     print("file sizes (once, both):", sizes)
     # A SIGKILL while rank 0 folds (1024 slices of 16 x 64 bins: a fold of seconds): the partial file
     # and its journal stay whole, and --resume folds again into the same bytes as an uninterrupted run.
-    big = open(job("fold", 'pairs = "once"', paths=2000)).read().replace("n_theta = 4", "n_theta = 16").replace(
-        "n_phi = 8", "n_phi = 64")
-    open(os.path.join(TMP, "fold.toml"), "w").write(big)
+    job("fold", 'pairs = "once"', n_theta=16, n_phi=64, paths=2000)
     run(["run", "fold.toml", "-o", "fold-ref.h5"], mpi=2)
     out = os.path.join(TMP, "fold.h5")
     p = start(["run", "fold.toml"])

@@ -72,28 +72,8 @@ def test_disk_full_during_fold():
     """A file system with room for the run's partial file but not for the fold of pairs stored once
     (pairs = "once"): exit 4 naming ENOSPC, no crash, the partial file and its journal kept, the fold's
     files removed; --resume where there is room folds into the same table as a clean run."""
-    job = os.path.join(TMP, "fold.toml")
-    with open(job, "w") as f:
-        f.write("""[geometry]
-kind = "gaussian"
-size_um = [10.0, 10.0]
-rms_um = 0.4
-correlation_um = 1.0
-[material]
-name = "Au"
-[spectrum]
-wavelengths_nm = { min = 400.0, max = 700.0, count = 8 }
-[directions]
-n_theta = 16
-n_phi = 64
-incidence = "all"
-[effects]
-components = ["coherent", "multiple"]
-[sampling]
-paths_per_slice = 2000
-[output]
-profile = "compact"
-""")
+    job = full_sphere_job("fold", 'profile = "compact"', n_theta=16, n_phi=64,
+                          wavelengths="{ min = 400.0, max = 700.0, count = 8 }", paths=2000)
     run(["run", job, "-o", "ref.h5"])
     disk = os.path.join(TMP, "disk")
     partial = 6 * 1024 * 1024  # the partial file takes 6.2 MB; the fold needs some 6 MB more

@@ -82,6 +82,37 @@ def sha(path):
     return hashlib.sha256(open(path, "rb").read()).hexdigest()
 
 
+def full_sphere_job(name, output_extra, n_theta=4, n_phi=8, wavelengths="[500.0, 650.0]", paths=20000, seed=1):
+    """TMP/<name>.toml: a rough gold patch (gaussian, rms 0.4 µm, correlation 1 µm) with every upper
+    bin an incidence (incidence = "all"), coherent and multiple, writing <name>.h5 with the given
+    [output] lines: the job whose pairs of incidence bins the storage tests fold."""
+    path = os.path.join(TMP, name + ".toml")
+    with open(path, "w") as f:
+        f.write(f"""[geometry]
+kind = "gaussian"
+size_um = [10.0, 10.0]
+rms_um = 0.4
+correlation_um = 1.0
+[material]
+name = "Au"
+[spectrum]
+wavelengths_nm = {wavelengths}
+[directions]
+n_theta = {n_theta}
+n_phi = {n_phi}
+incidence = "all"
+[effects]
+components = ["coherent", "multiple"]
+[sampling]
+paths_per_slice = {paths}
+seed = {seed}
+[output]
+path = "{name}.h5"
+{output_extra}
+""")
+    return path
+
+
 def many_tiles_job(path, n_theta, output, paths=20000):
     """A job with n_theta x 4 incidence directions on a small patch (each tile a fraction of a second)."""
     inc = ", ".join(f"[{t:.2f}, {p:.1f}]" for t in np.linspace(0, 80, n_theta) for p in (0, 45, 90, 135))

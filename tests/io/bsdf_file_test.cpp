@@ -503,5 +503,26 @@ TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
     EXPECT_FALSE(std::isnan(all[(size_t(2) * 2 + 0) * nB + 5]));   // (2, bin 5)
     EXPECT_FALSE(std::isnan(all[(size_t(5) * 2 + 0) * nB + 12]));  // a transmitted bin
   }
+  {  // the same in float16, each folded row and its scales written per block of incidences: the run
+     // stores both estimates rounded to half, the fold rounds their mean again (twice half's rounding)
+    OutputSchema half = once;
+    half.storage.values = TableValues::Float16;
+    const std::string c = (std::filesystem::temp_directory_path() / "microbsdf_pairs_half.h5").string();
+    for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(c + ext);
+    {
+      BsdfFileWriter w(c, half, g);
+      for (const TileResult& r : tiles) w.writeTile(r);
+      w.finish();
+    }
+    BsdfFileReader z(c);
+    for (const char* name : {"coherent", "multiple"})
+      for (int i = 0; i < nI; ++i) {
+        const std::vector<double> want = x.slice(name, i), got = z.slice(name, i);
+        for (size_t k = 0; k < want.size(); ++k)
+          EXPECT_LE(std::abs(got[k] - want[k]), 2 * (std::ldexp(1.0, -11) + std::ldexp(1.0, -23)) * std::abs(want[k]))
+              << name << " i " << i << " k " << k;
+      }
+    std::filesystem::remove(c);
+  }
   for (const std::string& p : {a, b}) std::filesystem::remove(p);
 }
