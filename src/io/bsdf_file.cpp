@@ -1,4 +1,5 @@
 #include "io/bsdf_file.h"
+#include "io/noise_rounding.h"
 
 #include <hdf5_hl.h>
 #include <fcntl.h>
@@ -311,6 +312,20 @@ std::vector<double> storedRow(const std::vector<double>& v, bool error, const Ou
       for (size_t b = 0; b < nB; ++b) out[c * nB + b] += w * v[l * nB + b];
     }
   return out;
+}
+
+// The row table t stores for slice r (storedRow), rounded to its noise where the profile says so:
+// a value by its own error (as stored, in colour the channel's error), an error to kErrorBits bits.
+std::vector<double> storedTableRow(const TileResult& r, const TableRef& t, const OutputSchema& schema,
+                                   const std::vector<Colour3>& weights) {
+  std::vector<double> row = storedRow(t.error ? r.stdError[int(t.c)] : r.value[int(t.c)], t.error, schema, weights);
+  if (schema.storage.rounding == TableRounding::Noise) {
+    if (t.error)
+      roundErrorRow(row);
+    else
+      roundRowToNoise(row, storedRow(r.stdError[int(t.c)], true, schema, weights));
+  }
+  return row;
 }
 
 // The chunk at (a, b) of table `path` among `packed` if it was packed for this layout (chunks of
@@ -1171,7 +1186,7 @@ std::vector<PackedChunk> packSlice(const TileResult& r, const OutputSchema& sche
     const bool blocked = schema.halvesWaveByReciprocity && (t.c == Component::Incoherent || t.c == Component::Coherent);
     const auto [c1, c2] = sliceChunkShape(hsize_t(nL), hsize_t(nB), elemSize, blocked ? fillBlock(nI, nL, nB) : 0);
     // Each table's row as stored (its colour, its scaled half values) kept until it is packed.
-    scaled.push_back({storedRow(t.error ? r.stdError[int(t.c)] : r.value[int(t.c)], t.error, schema, weights), {}});
+    scaled.push_back({storedTableRow(r, t, schema, weights), {}});
     if (elemSize == 2) {
       scaled.back() = scaleForHalf(scaled.back().values, size_t(nL));
       rows[scalePathOf(t.path)] = scaled.back().scales;
@@ -1201,48 +1216,110 @@ PreparedSlice prepareSlice(const TileResult& r, const OutputSchema& schema, cons
 
 namespace {
 
-// How many bins of component c of a pilot tile (traced with `pilotPaths` paths) hold a value once
-// `paths` are traced, over how many hold one now: a compressed table's size follows its non-zero
-// bins (zeros cost next to nothing), and a pilot leaves many bins empty that the job fills.
-// A bin's hits are (f / σ)² (one hit of weight w gives f = w / (N Ω), σ = f); a seen bin with
+// A pilot tile's component c as the job's `paths` will fill it: a compressed table's size follows
+// which bins hold a value (zeros cost next to nothing, and the pattern of zeros and values costs
+// more than the values' count says), and a pilot leaves many bins empty that the job fills.
+// A bin's hits are (f / σ)² (one hit of weight w gives f = w / (N Ω⊥), σ = f); a seen bin with
 // c hits is filled at the job's budget with probability 1 − exp(−c N / N_pilot). The bins no pilot
 // path reached are estimated from the bins hit once, twice, … (f1..f4) by the improved Chao1 lower
 // bound of the unseen count (Chiu, Wang, Walther & Chao 2014, eq. 7) and filled at N as Shen, Chao
-// & Lin (2003, eq. 5) extrapolate; at most the empty bins of the hemispheres the row reaches.
-// Bins with a value and no error are deterministic (the facet sum, `exact`): counted as they are.
-double occupancyGrowth(const TileResult& r, Component c, const DirectionGrid& grid, double paths) {
+// & Lin (2003, eq. 5) extrapolate; at most the empty bins of the hemispheres the row reaches. The
+// expected number of new bins is filled, in empty bins of those hemispheres chosen by a hash of
+// the bin (the same for every wavelength: the paths are shared), each with what one hit of the
+// job leaves there — the pilot's median one-hit weight, w / (N Ω⊥), σ = f — so that the table is
+// packed as the job's will be; a wave residual over c (`residual`) loses the new value and gains its
+// variance. Bins with a value and no error are deterministic (the facet sum, `exact`): kept as they
+// are. Returns the number of bins filled.
+struct ResidualRows {  // a wave residual's rows (incoherent = WS − coherent, lost = P_msk − geo_masked)
+  std::vector<double>& value;
+  std::vector<double>& error;
+};
+double fillExpectedBins(TileResult& r, Component c, const DirectionGrid& grid, double paths,
+                        std::optional<ResidualRows> residual) {
   const double pilotPaths = double(r.samples);
-  if (pilotPaths <= 0 || paths <= pilotPaths) return 1.0;
-  double now = 0, later = 0;
+  if (pilotPaths <= 0 || paths <= pilotPaths) return 0;
+  auto& value = r.value[int(c)];
+  auto& error = r.stdError[int(c)];
+  if (error.size() != value.size()) return 0;
+  // Empty bins in a fixed pseudo-random order (splitmix64 of the bin index).
+  std::vector<std::pair<uint64_t, int>> order;
+  for (int b = 0; b < r.nBins; ++b) {
+    uint64_t z = uint64_t(b) + 0x9e3779b97f4a7c15ull;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    order.emplace_back(z ^ (z >> 31), b);
+  }
+  std::sort(order.begin(), order.end());
+  double filled = 0;
   for (int l = 0; l < r.nLambda; ++l) {
-    double f[5] = {0, 0, 0, 0, 0}, seen = 0, expected = 0, empty[2] = {0, 0};
+    const size_t row = size_t(l) * size_t(r.nBins);
+    double f[5] = {0, 0, 0, 0, 0}, expected = 0, seen = 0, empty[2] = {0, 0};
     bool reaches[2] = {false, false};
+    std::vector<double> oneHitWeights;
     for (int b = 0; b < r.nBins; ++b) {
-      const double v = r.at(c, l, b), se = r.stdError[int(c)][size_t(l) * size_t(r.nBins) + size_t(b)];
+      const double v = value[row + size_t(b)], se = error[row + size_t(b)];
       const int side = grid.isUpper(b) ? 0 : 1;
       if (v == 0) {
         empty[side] += 1;
         continue;
       }
+      if (!std::isfinite(v) || !(se > 0)) continue;  // deterministic (or not computed): as it is
       reaches[side] = true;
       seen += 1;
-      if (se <= 0) {
-        expected += 1;
-        continue;
-      }
       const double hits = std::max(1.0, std::round((v / se) * (v / se)));
       if (hits <= 4) f[int(hits)] += 1;
+      if (hits == 1) oneHitWeights.push_back(std::abs(v) * grid.projectedSolidAngle(b));
       expected += 1 - std::exp(-hits * paths / pilotPaths);
     }
+    if (seen == 0 || oneHitWeights.empty()) continue;
     double f0 = f[2] > 0 ? f[1] * f[1] / (2 * f[2]) : f[1] * (f[1] - 1) / 2;
     if (f[4] > 0) f0 += f[3] / (4 * f[4]) * std::max(0.0, f[1] - f[2] * f[3] / (2 * f[4]));
     f0 = std::min(f0, (reaches[0] ? empty[0] : 0) + (reaches[1] ? empty[1] : 0));
     if (f0 > 0 && f[1] > 0)
       expected += f0 * (1 - std::pow(std::max(0.0, 1 - f[1] / (pilotPaths * f0)), paths - pilotPaths));
-    now += seen;
-    later += expected;
+    // Seen bins the job leaves empty are few (a seen bin has at least one hit of N_pilot): the
+    // growth is the new bins.
+    long fresh = std::lround(std::max(0.0, expected - seen));
+    std::nth_element(oneHitWeights.begin(), oneHitWeights.begin() + long(oneHitWeights.size() / 2),
+                     oneHitWeights.end());
+    const double w = oneHitWeights[oneHitWeights.size() / 2] * pilotPaths / paths;
+    for (const auto& [hash, b] : order) {
+      if (fresh <= 0) break;
+      if (value[row + size_t(b)] != 0 || !reaches[grid.isUpper(b) ? 0 : 1]) continue;
+      value[row + size_t(b)] = w / grid.projectedSolidAngle(b);
+      // One hit at the job's budget: σ = f there (toJobErrors scales the pilot's errors to it).
+      error[row + size_t(b)] = value[row + size_t(b)] * std::sqrt(paths / pilotPaths);
+      if (residual && residual->value.size() == value.size() &&
+          residual->error.size() == value.size()) {  // WS − coherent: less the new value
+        residual->value[row + size_t(b)] -= value[row + size_t(b)];
+        residual->error[row + size_t(b)] = std::hypot(residual->error[row + size_t(b)], error[row + size_t(b)]);
+      }
+      --fresh;
+      filled += 1;
+    }
   }
-  return now > 0 ? later / now : 1.0;
+  return filled;
+}
+
+// A pilot tile's errors as the job's paths will leave them: rounded to the noise, a value keeps the
+// bits its error leaves, and the pilot's path-traced errors are √(N / N_pilot) larger. The wave
+// residual (incoherent = WS − coherent, its variance σ_WS² + σ_coh²) scales its coherent part; the
+// wave term's own part is kept at the pilot's (its budget is the wave estimator's).
+void toJobErrors(TileResult& r, double paths) {
+  const double pilotPaths = double(r.samples);
+  if (pilotPaths <= 0 || paths <= pilotPaths) return;
+  const double k2 = pilotPaths / paths;
+  for (Component c : {Component::Incoherent, Component::Lost}) {
+    const Component under = c == Component::Incoherent ? Component::Coherent : Component::GeoMasked;
+    auto& se = r.stdError[int(c)];
+    const auto& part = r.stdError[int(under)];
+    if (se.size() != part.size() || r.pathMoments[int(under)].empty()) continue;
+    for (size_t k = 0; k < se.size(); ++k)
+      se[k] = std::sqrt(std::max(0.0, se[k] * se[k] - (1 - k2) * part[k] * part[k]));
+  }
+  for (int c = 0; c < kComponentCount; ++c)
+    if (!r.pathMoments[size_t(c)].empty())
+      for (double& se : r.stdError[size_t(c)]) se *= std::sqrt(k2);
 }
 
 }  // namespace
@@ -1261,9 +1338,18 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
     std::vector<char> incidenceBin(size_t(r.nBins), 0);
     for (const IncidenceDirection& d : schema.incidence) incidenceBin[size_t(d.bin)] = 1;
     const int own = schema.incidence[size_t(r.incidenceIndex)].bin;
-    std::map<std::string, double> growth;  // table path -> occupancy growth of its component, pairs kept
+    // The bins the job's paths will fill, then the share of them a folded table keeps.
     for (Component c : schema.components.list()) {
-      double kept = 1;
+      if (r.pathMoments[int(c)].empty()) continue;
+      const Component over = c == Component::Coherent ? Component::Incoherent : Component::Lost;
+      std::optional<ResidualRows> residual;
+      if ((c == Component::Coherent || c == Component::GeoMasked) && schema.components.has(over))
+        residual.emplace(ResidualRows{r.value[int(over)], r.stdError[int(over)]});
+      fillExpectedBins(r, c, grid, double(schema.pathsPerSlice), residual);
+    }
+    std::map<std::string, double> kept;  // table path -> the share of its entries stored
+    for (Component c : schema.components.list()) {
+      double share = 1;
       if (schema.foldsPairs(c)) {
         double all = 0, paired = 0;
         for (int l = 0; l < r.nLambda; ++l)
@@ -1272,13 +1358,13 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
               all += 1;
               paired += incidenceBin[size_t(b)] && b != own && grid.isUpper(b) == grid.isUpper(own);
             }
-        kept = all > 0 ? 1 - 0.5 * paired / all : 1;
+        share = all > 0 ? 1 - 0.5 * paired / all : 1;
       }
-      const double g = occupancyGrowth(r, c, grid, double(schema.pathsPerSlice)) * kept;
-      growth[std::string("/bsdf/") + componentName(c)] = growth[std::string("/bsdf_stderr/") + componentName(c)] = g;
+      kept[std::string("/bsdf/") + componentName(c)] = kept[std::string("/bsdf_stderr/") + componentName(c)] = share;
     }
+    if (schema.storage.rounding == TableRounding::Noise) toJobErrors(r, double(schema.pathsPerSlice));
     const PreparedSlice p = prepareSlice(r, schema, grid);
-    for (const PackedChunk& c : p.chunks) bytes += double(c.bytes.size()) * growth.at(c.path);
+    for (const PackedChunk& c : p.chunks) bytes += double(c.bytes.size()) * kept.at(c.path);
     for (const auto& [path, row] : p.rows) bytes += double(row.size()) * sizeof(double);
   }
   return tiles.empty() ? 0.0 : bytes / double(tiles.size());
@@ -1309,9 +1395,7 @@ EnergyBalance BsdfFileWriter::writePrepared(const PreparedSlice& p, const std::f
   std::vector<std::vector<double>> stored;  // the raw slice's rows as stored (its colour)
   if (slice) {
     const std::vector<Colour3> weights = schema_.storage.spectral() ? std::vector<Colour3>{} : channelWeights(schema_);
-    for (const TableRef& t : refs)
-      stored.push_back(
-          storedRow(t.error ? slice->stdError[int(t.c)] : slice->value[int(t.c)], t.error, schema_, weights));
+    for (const TableRef& t : refs) stored.push_back(storedTableRow(*slice, t, schema_, weights));
   }
   std::vector<std::pair<std::string, const std::vector<double>*>> tables;
   for (size_t k = 0; k < refs.size(); ++k) tables.emplace_back(refs[k].path, slice ? &stored[k] : nullptr);
@@ -1384,6 +1468,10 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
           const double varWs = std::max(0.0, cIncE[k] * cIncE[k] - cCohE[k] * cCohE[k]);
           v[x] = fws - ch[x];  // reflection: f(i -> o) = f(o -> i), docs/physics.md §8
           se[x] = std::sqrt(varWs + chE[x] * chE[x]);
+          if (schema_.storage.rounding == TableRounding::Noise) {  // as the computed bins are
+            v[x] = roundToNoise(v[x], se[x]);
+            se[x] = roundToSignificantBits(se[x], kErrorBits);
+          }
           if (!std::isfinite(v[x]) || !std::isfinite(se[x]))
             throw std::runtime_error("reciprocity fill: slice " + std::to_string(j) + " has no finite value at bin " +
                                      std::to_string(bi));
@@ -1558,6 +1646,10 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
               }
             } else {
               err[x] = 0.5 * (s1 + s2);
+            }
+            if (schema.storage.rounding == TableRounding::Noise) {  // (without errors: the mean of two
+              row[x] = roundToNoise(row[x], err[x]);                // rounded values, one bit more)
+              err[x] = roundToSignificantBits(err[x], kErrorBits);
             }
           }
         }

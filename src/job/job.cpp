@@ -299,8 +299,8 @@ void parseEffects(const ParamDict& eff, Job& job) {
   job.pilotBudget = eff.positive("pilot_budget", 0.5);
 }
 
-// [output] profile, values, errors: how the tables are stored (core/storage_profile.h); the
-// profile names a preset, values and errors override it.
+// [output] profile, values, rounding, errors, pairs, colour: how the tables are stored
+// (core/storage_profile.h); the profile names a preset, the other keys override it.
 void parseStorageProfile(const ParamDict& out, Job& job) {
   // The value of `key` among `names` (its index), `fallback` when absent; another value is an error
   // naming the key and listing the names.
@@ -319,6 +319,7 @@ void parseStorageProfile(const ParamDict& out, Job& job) {
   job.storage = choice("profile", {"full", "compact"}, 0) == 1 ? StorageProfile::compact() : StorageProfile::full();
   StorageProfile& s = job.storage;
   s.values = TableValues(choice("values", {"float32", "float16"}, int(s.values)));
+  s.rounding = TableRounding(choice("rounding", {"noise", "none"}, int(s.rounding)));
   s.errors = TableErrors(choice("errors", {"per-bin", "per-slice"}, int(s.errors)));
   s.pairs = TablePairs(choice("pairs", {"both", "once"}, int(s.pairs)));
   s.colour = TableColour(choice("colour", {"spectral", "xyz", "linear-srgb"}, int(s.colour)));

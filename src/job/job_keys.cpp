@@ -120,10 +120,13 @@ const std::vector<JobKey>& jobKeys() {
       {"output.path", String, "\"out.h5\"", "", "output HDF5 file (-o overrides it)"},
       {"output.previews", Boolean, "false", "", "validated; previews come from `microbsdf slice`"},
       {"output.profile", String, "\"full\"", "full, compact",
-       "how the tables are stored: full (float32, per-bin errors, spectral) or compact (float16, errors per "
-       "slice, XYZ colour)"},
+       "how the tables are stored: full (float32, per-bin errors, spectral, pairs both ways) or compact "
+       "(float16, errors per slice, XYZ colour, pairs once); both round values to their noise"},
       {"output.values", String, "the profile's", "float32, float16",
        "table values: float32, or float16 scaled per slice and wavelength"},
+      {"output.rounding", String, "\"noise\"", "noise, none",
+       "noise: each value keeps the binary digits above 1/16 of its standard error and each error 8 "
+       "significant bits (a table a third of the size); none: every bit"},
       {"output.colour", String, "the profile's", "spectral, xyz, linear-srgb",
        "tables per wavelength, or their colour (CIE 1931 XYZ or linear sRGB; the conversion is in the file)"},
       {"output.pairs", String, "the profile's", "once, both",

@@ -599,7 +599,12 @@ std::string formatPlan(const nlohmann::json& p) {
                   p["output"]["profile"].get<std::string>() + ": " +
                   fmt::format("{:.3g} MB", p["output"]["bytes_per_slice"].get<double>() / 1e6) +
                   " per slice: the pilots compressed, projected to the job's paths, x " + p["output"]["slices"].dump() +
-                  " slices); " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed\n"
+                  " slices" +
+                  (p["output"]["profile"].get<std::string>().find("pairs = once") != std::string::npos
+                       ? "; pairs stored once are packed in square blocks of slices that compress further, by "
+                         "up to 3x where symmetry copies slices: an upper bound"
+                       : std::string()) +
+                  "); " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed\n"
             : "output:         " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed (upper bound)\n")
     << "memory / rank:  " << gb(p["memory_bytes_per_rank"].get<double>()) << "\n"
     << "suggested Slurm header:\n"

@@ -344,7 +344,7 @@ TEST(Job, RepeatedWavelengthAndTexelLimitNameTheKey) {
   EXPECT_EQ(errorOf("[geometry]\nkind = \"gaussian\"\nsize_um = [204.8, 10.0]\ntexel_um = 0.1\n"), "");
 }
 
-// [output] profile, values, errors, colour: the compact profile stores XYZ where that pays and costs
+// [output] profile, values, rounding, errors, colour: the compact profile stores XYZ where that pays and costs
 // nothing (more than three visible wavelengths, no wave term halved by reciprocity), the spectrum
 // otherwise; an explicit colour without visible light is an error naming the key, and an explicit
 // colour turns the reciprocity halving off with the reason.
@@ -354,7 +354,8 @@ TEST(Job, StorageProfileAndItsColour) {
   EXPECT_EQ(full.storage, StorageProfile::full());
   Job compact = loadJobFromString(eight + "[output]\nprofile = \"compact\"\n", "t.toml", "");
   EXPECT_EQ(compact.storage, StorageProfile::compact());
-  EXPECT_EQ(compact.storage.name(), "compact (values = float16, errors = per-slice, colour = xyz, pairs = once)");
+  EXPECT_EQ(compact.storage.name(),
+            "compact (values = float16, rounding = noise, errors = per-slice, colour = xyz, pairs = once)");
   Job three = loadJobFromString("[spectrum]\nwavelengths_nm = [450.0, 550.0, 650.0]\n[output]\nprofile = \"compact\"\n",
                                 "t.toml", "");
   EXPECT_EQ(three.storage.colour, TableColour::Spectral);
@@ -372,13 +373,18 @@ TEST(Job, StorageProfileAndItsColour) {
   EXPECT_FALSE(colour.halvesWaveByReciprocity());
   EXPECT_NE(colour.reciprocityOffReason().find("[output] colour"), std::string::npos);
   Job srgb = loadJobFromString(eight + "[output]\nvalues = \"float16\"\ncolour = \"linear-srgb\"\n", "t.toml", "");
-  EXPECT_EQ(srgb.storage.name(), "full (values = float16, errors = per-bin, colour = linear-srgb, pairs = both)");
+  EXPECT_EQ(srgb.storage.name(),
+            "full (values = float16, rounding = noise, errors = per-bin, colour = linear-srgb, pairs = both)");
+  Job unrounded = loadJobFromString(eight + "[output]\nrounding = \"none\"\n", "t.toml", "");
+  EXPECT_EQ(unrounded.storage.rounding, TableRounding::None);
+  EXPECT_EQ(full.storage.rounding, TableRounding::Noise);
   const std::string infrared =
       "[material]\nkind = \"dielectric\"\nior = 1.5\n[spectrum]\nwavelengths_nm = [1000.0, 1100.0, 1200.0, 1300.0]\n";
   EXPECT_EQ(loadJobFromString(infrared + "[output]\nprofile = \"compact\"\n", "t.toml", "").storage.colour,
             TableColour::Spectral);
   EXPECT_NE(errorOf(infrared + "[output]\ncolour = \"xyz\"\n").find("output.colour"), std::string::npos);
-  for (const char* bad : {"profile = \"small\"", "values = \"float64\"", "errors = \"none\"", "colour = \"rgb\""}) {
+  for (const char* bad : {"profile = \"small\"", "values = \"float64\"", "errors = \"none\"", "colour = \"rgb\"",
+                          "rounding = \"lossless\""}) {
     const std::string e = errorOf(std::string("[output]\n") + bad + "\n");
     EXPECT_NE(e.find("test.toml:2"), std::string::npos) << bad << ": " << e;
   }
