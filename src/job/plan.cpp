@@ -601,8 +601,8 @@ std::string formatPlan(const nlohmann::json& p) {
                   " per slice: the pilots compressed, projected to the job's paths, x " + p["output"]["slices"].dump() +
                   " slices" +
                   (p["output"]["profile"].get<std::string>().find("pairs = once") != std::string::npos
-                       ? "; pairs stored once are packed in square blocks of slices that compress further, by "
-                         "up to 3x where symmetry copies slices: an upper bound"
+                       ? "; pairs stored once packed in the fold's square blocks with the slices symmetry makes of "
+                         "each pilot"
                        : std::string()) +
                   "); " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed\n"
             : "output:         " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed (upper bound)\n")
