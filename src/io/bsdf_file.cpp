@@ -265,17 +265,20 @@ std::string scalePathOf(const std::string& table) {
 }
 
 // The tables a schema stores: each component's values and, where the profile keeps them, its
-// per-bin standard errors.
+// per-bin standard errors — in the final file, or (`running`) in the partial file of the run, which
+// also keeps the errors the fold rounds the mean of a pair with.
 struct TableRef {
   std::string path;
   Component c;
   bool error;
 };
-std::vector<TableRef> tablesOf(const OutputSchema& schema) {
+enum class FileStage { Running, Final };
+std::vector<TableRef> tablesOf(const OutputSchema& schema, FileStage stage = FileStage::Running) {
   std::vector<TableRef> out;
   for (Component c : schema.components.list()) {
     out.push_back({std::string("/bsdf/") + componentName(c), c, false});
-    if (schema.storesBinErrors(c)) out.push_back({std::string("/bsdf_stderr/") + componentName(c), c, true});
+    if (stage == FileStage::Running ? schema.keepsBinErrorsWhileRunning(c) : schema.storesBinErrors(c))
+      out.push_back({std::string("/bsdf_stderr/") + componentName(c), c, true});
   }
   return out;
 }
@@ -385,9 +388,9 @@ std::vector<T> read1D(hid_t file, const std::string& path, hid_t type) {
 }
 
 // Every dataset that holds one row per incidence slice.
-std::vector<std::string> rowDatasets(const OutputSchema& schema) {
+std::vector<std::string> rowDatasets(const OutputSchema& schema, FileStage stage = FileStage::Running) {
   std::vector<std::string> v;
-  for (const TableRef& t : tablesOf(schema)) {
+  for (const TableRef& t : tablesOf(schema, stage)) {
     v.push_back(t.path);
     if (schema.storage.values == TableValues::Float16) v.push_back(scalePathOf(t.path));
   }
@@ -759,7 +762,7 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
   const bool halved = schema.halvesWaveByReciprocity;
   {
     H5Group b(H5Gcreate2(f, "bsdf", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /bsdf");
-    const std::vector<TableRef> tables = tablesOf(schema);
+    const std::vector<TableRef> tables = tablesOf(schema, pairLayout ? FileStage::Final : FileStage::Running);
     const bool binErrors = std::any_of(tables.begin(), tables.end(), [](const TableRef& t) { return t.error; });
     std::optional<H5Group> e;
     if (binErrors)
@@ -1422,7 +1425,7 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
     }
     if (schema.storage.rounding == TableRounding::Noise) toJobErrors(r, double(schema.pathsPerSlice));
     const PreparedSlice p = prepareSlice(r, schema, grid);
-    const std::vector<TableRef> tables = tablesOf(schema);
+    const std::vector<TableRef> tables = tablesOf(schema, FileStage::Final);
     std::vector<TileResult> slices;  // the tile's slices in the file, for the tables folded in blocks
     if (std::any_of(tables.begin(), tables.end(), [&](const TableRef& t) { return schema.foldsPairs(t.c); }))
       slices = slicesOf ? slicesOf(r) : std::vector<TileResult>{r};
@@ -1434,7 +1437,13 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
       for (const PackedChunk& c : p.chunks)
         if (c.path == t.path) bytes += double(c.bytes.size());
     }
-    for (const auto& [path, row] : p.rows) bytes += double(row.size()) * sizeof(double);
+    for (const auto& [path, row] : p.rows) {
+      const bool runningOnly =
+          std::none_of(tables.begin(), tables.end(),
+                       [&](const TableRef& t) { return t.error && path == scalePathOf(t.path); }) &&
+          path.rfind("/bsdf_stderr_scale/", 0) == 0;  // the scales of errors the fold drops
+      if (!runningOnly) bytes += double(row.size()) * sizeof(double);
+    }
   }
   return tiles.empty() ? 0.0 : bytes / double(tiles.size());
 }
@@ -1628,9 +1637,9 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
   writeAxes(out, schema, grid_);
   createTables(out, schema, grid_, true);
   std::set<std::string> folded;
-  for (const TableRef& t : tablesOf(schema))
+  for (const TableRef& t : tablesOf(schema, FileStage::Final))
     if (schema.foldsPairs(t.c)) folded.insert({t.path, scalePathOf(t.path)});
-  for (const std::string& d : rowDatasets(schema))
+  for (const std::string& d : rowDatasets(schema, FileStage::Final))
     if (!folded.count(d)) copyDataset(file_.get(), out.get(), d);
   std::vector<int> incOf(size_t(nB), -1);
   for (int i = 0; i < nI; ++i) incOf[size_t(schema.incidence[size_t(i)].bin)] = i;
@@ -1640,7 +1649,8 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
   for (Component c : schema.components.list()) {
     if (!schema.foldsPairs(c)) continue;
     const std::string name = componentName(c), v = "/bsdf/" + name, e = "/bsdf_stderr/" + name;
-    const bool errors = schema.storesBinErrors(c);
+    // The run's per-bin errors (read), and whether the final file keeps them (written).
+    const bool errors = schema.keepsBinErrorsWhileRunning(c), writeErrors = schema.storesBinErrors(c);
     // Two estimates of a pair are independent unless one tile made both (symmetry) or one is the
     // other mirrored (the wave term halved by reciprocity): then their mean's error is at most the
     // mean of their errors.
@@ -1675,9 +1685,10 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
     H5Dataset sv(H5Dopen2(scratch, "v", H5P_DEFAULT), "open scratch"), se;
     if (errors) se = H5Dataset(H5Dopen2(scratch, "e", H5P_DEFAULT), "open scratch");
     H5Dataset ov(H5Dopen2(out, v.c_str(), H5P_DEFAULT), "open " + v), oe, svOut, seOut;
-    if (errors) oe = H5Dataset(H5Dopen2(out, e.c_str(), H5P_DEFAULT), "open " + e);
+    if (writeErrors) oe = H5Dataset(H5Dopen2(out, e.c_str(), H5P_DEFAULT), "open " + e);
     if (half) svOut = H5Dataset(H5Dopen2(out, scalePathOf(v).c_str(), H5P_DEFAULT), "open " + scalePathOf(v));
-    if (half && errors) seOut = H5Dataset(H5Dopen2(out, scalePathOf(e).c_str(), H5P_DEFAULT), "open " + scalePathOf(e));
+    if (half && writeErrors)
+      seOut = H5Dataset(H5Dopen2(out, scalePathOf(e).c_str(), H5P_DEFAULT), "open " + scalePathOf(e));
     PairCheck check;
     for (int a = 0; a < nI; a += int(kPairBlock)) {
       const int n = std::min(int(kPairBlock), nI - a);
@@ -1714,12 +1725,13 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
             } else {
               err[x] = 0.5 * (s1 + s2);
             }
-            if (schema.storage.rounding == TableRounding::Noise) {  // (without errors: the mean of two
-              row[x] = roundToNoise(row[x], err[x]);                // rounded values, one bit more)
+            if (schema.storage.rounding == TableRounding::Noise) {  // the mean to its own noise
+              row[x] = roundToNoise(row[x], err[x]);
               err[x] = roundToSignificantBits(err[x], kErrorBits);
             }
           }
         }
+        if (!writeErrors) err.clear();  // (kept per slice in the final file)
         if (half) {
           for (const auto& [r, scales] :
                {std::pair<std::vector<double>*, std::vector<double>*>{&row, &scalesV}, {&err, &scalesE}}) {
@@ -1733,14 +1745,14 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
         bandE.insert(bandE.end(), err.begin(), err.end());
       }
       writeBlock(ov, v, hsize_t(a), bandV, hsize_t(nC), hsize_t(nB), half);
-      if (errors) writeBlock(oe, e, hsize_t(a), bandE, hsize_t(nC), hsize_t(nB), half);
+      if (writeErrors) writeBlock(oe, e, hsize_t(a), bandE, hsize_t(nC), hsize_t(nB), half);
       if (half) writeBlock(svOut, scalePathOf(v), hsize_t(a), scalesV, hsize_t(nC), 1, false);
-      if (half && errors) writeBlock(seOut, scalePathOf(e), hsize_t(a), scalesE, hsize_t(nC), 1, false);
+      if (half && writeErrors) writeBlock(seOut, scalePathOf(e), hsize_t(a), scalesE, hsize_t(nC), 1, false);
     }
     if (half) svOut.close("write " + scalePathOf(v));
-    if (half && errors) seOut.close("write " + scalePathOf(e));
+    if (half && writeErrors) seOut.close("write " + scalePathOf(e));
     ov.close("write " + v);
-    if (errors) oe.close("write " + e);
+    if (writeErrors) oe.close("write " + e);
     report[name] = {{"pairs", check.pairs},
                     {"relative_l1_difference", check.sumL1 > 0 ? check.diffL1 / check.sumL1 : 0.0},
                     {"tested_pairs", check.tested},

@@ -54,6 +54,12 @@ struct OutputSchema {
     return storage.errors == TableErrors::PerBin ||
            (halvesWaveByReciprocity && (c == Component::Incoherent || c == Component::Coherent));
   }
+  // Whether the partial file (during the run) has a table of component c's per-bin errors: the
+  // final file's, and those of a table whose pairs the fold averages and rounds to the noise of
+  // the mean (dropped from the final file when its errors are per slice).
+  bool keepsBinErrorsWhileRunning(Component c) const {
+    return storesBinErrors(c) || (foldsPairs(c) && storage.rounding == TableRounding::Noise);
+  }
 };
 
 }  // namespace mbsdf
