@@ -1374,9 +1374,10 @@ double foldedBytesPerSlice(const std::vector<TileResult>& slices, const TableRef
     rows[i] = std::move(row);
   }
   const auto [c1, c2] = sliceChunkShape(hsize_t(nC), hsize_t(nB), elemSize, kPairBlock);
-  std::vector<std::pair<int, int>> chunks;  // (first incidence of the block, first bin)
+  const hsize_t c0Rows = std::min(hsize_t(nI), kPairBlock);  // as create3D lays the blocks out
+  std::vector<std::pair<int, int>> chunks;                   // (first incidence of the block, first bin)
   for (const auto& [i, row] : rows) {
-    const int a = i - i % int(kPairBlock);
+    const int a = i - i % int(c0Rows);
     if (chunks.empty() || chunks.back().first != a)
       for (int b = 0; b < nB; b += int(c2)) chunks.emplace_back(a, b);
   }
@@ -1384,9 +1385,8 @@ double foldedBytesPerSlice(const std::vector<TileResult>& slices, const TableRef
   tbb::parallel_for(size_t(0), chunks.size(), [&](size_t k) {
     const auto [a, b] = chunks[k];
     for (hsize_t c0 = 0; c0 < hsize_t(nC); c0 += c1) {
-      std::vector<unsigned char> chunk(size_t(kPairBlock) * c1 * c2 * elemSize);
-      const std::vector<double> none;
-      for (hsize_t x = 0; x < kPairBlock; ++x) {
+      std::vector<unsigned char> chunk(size_t(c0Rows) * c1 * c2 * elemSize);
+      for (hsize_t x = 0; x < c0Rows; ++x) {
         const auto row = rows.find(a + int(x));
         for (hsize_t y = 0; y < c1; ++y)
           for (hsize_t z = 0; z < c2; ++z) {

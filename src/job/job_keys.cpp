@@ -126,7 +126,7 @@ const std::vector<JobKey>& jobKeys() {
        "table values: float32, or float16 scaled per slice and wavelength"},
       {"output.rounding", String, "\"noise\"", "noise, none",
        "noise: each value keeps the binary digits above 1/16 of its standard error and each error 8 "
-       "significant bits (a table a third of the size); none: every bit"},
+       "significant bits (the quickstart's tables: 0.37 of their size); none: every bit"},
       {"output.colour", String, "the profile's", "spectral, xyz, linear-srgb",
        "tables per wavelength, or their colour (CIE 1931 XYZ or linear sRGB; the conversion is in the file)"},
       {"output.pairs", String, "the profile's", "once, both",
