@@ -3,7 +3,6 @@
 // from short pilots (job/plan.h).
 #include <chrono>
 #include <iostream>
-#include <optional>
 
 #include "cluster/output_schema_of.h"
 #include "cmd/command.h"
@@ -12,7 +11,6 @@
 #include "io/bsdf_file.h"
 #include "job/job.h"
 #include "job/plan.h"
-#include "job/symmetry.h"
 
 namespace mbsdf {
 
@@ -40,17 +38,7 @@ Command addPlanCommand(CLI::App& app) {
       return measureWriteSecondsPerSlice(outputSchemaOf(j), g);
     };
     po.storedBytesPerSlice = [](const Job& j, const DirectionGrid& g, const std::vector<TileResult>& tiles) {
-      // A pilot (a representative tile) and the slices symmetry makes of it, as the run writes them.
-      std::optional<AzimuthalSymmetry> symmetry;
-      if (j.symmetryReduced()) symmetry.emplace(j, g);
-      const SlicesOfTile slicesOf = [&](const TileResult& r) {
-        std::vector<TileResult> out{r};
-        if (symmetry && symmetry->representative(r.incidenceIndex) == r.incidenceIndex)
-          for (int m : symmetry->members(r.incidenceIndex))
-            if (m != r.incidenceIndex) out.push_back(symmetry->mappedSlice(r, m, j.incidence[size_t(m)].bin));
-        return out;
-      };
-      return storedBytesPerSlice(outputSchemaOf(j), g, tiles, slicesOf);
+      return storedBytesPerSlice(outputSchemaOf(j), g, tiles);
     };
     nlohmann::json p = planJob(job, po);
     std::cout << formatPlan(p);

@@ -1347,67 +1347,10 @@ void toJobErrors(TileResult& r, double paths) {
 
 }  // namespace
 
-namespace {
-
-// Bytes of table t (a component whose pairs are stored once) per slice of `slices` (one tile's
-// slices under symmetry), packed as the fold stores it: square chunks of kPairBlock incidences x
-// the rows x kPairBlock bins, the entries of incidences j < i on i's side NaN (stored at (j, bin of
-// i)), the rows of incidences not among `slices` NaN. Neighbouring slices of one tile (an isotropic
-// surface's ring: each its neighbour rotated by a bin) then compress together as in the file.
-double foldedBytesPerSlice(const std::vector<TileResult>& slices, const TableRef& t, const OutputSchema& schema,
-                           const DirectionGrid& grid) {
-  const int nI = int(schema.incidence.size()), nC = channelCount(schema), nB = grid.binCount();
-  const size_t elemSize = tableElementSize(schema);
-  const std::vector<Colour3> weights = schema.storage.spectral() ? std::vector<Colour3>{} : channelWeights(schema);
-  std::vector<int> incOf(size_t(nB), -1);
-  for (int i = 0; i < nI; ++i) incOf[size_t(schema.incidence[size_t(i)].bin)] = i;
-  std::map<int, std::vector<double>> rows;  // incidence index -> its stored row, folded
-  for (const TileResult& r : slices) {
-    std::vector<double> row = storedTableRow(r, t, schema, weights);
-    const int i = r.incidenceIndex, bi = schema.incidence[size_t(i)].bin;
-    for (int o = 0; o < nB; ++o) {
-      const int j = incOf[size_t(o)];
-      if (j >= 0 && j < i && grid.isUpper(o) == grid.isUpper(bi))
-        for (int c = 0; c < nC; ++c) row[size_t(c) * nB + size_t(o)] = std::nan("");
-    }
-    if (elemSize == 2) row = scaleForHalf(row, size_t(nC)).values;
-    rows[i] = std::move(row);
-  }
-  const auto [c1, c2] = sliceChunkShape(hsize_t(nC), hsize_t(nB), elemSize, kPairBlock);
-  const hsize_t c0Rows = std::min(hsize_t(nI), kPairBlock);  // as create3D lays the blocks out
-  std::vector<std::pair<int, int>> chunks;                   // (first incidence of the block, first bin)
-  for (const auto& [i, row] : rows) {
-    const int a = i - i % int(c0Rows);
-    if (chunks.empty() || chunks.back().first != a)
-      for (int b = 0; b < nB; b += int(c2)) chunks.emplace_back(a, b);
-  }
-  std::vector<size_t> bytes(chunks.size(), 0);
-  tbb::parallel_for(size_t(0), chunks.size(), [&](size_t k) {
-    const auto [a, b] = chunks[k];
-    for (hsize_t c0 = 0; c0 < hsize_t(nC); c0 += c1) {
-      std::vector<unsigned char> chunk(size_t(c0Rows) * c1 * c2 * elemSize);
-      for (hsize_t x = 0; x < c0Rows; ++x) {
-        const auto row = rows.find(a + int(x));
-        for (hsize_t y = 0; y < c1; ++y)
-          for (hsize_t z = 0; z < c2; ++z) {
-            const bool inside = row != rows.end() && c0 + y < hsize_t(nC) && b + z < hsize_t(nB);
-            storeElement(inside ? row->second[(c0 + y) * nB + b + z] : std::nan(""), elemSize,
-                         &chunk[((x * c1 + y) * c2 + z) * elemSize]);
-          }
-      }
-      bytes[k] += shuffleDeflate(chunk, elemSize, kTableDeflateLevel).size();
-    }
-  });
-  double total = 0;
-  for (size_t n : bytes) total += double(n);
-  return slices.empty() ? 0.0 : total / double(slices.size());
-}
-
-}  // namespace
-
-double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid, const std::vector<TileResult>& tiles,
-                           const SlicesOfTile& slicesOf) {
+double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid,
+                           const std::vector<TileResult>& tiles) {
   double bytes = 0;
+  const std::vector<TableRef> tables = tablesOf(schema, FileStage::Final);
   for (TileResult r : tiles) {
     for (Component c : schema.components.list())
       if (!r.has(c)) {
@@ -1423,25 +1366,31 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
         residual.emplace(ResidualRows{r.value[int(over)], r.stdError[int(over)]});
       fillExpectedBins(r, c, grid, double(schema.pathsPerSlice), residual);
     }
+    // Pairs stored once: a slice keeps half of its entries at the other incidence bins of its side
+    // (the mirrored half is NaN, which compresses to next to nothing).
+    std::vector<char> incidenceBin(size_t(r.nBins), 0);
+    for (const IncidenceDirection& d : schema.incidence) incidenceBin[size_t(d.bin)] = 1;
+    const int own = schema.incidence[size_t(r.incidenceIndex)].bin;
+    std::map<std::string, double> kept;  // table path (in the final file) -> the share of its entries stored
+    for (const TableRef& t : tables) {
+      double all = 0, paired = 0;
+      if (schema.foldsPairs(t.c))
+        for (int l = 0; l < r.nLambda; ++l)
+          for (int b = 0; b < r.nBins; ++b)
+            if (r.at(t.c, l, b) != 0) {
+              all += 1;
+              paired += incidenceBin[size_t(b)] && b != own && grid.isUpper(b) == grid.isUpper(own);
+            }
+      kept[t.path] = all > 0 ? 1 - 0.5 * paired / all : 1;
+    }
     if (schema.storage.rounding == TableRounding::Noise) toJobErrors(r, double(schema.pathsPerSlice));
     const PreparedSlice p = prepareSlice(r, schema, grid);
-    const std::vector<TableRef> tables = tablesOf(schema, FileStage::Final);
-    std::vector<TileResult> slices;  // the tile's slices in the file, for the tables folded in blocks
-    if (std::any_of(tables.begin(), tables.end(), [&](const TableRef& t) { return schema.foldsPairs(t.c); }))
-      slices = slicesOf ? slicesOf(r) : std::vector<TileResult>{r};
-    for (const TableRef& t : tables) {
-      if (schema.foldsPairs(t.c)) {
-        bytes += foldedBytesPerSlice(slices, t, schema, grid);
-        continue;
-      }
-      for (const PackedChunk& c : p.chunks)
-        if (c.path == t.path) bytes += double(c.bytes.size());
-    }
+    for (const PackedChunk& c : p.chunks)
+      if (kept.count(c.path)) bytes += double(c.bytes.size()) * kept.at(c.path);  // (the run's own errors: not)
     for (const auto& [path, row] : p.rows) {
-      const bool runningOnly =
-          std::none_of(tables.begin(), tables.end(),
-                       [&](const TableRef& t) { return t.error && path == scalePathOf(t.path); }) &&
-          path.rfind("/bsdf_stderr_scale/", 0) == 0;  // the scales of errors the fold drops
+      const bool runningOnly = path.rfind("/bsdf_stderr_scale/", 0) == 0 &&
+                               std::none_of(tables.begin(), tables.end(),
+                                            [&](const TableRef& t) { return t.error && path == scalePathOf(t.path); });
       if (!runningOnly) bytes += double(row.size()) * sizeof(double);
     }
   }

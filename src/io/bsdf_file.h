@@ -211,13 +211,10 @@ std::vector<double> energyStdError(const TileResult& r, Component c, int side, c
 double measureWriteSecondsPerSlice(const OutputSchema& schema, const DirectionGrid& grid);
 // Bytes a slice takes in the file, the mean over `tiles` (pilot tiles, each filled as the job's
 // paths will fill it): its table chunks compressed as the writer stores them and its statistics
-// rows (prepareSlice). A component a tile lacks (a guarded skip) counts as zeros. A table whose
-// pairs are stored once is packed in the fold's square blocks, with the slices `slicesOf` gives for
-// a tile (the slices symmetry makes of it, itself included; none given: the tile alone) in their
-// rows. `plan`'s estimate of the file's size.
-using SlicesOfTile = std::function<std::vector<TileResult>(const TileResult&)>;
-double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid, const std::vector<TileResult>& tiles,
-                           const SlicesOfTile& slicesOf = {});
+// rows (prepareSlice); a table whose pairs are stored once counts the share of its entries it
+// keeps. A component a tile lacks (a guarded skip) counts as zeros. `plan`'s estimate of the file's
+// size.
+double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid, const std::vector<TileResult>& tiles);
 
 class BsdfFileReader {
  public:

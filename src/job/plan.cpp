@@ -601,8 +601,9 @@ std::string formatPlan(const nlohmann::json& p) {
                   " per slice: the pilots compressed, projected to the job's paths, x " + p["output"]["slices"].dump() +
                   " slices" +
                   (p["output"]["profile"].get<std::string>().find("pairs = once") != std::string::npos
-                       ? "; pairs stored once packed in the fold's square blocks with the slices symmetry makes of "
-                         "each pilot"
+                       ? "; pairs stored once: each slice's share, packed alone, while the fold packs square "
+                         "blocks of neighbouring slices, up to 3 times smaller where they are rotations of one "
+                         "another (an isotropic surface)"
                        : std::string()) +
                   "); " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed\n"
             : "output:         " + gb(p["output_bytes_uncompressed"].get<double>()) + " uncompressed (upper bound)\n")
