@@ -1387,11 +1387,12 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
     const PreparedSlice p = prepareSlice(r, schema, grid);
     for (const PackedChunk& c : p.chunks)
       if (kept.count(c.path)) bytes += double(c.bytes.size()) * kept.at(c.path);  // (the run's own errors: not)
-    for (const auto& [path, row] : p.rows) {
+    for (const auto& entry : p.rows) {  // (a structured binding is not captured by clang 14)
+      const std::string& path = entry.first;
       const bool runningOnly = path.rfind("/bsdf_stderr_scale/", 0) == 0 &&
                                std::none_of(tables.begin(), tables.end(),
                                             [&](const TableRef& t) { return t.error && path == scalePathOf(t.path); });
-      if (!runningOnly) bytes += double(row.size()) * sizeof(double);
+      if (!runningOnly) bytes += double(entry.second.size()) * sizeof(double);
     }
   }
   return tiles.empty() ? 0.0 : bytes / double(tiles.size());
