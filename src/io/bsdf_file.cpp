@@ -1252,18 +1252,18 @@ namespace {
 // job leaves there — the pilot's median one-hit weight, w / (N Ω⊥), σ = f — so that the table is
 // packed as the job's will be; a wave residual over c (`residual`) loses the new value and gains its
 // variance. Bins with a value and no error are deterministic (the facet sum, `exact`): kept as they
-// are. Returns the number of bins filled.
+// are.
 struct ResidualRows {  // a wave residual's rows (incoherent = WS − coherent, lost = P_msk − geo_masked)
   std::vector<double>& value;
   std::vector<double>& error;
 };
-double fillExpectedBins(TileResult& r, Component c, const DirectionGrid& grid, double paths,
-                        std::optional<ResidualRows> residual) {
+void fillExpectedBins(TileResult& r, Component c, const DirectionGrid& grid, double paths,
+                      std::optional<ResidualRows> residual) {
   const double pilotPaths = double(r.samples);
-  if (pilotPaths <= 0 || paths <= pilotPaths) return 0;
+  if (pilotPaths <= 0 || paths <= pilotPaths) return;
   auto& value = r.value[int(c)];
   auto& error = r.stdError[int(c)];
-  if (error.size() != value.size()) return 0;
+  if (error.size() != value.size()) return;
   // Empty bins in a fixed pseudo-random order (splitmix64 of the bin index).
   std::vector<std::pair<uint64_t, int>> order;
   for (int b = 0; b < r.nBins; ++b) {
@@ -1273,7 +1273,6 @@ double fillExpectedBins(TileResult& r, Component c, const DirectionGrid& grid, d
     order.emplace_back(z ^ (z >> 31), b);
   }
   std::sort(order.begin(), order.end());
-  double filled = 0;
   for (int l = 0; l < r.nLambda; ++l) {
     const size_t row = size_t(l) * size_t(r.nBins);
     double f[5] = {0, 0, 0, 0, 0}, expected = 0, seen = 0, empty[2] = {0, 0};
@@ -1318,10 +1317,16 @@ double fillExpectedBins(TileResult& r, Component c, const DirectionGrid& grid, d
         residual->error[row + size_t(b)] = std::hypot(residual->error[row + size_t(b)], error[row + size_t(b)]);
       }
       --fresh;
-      filled += 1;
     }
   }
-  return filled;
+}
+
+// The wave residual computed over a path-traced component (incoherent = WS − coherent, lost =
+// P_msk − geo_masked: addWaveComponents), if any.
+std::optional<Component> waveResidualOver(Component c) {
+  if (c == Component::Coherent) return Component::Incoherent;
+  if (c == Component::GeoMasked) return Component::Lost;
+  return std::nullopt;
 }
 
 // A pilot tile's errors as the job's paths will leave them: rounded to the noise, a value keeps the
@@ -1332,9 +1337,8 @@ void toJobErrors(TileResult& r, double paths) {
   const double pilotPaths = double(r.samples);
   if (pilotPaths <= 0 || paths <= pilotPaths) return;
   const double k2 = pilotPaths / paths;
-  for (Component c : {Component::Incoherent, Component::Lost}) {
-    const Component under = c == Component::Incoherent ? Component::Coherent : Component::GeoMasked;
-    auto& se = r.stdError[int(c)];
+  for (Component under : {Component::Coherent, Component::GeoMasked}) {
+    auto& se = r.stdError[int(*waveResidualOver(under))];
     const auto& part = r.stdError[int(under)];
     if (se.size() != part.size() || r.pathMoments[int(under)].empty()) continue;
     for (size_t k = 0; k < se.size(); ++k)
@@ -1360,10 +1364,10 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
     // The bins the job's paths will fill.
     for (Component c : schema.components.list()) {
       if (r.pathMoments[int(c)].empty()) continue;
-      const Component over = c == Component::Coherent ? Component::Incoherent : Component::Lost;
+      const std::optional<Component> over = waveResidualOver(c);
       std::optional<ResidualRows> residual;
-      if ((c == Component::Coherent || c == Component::GeoMasked) && schema.components.has(over))
-        residual.emplace(ResidualRows{r.value[int(over)], r.stdError[int(over)]});
+      if (over && schema.components.has(*over))
+        residual.emplace(ResidualRows{r.value[int(*over)], r.stdError[int(*over)]});
       fillExpectedBins(r, c, grid, double(schema.pathsPerSlice), residual);
     }
     // Pairs stored once: a slice keeps half of its entries at the other incidence bins of its side
@@ -1496,10 +1500,7 @@ double BsdfFileWriter::completeReciprocal(const ReciprocalPairs& pairs) {
           const double varWs = std::max(0.0, cIncE[k] * cIncE[k] - cCohE[k] * cCohE[k]);
           v[x] = fws - ch[x];  // reflection: f(i -> o) = f(o -> i), docs/physics.md §8
           se[x] = std::sqrt(varWs + chE[x] * chE[x]);
-          if (schema_.storage.rounding == TableRounding::Noise) {  // as the computed bins are
-            v[x] = roundToNoise(v[x], se[x]);
-            se[x] = roundToSignificantBits(se[x], kErrorBits);
-          }
+          if (schema_.storage.rounding == TableRounding::Noise) roundEstimate(v[x], se[x]);  // as computed bins are
           if (!std::isfinite(v[x]) || !std::isfinite(se[x]))
             throw std::runtime_error("reciprocity fill: slice " + std::to_string(j) + " has no finite value at bin " +
                                      std::to_string(bi));
@@ -1675,10 +1676,7 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
             } else {
               err[x] = 0.5 * (s1 + s2);
             }
-            if (schema.storage.rounding == TableRounding::Noise) {  // the mean to its own noise
-              row[x] = roundToNoise(row[x], err[x]);
-              err[x] = roundToSignificantBits(err[x], kErrorBits);
-            }
+            if (schema.storage.rounding == TableRounding::Noise) roundEstimate(row[x], err[x]);  // to its own noise
           }
         }
         if (!writeErrors) err.clear();  // (kept per slice in the final file)

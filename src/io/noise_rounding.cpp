@@ -35,4 +35,9 @@ void roundErrorRow(std::vector<double>& sigma) {
   for (double& s : sigma) s = roundToSignificantBits(s, kErrorBits);
 }
 
+void roundEstimate(double& f, double& sigma) {
+  f = roundToNoise(f, sigma);
+  sigma = roundToSignificantBits(sigma, kErrorBits);
+}
+
 }  // namespace mbsdf

@@ -32,4 +32,8 @@ void roundRowToNoise(std::vector<double>& values, const std::vector<double>& sig
 // A row of standard errors rounded to kErrorBits significant bits.
 void roundErrorRow(std::vector<double>& sigma);
 
+// One estimate f ± sigma as a table stores it: f rounded to the noise of its unrounded error,
+// then the error to kErrorBits bits.
+void roundEstimate(double& f, double& sigma);
+
 }  // namespace mbsdf

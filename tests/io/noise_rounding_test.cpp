@@ -100,4 +100,9 @@ TEST(NoiseRounding, ErrorsKeepTheirSignificantBits) {
   for (size_t k = 1; k < 4; ++k) EXPECT_LE(std::abs(sigma[k] - before[k]), std::ldexp(before[k], -kErrorBits));
   std::vector<double> values{1.0, 2.0};
   EXPECT_THROW(roundRowToNoise(values, {1.0}), std::logic_error);
+  // One estimate: the value by its unrounded error, then the error.
+  double f = 0.123456789, se = 1.0 / 3000;
+  roundEstimate(f, se);
+  EXPECT_EQ(f, roundToNoise(0.123456789, 1.0 / 3000));
+  EXPECT_EQ(se, roundToSignificantBits(1.0 / 3000, kErrorBits));
 }
