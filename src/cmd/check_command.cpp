@@ -2,11 +2,14 @@
 // per rank and the output size it will need.
 #include <spdlog/fmt/fmt.h>
 
+#include <algorithm>
 #include <iostream>
 
 #include "cmd/command.h"
 #include "core/direction_grid.h"
 #include "core/error.h"
+#include "geometry/topography_stats.h"
+#include "io/height_map_file.h"
 #include "job/job.h"
 #include "job/plan.h"
 #include "microflake/ndf.h"
@@ -14,7 +17,7 @@
 namespace mbsdf {
 namespace {
 
-int checkJob(const std::string& jobPath) {
+int checkJob(const std::string& jobPath, const std::string& heightsPath) {
   Job job = loadJob(jobPath);
   DirectionGrid grid(job.gridLayout);
   std::cout << jobPath << ": ok\n  geometry " << job.geometryKind << ", "
@@ -29,6 +32,20 @@ int checkJob(const std::string& jobPath) {
             << " GB per rank before the "
             << "wave estimator's own (`plan` measures it), output up to "
             << fmt::format("{:.3g}", outputBytesUncompressed(job) / 1e9) << " GB\n";
+  if (job.topography) {
+    // Sal (two FFTs of the grid) is computed here only, not on every rank of a run.
+    const TopographyStats stats = topographyStats(*job.topography->heights);
+    const double lambdaMin_um = *std::min_element(job.lambda_nm.begin(), job.lambda_nm.end()) * 1e-3;
+    if (job.topography->conditioning.nx > 0) std::cout << "  " << job.topography->conditioning.describe() << "\n";
+    std::cout << stats.describe(lambdaMin_um);
+    if (!heightsPath.empty()) {
+      writeHeightMap(heightsPath, *job.topography->heights);
+      std::cout << "  heights written to " << heightsPath << "\n";
+    }
+  } else if (!heightsPath.empty()) {
+    throw InputError(
+        jobPath + ": --heights needs a heightfield geometry ([geometry] kind = \"heightfield\") or [geometry.defects]");
+  }
   if (const double avail = availableMemoryBytes(); avail > 0 && memoryBytesPerRank(job, 0) > avail)
     throw InputError(jobPath + ": the job needs about " + fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9) +
                      " GB per rank but this machine has " + fmt::format("{:.3g}", avail / 1e9) +
@@ -40,10 +57,15 @@ int checkJob(const std::string& jobPath) {
 
 Command addCheckCommand(CLI::App& app) {
   auto jobPath = std::make_shared<std::string>();
+  auto heightsPath = std::make_shared<std::string>();
   Command c;
   c.app = app.add_subcommand("check", "validate a job file and print what it describes");
   c.app->add_option("job", *jobPath, "job file (TOML)")->required();
-  c.run = [jobPath] { return checkJob(*jobPath); };
+  c.app->add_option("--heights", *heightsPath,
+                    "heightfield jobs and [geometry.defects]: write the heights that are meshed (after crop, "
+                    "levelling, filling, edges and defects) "
+                    "to this HDF5 file");
+  c.run = [jobPath, heightsPath] { return checkJob(*jobPath, *heightsPath); };
   return c;
 }
 

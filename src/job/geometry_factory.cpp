@@ -6,9 +6,12 @@
 #include <stdexcept>
 
 #include "core/error.h"
+#include "geometry/fabrication_defects.h"
 #include "geometry/generators.h"
 #include "geometry/mesh_loader.h"
+#include "geometry/topography.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
@@ -29,6 +32,7 @@ struct GeometryReader {
   const std::string& baseDir;
   uint64_t seed;
   double groundRms_um, groundCorr;
+  TopographyReport* topographyOut;
   double maxTriangles = maxGeneratedTriangles();
 
   std::vector<double> size2(const std::vector<double>& def) const {
@@ -223,20 +227,80 @@ struct GeometryReader {
     return g;
   }
   Microgeometry heightfield() const {
-    Microgeometry g;
     std::string file = geo.getString("file", "");
-    if (file.empty()) geo.fail("file", "a heightfield geometry needs file = \"height.exr\"");
-    if (!geo.has("texel_um")) geo.fail("texel_um", "a heightfield needs its texel size in micrometres");
-    double texel = geo.positive("texel_um", 1.0);
-    double scale = geo.getDouble("height_scale", 1.0);
-    int w = 0, h = 0;
-    auto heights = loadHeightfieldExr(resolvePath(baseDir, file), &w, &h);
-    for (double& z : heights) z *= scale;
-    g = heightfieldMesh(heights, w, h, texel * w, texel * h);
+    if (file.empty()) geo.fail("file", "a heightfield geometry needs file = \"height.exr\" (or .x3p, .sdf, .gsf)");
+    const std::string path = resolvePath(baseDir, file);
+    const bool measured = isTopographyFile(path);
+    Topography t;
+    if (measured) {
+      if (geo.has("texel_um")) geo.fail("texel_um", "the texel of " + file + " is in the file; remove texel_um");
+      t = loadTopography(path);
+    } else {
+      if (!geo.has("texel_um")) geo.fail("texel_um", "a heightfield needs its texel size in micrometres");
+      t = loadTopographyExr(path, geo.positive("texel_um", 1.0));
+    }
+    const double scale = geo.getDouble("height_scale", 1.0);
+    for (double& z : t.z_um) z *= scale;
+    TopographyConditioning c;
+    if (geo.has("crop_texels")) {
+      const std::vector<double> v = geo.getDoubles("crop_texels", {});
+      if (v.size() != 4 ||
+          std::any_of(v.begin(), v.end(), [](double x) { return x != std::floor(x) || std::abs(x) > 1e9; }))
+        geo.fail("crop_texels", "expected [first column, first row, columns, rows] as whole numbers");
+      c.crop = std::array<int, 4>{int(v[0]), int(v[1]), int(v[2]), int(v[3])};
+    }
+    // Measured maps are levelled by default, as metrology software does before any analysis; an EXR
+    // is taken as the heights it holds.
+    c.level = parseLevelling(geo.getString("level", measured ? "plane" : "none"), geo.where("level"));
+    c.levelOrder = int(geo.getInt("level_order", 2));
+    c.edges = parseEdgeTreatment(geo.getString("edges", "wrap"), geo.where("edges"));
+    c.windowFraction = geo.getDouble("window_fraction", 0.1);
+    TopographyReport report;
+    t = conditionTopography(std::move(t), c, geo.where("file"), &report.conditioning);
+    report.stats = topographyStats(t, false);
+    if (report.conditioning.filled)
+      spdlog::info("{}: {} of {} points were not measured; filled by Laplace interpolation", file,
+                   report.conditioning.filled, t.size());
+    if (c.edges == EdgeTreatment::Wrap && report.stats.seamStands())
+      spdlog::warn(
+          "{}: the patch's opposite edges do not meet (steps across the wrap {:.3g} x and {:.3g} x the "
+          "inside ones in x and y); they scatter as a ridge. [geometry] edges = \"mirror\" or \"window\" "
+          "makes the patch continuous",
+          file, report.stats.seamRatioX, report.stats.seamRatioY);
+    Microgeometry g = heightfieldMesh(t.z_um, t.nx, t.ny, t.dx_um * t.nx, t.dy_um * t.ny);
     g.description = "heightfield " + file;
+    if (topographyOut) {
+      report.heights = std::make_shared<const Topography>(std::move(t));
+      *topographyOut = std::move(report);
+    }
     return g;
   }
 };
+
+// [geometry.defects]: the surface as produced (geometry/fabrication_defects.h).
+Microgeometry withDefects(const Microgeometry& designed, const ParamDict& d, uint64_t seed,
+                          TopographyReport* topographyOut) {
+  FabricationDefects f;
+  f.texel_um = d.nonNegative("texel_um", 0.0);
+  f.depthScale = d.positive("depth_scale", 1.0);
+  f.lateralRms_um = d.nonNegative("lateral_rms_nm", 0.0) * 1e-3;
+  f.lateralCorrelation_um = d.positive("lateral_correlation_um", 0.5);
+  f.sidewallAngle_deg = d.getDouble("sidewall_angle_deg", 90.0);
+  if (!(f.sidewallAngle_deg > 0 && f.sidewallAngle_deg <= 90)) d.fail("sidewall_angle_deg", "must be in (0, 90]");
+  f.edgeRadius_um = d.nonNegative("edge_radius_um", 0.0);
+  f.seed = seed;
+  Topography t = rasteriseHeights(designed, f.texel_um, d.where("texel_um"));
+  f.texel_um = std::min(t.dx_um, t.dy_um);
+  applyFabricationDefects(t, f, d.file() + ": [geometry.defects]");
+  Microgeometry g = heightfieldMesh(t.z_um, t.nx, t.ny, t.dx_um * t.nx, t.dy_um * t.ny);
+  g.description = designed.description + ", as produced: " + f.describe();
+  spdlog::info("{}: [geometry.defects] {}", d.file(), f.describe());
+  if (topographyOut) {
+    topographyOut->heights = std::make_shared<const Topography>(std::move(t));
+    topographyOut->stats = topographyStats(*topographyOut->heights, false);
+  }
+  return g;
+}
 
 }  // namespace
 
@@ -247,14 +311,15 @@ void setMaxGeneratedTriangles(double n) {
   gMaxGeneratedTriangles = n;
 }
 
-Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut) {
+Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut,
+                                 TopographyReport* topographyOut) {
   const std::string kind = geo.getString("kind", "flat");
   *kindOut = kind;
   const uint64_t seed = uint64_t(geo.getInt("seed", 1));
   const bool periodic = geo.getBool("periodic", true);
   const double groundRms_um = geo.nonNegative("ground_noise_rms_nm", 0.0) * 1e-3;
   const double groundCorr = groundRms_um > 0 ? geo.positive("ground_noise_correlation_um", 0.2) : 0.2;
-  const GeometryReader reader{geo, baseDir, seed, groundRms_um, groundCorr};
+  const GeometryReader reader{geo, baseDir, seed, groundRms_um, groundCorr, topographyOut};
   using Kind = Microgeometry (GeometryReader::*)() const;
   static const std::map<std::string, Kind> kinds = {
       {"flat", &GeometryReader::flat},
@@ -275,6 +340,7 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
                          "' (flat, sine-grating, binary-grating, ridged, gaussian, noise, hemispheres, axicon, "
                          "overhang, mesh, heightfield)");
   Microgeometry g = (reader.*(it->second))();
+  if (geo.has("defects")) g = withDefects(g, geo.table("defects"), seed, topographyOut);
   g.periodic = periodic;
   if (groundRms_um > 0) addGroundNoise(g, groundRms_um, groundCorr, seed);
   if (size_t removed = g.removeDegenerate())

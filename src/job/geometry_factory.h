@@ -1,9 +1,12 @@
 // Builds the microgeometry of a job from its [geometry] table (kinds: flat, sine-grating,
 // binary-grating, ridged, gaussian, noise, hemispheres, axicon, overhang, mesh, heightfield).
 #pragma once
+#include <memory>
 #include <string>
 
 #include "geometry/microgeometry.h"
+#include "geometry/topography_conditioning.h"
+#include "geometry/topography_stats.h"
 #include "job/params.h"
 
 namespace mbsdf {
@@ -11,7 +14,17 @@ namespace mbsdf {
 // A file named in the job, relative to the job file's folder unless absolute.
 std::string resolvePath(const std::string& base, const std::string& file);
 
-Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut);
+// What a heightfield geometry (or a surface with fabrication defects) was made from: the grid that
+// was meshed, how a measured one was conditioned, its texture parameters (without Sal, which
+// `check` adds).
+struct TopographyReport {
+  std::shared_ptr<const Topography> heights;
+  ConditioningReport conditioning;
+  TopographyStats stats;
+};
+
+Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut,
+                                 TopographyReport* topographyOut = nullptr);
 
 // The most triangles a generator may make (1e7 unless set; a job asking for more fails naming the
 // key to change). The job fuzzer lowers it so that each input stays a fraction of a second under

@@ -430,7 +430,9 @@ void parseGeometry(const ParamDict& geo, const ParamDict& eff, const std::string
       job.inputFiles.push_back({"geometry.ndf_file", path, sha256OfFile(path)});
     }
   } else {
-    job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind);
+    TopographyReport topography;
+    job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind, &topography);
+    if (topography.heights) job.topography = std::move(topography);
     job.closure = surfaceClosureOf(job.geometry);
     if (!job.closure.closed() || job.closure.unusedVertices)
       spdlog::warn("{}: [geometry] {}: {}{}", sourceName, job.geometryKind, job.closure.describe(),

@@ -11,6 +11,7 @@
 #include "core/storage_profile.h"
 #include "core/file_digest.h"
 #include "geometry/microgeometry.h"
+#include "job/geometry_factory.h"
 #include "microflake/microflake_walk.h"
 #include "optics/material.h"
 #include "scattering/components.h"
@@ -53,6 +54,7 @@ struct Job {
   std::string geometryKind;
   Microgeometry geometry;                         // empty for a statistical surface
   SurfaceClosure closure;                         // holes and cracks of the explicit geometry
+  std::optional<TopographyReport> topography;     // set for a heightfield: what was meshed, and how
   std::optional<StatisticalSurface> statistical;  // set for kind = "statistical"
   Material material;
   std::string materialName;

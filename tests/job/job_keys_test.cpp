@@ -86,10 +86,11 @@ TEST(JobKeys, TheReferenceDescribesEveryRegisteredKey) {
     if (k.type == KeyType::Table) continue;
     const std::string path(k.path);
     const std::string name = path.substr(path.rfind('.') + 1);
+    const std::string inSection = path.substr(path.find('.') + 1);  // `defects.texel_um` under [geometry]
     const bool described =
         prose.find("`" + path + "`") != std::string::npos || prose.find("`" + name + "`") != std::string::npos ||
-        prose.find("`" + name + " ") != std::string::npos || prose.find("{ " + name + " = ") != std::string::npos ||
-        prose.find(", " + name + " = ") != std::string::npos;
+        prose.find("`" + inSection + "`") != std::string::npos || prose.find("`" + name + " ") != std::string::npos ||
+        prose.find("{ " + name + " = ") != std::string::npos || prose.find(", " + name + " = ") != std::string::npos;
     EXPECT_TRUE(described) << path << " is registered but the job reference does not describe it";
   }
   // And the other way: every key the reference's tables describe is registered. The first cell of
@@ -109,7 +110,9 @@ TEST(JobKeys, TheReferenceDescribesEveryRegisteredKey) {
       if (section == "geometry" && findJobKey("geometry.kind") && key.find('_') == std::string::npos &&
           findJobKey("geometry." + key) == nullptr)
         continue;  // a geometry kind's name in the kind table, not a key
-      const std::string path = key.find('.') != std::string::npos ? key : section + "." + key;
+      // A dotted cell is a full path or, like `defects.texel_um` under [geometry], a sub-table's key.
+      const std::string path =
+          key.find('.') == std::string::npos || findJobKey(section + "." + key) ? section + "." + key : key;
       EXPECT_NE(findJobKey(path), nullptr) << path << " is described in the job reference but not registered";
       ++checked;
     }

@@ -1,0 +1,333 @@
+// ISO 25178-72 "XML file format x3p" (the openGPS container; ISO 5436-2 schema, namespace
+// http://www.opengps.eu/2008/ISO5436_2): a ZIP archive holding main.xml and, for binary data,
+// bindata/data.bin with an optional valid-points bit mask and an MD5 checksum of main.xml
+// (Record4). Only areal data on an incremental grid is a height map here: FeatureType SUR, axes CX
+// and CY of type I (increment + offset), CZ of type A with data type I (int16), L (int32), F (float)
+// or D (double), z = offset + increment · value, lengths in metres. Points are stored x fastest;
+// an invalid point is NaN (F, D) or a 0 bit in the mask (least significant bit first, 1 = valid).
+#include <openssl/evp.h>
+#include <pugixml.hpp>
+#include <zip.h>
+
+#include <algorithm>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <optional>
+
+#include "core/error.h"
+#include "geometry/topography.h"
+
+namespace mbsdf {
+namespace {
+
+static_assert(std::endian::native == std::endian::little, "the X3P binary reader assumes a little-endian host");
+
+struct ZipClose {
+  void operator()(zip_t* z) const { zip_discard(z); }
+};
+struct ZipFileClose {
+  void operator()(zip_file_t* f) const { zip_fclose(f); }
+};
+
+// The archive's members, read whole; every failure names the archive and the member.
+class X3pArchive {
+ public:
+  explicit X3pArchive(const std::string& path) : path_(path) {
+    int code = 0;
+    zip_.reset(zip_open(path.c_str(), ZIP_RDONLY, &code));
+    if (!zip_) {
+      zip_error_t err;
+      zip_error_init_with_code(&err, code);
+      std::string why = zip_error_strerror(&err);
+      zip_error_fini(&err);
+      throw InputError(path + ": not a readable X3P (ZIP) archive: " + why);
+    }
+  }
+  bool has(const std::string& member) const { return zip_name_locate(zip_.get(), member.c_str(), 0) >= 0; }
+  std::string read(const std::string& member, size_t maxBytes) const {
+    zip_stat_t st;
+    zip_stat_init(&st);
+    if (zip_stat(zip_.get(), member.c_str(), 0, &st) != 0)
+      throw InputError(path_ + ": the archive has no member '" + member + "'");
+    if (!(st.valid & ZIP_STAT_SIZE) || st.size > maxBytes)
+      throw InputError(path_ + ": member '" + member + "' is larger than expected (" + std::to_string(st.size) +
+                       " bytes, at most " + std::to_string(maxBytes) + ")");
+    std::unique_ptr<zip_file_t, ZipFileClose> f(zip_fopen(zip_.get(), member.c_str(), 0));
+    if (!f) throw InputError(path_ + ": cannot open member '" + member + "': " + zip_strerror(zip_.get()));
+    std::string bytes(size_t(st.size), '\0');
+    const zip_int64_t n = zip_fread(f.get(), bytes.data(), st.size);
+    if (n < 0 || uint64_t(n) != st.size)
+      throw InputError(path_ + ": member '" + member + "' is damaged (" + zip_file_strerror(f.get()) + ")");
+    return bytes;
+  }
+
+ private:
+  std::string path_;
+  std::unique_ptr<zip_t, ZipClose> zip_;
+};
+
+std::string md5Hex(const std::string& bytes) {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  if (EVP_Digest(bytes.data(), bytes.size(), digest, &len, EVP_md5(), nullptr) != 1)
+    throw std::runtime_error("MD5 digest failed");
+  static const char* hex = "0123456789abcdef";
+  std::string out;
+  for (unsigned int i = 0; i < len; ++i) {
+    out += hex[digest[i] >> 4];
+    out += hex[digest[i] & 15];
+  }
+  return out;
+}
+
+std::string lower(std::string s) {
+  for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::string trimmed(const char* s) {
+  std::string t(s);
+  const auto b = t.find_first_not_of(" \t\r\n");
+  if (b == std::string::npos) return "";
+  return t.substr(b, t.find_last_not_of(" \t\r\n") - b + 1);
+}
+
+// main.xml with the line of each element for messages.
+struct MainXml {
+  const std::string& path;
+  const std::string& body;  // main.xml as read
+  std::string where(const pugi::xml_node& n) const {
+    const ptrdiff_t offset = n.offset_debug();
+    const long line = offset < 0 ? 0 : 1 + long(std::count(body.begin(), body.begin() + offset, '\n'));
+    return path + ": main.xml line " + std::to_string(line) + ": ";
+  }
+  pugi::xml_node child(const pugi::xml_node& n, const char* name) const {
+    pugi::xml_node c = n.child(name);
+    if (!c) throw InputError(where(n) + "<" + n.name() + "> has no <" + name + ">");
+    return c;
+  }
+  std::string text(const pugi::xml_node& n, const char* name) const { return trimmed(child(n, name).child_value()); }
+  double number(const pugi::xml_node& n, const char* name, std::optional<double> def = {}) const {
+    pugi::xml_node c = n.child(name);
+    if (!c && def) return *def;
+    const std::string s = text(n, name);
+    double v = 0;
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (ec != std::errc() || end != s.data() + s.size() || !std::isfinite(v))
+      throw InputError(where(c) + "<" + name + "> is not a number: '" + s + "'");
+    return v;
+  }
+  int64_t count(const pugi::xml_node& n, const char* name) const {
+    const std::string s = text(n, name);
+    int64_t v = 0;
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (ec != std::errc() || end != s.data() + s.size() || v < 0)
+      throw InputError(where(child(n, name)) + "<" + name + "> is not a count: '" + s + "'");
+    return v;
+  }
+};
+
+struct Axis {
+  double increment = 1, offset = 0;
+  char dataType = 'D';
+};
+
+Axis readAxis(const MainXml& xml, const pugi::xml_node& axes, const char* name, const char* wantType) {
+  const pugi::xml_node a = xml.child(axes, name);
+  const std::string type = xml.text(a, "AxisType");
+  if (type != wantType)
+    throw InputError(xml.where(a) + "axis " + name + " has AxisType " + type + "; a height map needs " + wantType +
+                     (std::string(wantType) == "I" ? " (a regular grid; resample explicit positions first)" : ""));
+  Axis axis;
+  axis.increment = xml.number(a, "Increment", 1.0);
+  axis.offset = xml.number(a, "Offset", 0.0);
+  if (a.child("DataType")) {
+    const std::string t = xml.text(a, "DataType");
+    if (t.size() != 1 || std::string("ILFD").find(t[0]) == std::string::npos)
+      throw InputError(xml.where(a) + "axis " + name + " has DataType '" + t + "' (I, L, F or D)");
+    axis.dataType = t[0];
+  }
+  if (!(axis.increment > 0) && std::string(name) != "CZ")
+    throw InputError(xml.where(a) + "axis " + name + " needs a positive Increment");
+  if (axis.increment == 0) throw InputError(xml.where(a) + "axis " + name + " has Increment 0");
+  return axis;
+}
+
+size_t bytesOf(char type) {
+  switch (type) {
+    case 'I':
+      return 2;
+    case 'L':
+      return 4;
+    case 'F':
+      return 4;
+    default:
+      return 8;
+  }
+}
+
+double rawValue(const char* p, char type) {
+  switch (type) {
+    case 'I': {
+      int16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    case 'L': {
+      int32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case 'F': {
+      float v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    default: {
+      double v;
+      std::memcpy(&v, p, 8);
+      return v;
+    }
+  }
+}
+
+void checkMemberMd5(const MainXml& xml, const pugi::xml_node& link, const char* element, const std::string& member,
+                    const std::string& bytes) {
+  const pugi::xml_node c = link.child(element);
+  if (!c) return;
+  const std::string want = lower(trimmed(c.child_value()));
+  if (want != md5Hex(bytes))
+    throw InputError(xml.where(c) + "the MD5 checksum of '" + member + "' does not match its <" + element +
+                     "> (the archive is damaged)");
+}
+
+// The heights of Record3: a DataLink to binary members or an inline DataList.
+void readPoints(const MainXml& xml, const X3pArchive& zip, const pugi::xml_node& record3, const Axis& cz,
+                Topography& t) {
+  const size_t n = t.size();
+  // The grid is allocated once the data is known to hold its points (sizes come from the file).
+  auto allocate = [&] {
+    t.z_um.assign(n, 0.0);
+    t.valid.assign(n, 1);
+  };
+  auto store = [&](size_t k, double raw) {
+    const double z_m = cz.offset + cz.increment * raw;
+    if (std::isfinite(z_m))
+      t.z_um[k] = z_m * 1e6;
+    else
+      t.valid[k] = 0;
+  };
+  if (const pugi::xml_node link = record3.child("DataLink")) {
+    const std::string member = xml.text(link, "PointDataLink");
+    const size_t expected = n * bytesOf(cz.dataType);
+    const std::string data = zip.read(member, expected);
+    if (data.size() != expected)
+      throw InputError(xml.where(link) + "'" + member + "' holds " + std::to_string(data.size()) + " bytes; " +
+                       std::to_string(t.nx) + " x " + std::to_string(t.ny) + " points of type " + cz.dataType +
+                       " need " + std::to_string(expected));
+    checkMemberMd5(xml, link, "MD5ChecksumPointData", member, data);
+    allocate();
+    for (size_t k = 0; k < n; ++k) store(k, rawValue(data.data() + k * bytesOf(cz.dataType), cz.dataType));
+    if (const pugi::xml_node vl = link.child("ValidPointsLink")) {
+      const std::string vmember = trimmed(vl.child_value());
+      const std::string mask = zip.read(vmember, (n + 7) / 8);
+      if (mask.size() != (n + 7) / 8)
+        throw InputError(xml.where(vl) + "'" + vmember + "' holds " + std::to_string(mask.size()) + " bytes; " +
+                         std::to_string(n) + " points need " + std::to_string((n + 7) / 8));
+      checkMemberMd5(xml, link, "MD5ChecksumValidPoints", vmember, mask);
+      for (size_t k = 0; k < n; ++k)
+        if (!((static_cast<unsigned char>(mask[k / 8]) >> (k % 8)) & 1u)) t.valid[k] = 0;
+    }
+  } else if (const pugi::xml_node list = record3.child("DataList")) {
+    const size_t count = size_t(std::distance(list.children("Datum").begin(), list.children("Datum").end()));
+    if (count != n)
+      throw InputError(xml.where(list) + "<DataList> has " + std::to_string(count) + " <Datum>; the matrix has " +
+                       std::to_string(n) + " points");
+    allocate();
+    size_t k = 0;
+    for (const pugi::xml_node& d : list.children("Datum")) {
+      if (k == n)
+        throw InputError(xml.where(d) + "more <Datum> than the " + std::to_string(n) + " points of the matrix");
+      std::string s = trimmed(d.child_value());
+      if (const auto semi = s.rfind(';'); semi != std::string::npos) s = trimmed(s.substr(semi + 1).c_str());
+      if (s.empty()) {
+        t.valid[k++] = 0;  // an empty Datum is a point not measured
+        continue;
+      }
+      double v = 0;
+      const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+      if (ec != std::errc() || end != s.data() + s.size())
+        throw InputError(xml.where(d) + "<Datum> is not a number: '" + s + "'");
+      store(k++, v);
+    }
+    if (k != n)
+      throw InputError(xml.where(list) + "<DataList> has " + std::to_string(k) + " <Datum>; the matrix has " +
+                       std::to_string(n) + " points");
+  } else {
+    throw InputError(xml.where(record3) + "<Record3> has neither <DataLink> nor <DataList>");
+  }
+}
+
+// Record4: the archive's MD5 checksum of main.xml, in a member written like md5sum's output.
+void checkMainChecksum(const MainXml& xml, const X3pArchive& zip, const pugi::xml_node& root) {
+  const pugi::xml_node record4 = root.child("Record4");
+  if (!record4 || !record4.child("ChecksumFile")) return;
+  const std::string member = xml.text(record4, "ChecksumFile");
+  const std::string sum = zip.read(member, 4096);
+  const std::string want = lower(sum.substr(0, std::min<size_t>(32, sum.size())));
+  if (want != md5Hex(xml.body))
+    throw InputError(xml.path + ": the MD5 checksum of main.xml does not match '" + member +
+                     "' (the archive is damaged or main.xml was edited)");
+}
+
+}  // namespace
+
+Topography readX3p(const std::string& path) {
+  const X3pArchive zip(path);
+  const std::string mainText = zip.read("main.xml", size_t(64) << 20);
+  pugi::xml_document doc;
+  const pugi::xml_parse_result parsed = doc.load_buffer(mainText.data(), mainText.size());
+  const MainXml xml{path, mainText};
+  if (!parsed) {
+    const long line =
+        1 + long(std::count(mainText.begin(),
+                            mainText.begin() + std::min<ptrdiff_t>(parsed.offset, ptrdiff_t(mainText.size())), '\n'));
+    throw InputError(path + ": main.xml line " + std::to_string(line) + ": " + parsed.description());
+  }
+  const pugi::xml_node root = doc.document_element();
+  const std::string rootName = root.name();
+  if (rootName.size() < 9 || rootName.substr(rootName.size() - 9) != "ISO5436_2")
+    throw InputError(xml.where(root) + "the root element is <" + rootName + ">, not <ISO5436_2>");
+  checkMainChecksum(xml, zip, root);
+
+  const pugi::xml_node record1 = xml.child(root, "Record1");
+  const std::string feature = xml.text(record1, "FeatureType");
+  if (feature != "SUR")
+    throw InputError(xml.where(record1) + "FeatureType " + feature + "; only areal surfaces (SUR) are height maps" +
+                     (feature == "PRF"   ? " (this is a profile)"
+                      : feature == "PCL" ? " (this is a point cloud)"
+                                         : ""));
+  const pugi::xml_node axes = xml.child(record1, "Axes");
+  const Axis cx = readAxis(xml, axes, "CX", "I"), cy = readAxis(xml, axes, "CY", "I"),
+             cz = readAxis(xml, axes, "CZ", "A");
+
+  const pugi::xml_node record3 = xml.child(root, "Record3");
+  const pugi::xml_node dims = xml.child(record3, "MatrixDimension");
+  const int64_t sx = xml.count(dims, "SizeX"), sy = xml.count(dims, "SizeY"), sz = xml.count(dims, "SizeZ");
+  if (sz != 1) throw InputError(xml.where(dims) + "SizeZ is " + std::to_string(sz) + "; a height map has one layer");
+  checkTopographySize(path, sx, sy);
+  Topography t;
+  t.nx = int(sx);
+  t.ny = int(sy);
+  t.dx_um = cx.increment * 1e6;
+  t.dy_um = cy.increment * 1e6;
+  t.source = path;
+  readPoints(xml, zip, record3, cz, t);
+  if (t.invalidCount() == 0) t.valid.clear();
+  return t;
+}
+
+}  // namespace mbsdf

@@ -1,0 +1,151 @@
+"""Independent writers of the topography formats microbsdf reads, written from the formats'
+descriptions (not from microbsdf's readers), for the tests:
+  X3P  ISO 25178-72: a ZIP (zipfile) with main.xml (ISO 5436-2 schema), bindata/data.bin, an optional
+       valid-points bit mask and md5checksum.hex;
+  SDF  Surfstand / ISO 25178-71, text (aBCR-1.0) and binary (bBCR-1.0, 81-byte packed header);
+  GSF  Gwyddion Simple Field 1.0;
+  EXR  OpenEXR 2, uncompressed scanlines, one FLOAT channel "Y" (no EXR module in Debian's Python).
+Heights are given in metres as a (ny, nx) numpy array; NaN marks a point not measured."""
+import hashlib
+import struct
+import zipfile
+
+import numpy as np
+
+X3P_TYPES = {"I": np.int16, "L": np.int32, "F": np.float32, "D": np.float64}
+
+
+def x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=None, data_list=None, feature="SUR",
+                 x_axis_type="I"):
+    if data_link is not None:
+        record3_data = "<DataLink>" + "".join(f"<{k}>{v}</{k}>" for k, v in data_link) + "</DataLink>"
+    else:
+        record3_data = "<DataList>" + "".join(f"<Datum>{d}</Datum>" for d in data_list) + "</DataList>"
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<p:ISO5436_2 xmlns:p="http://www.opengps.eu/2008/ISO5436_2">
+  <Record1>
+    <Revision>ISO5436 - 2000</Revision>
+    <FeatureType>{feature}</FeatureType>
+    <Axes>
+      <CX><AxisType>{x_axis_type}</AxisType><DataType>D</DataType><Increment>{dx!r}</Increment><Offset>0.0</Offset></CX>
+      <CY><AxisType>I</AxisType><DataType>D</DataType><Increment>{dy!r}</Increment><Offset>0.0</Offset></CY>
+      <CZ><AxisType>A</AxisType><DataType>{ztype}</DataType><Increment>{zinc!r}</Increment><Offset>{zoff!r}</Offset></CZ>
+    </Axes>
+  </Record1>
+  <Record2><Date>2026-11-26T12:00:00+00:00</Date><Creator>microbsdf tests</Creator>
+    <Instrument><Manufacturer>none</Manufacturer><Model>writer</Model><Serial>0</Serial><Version>1</Version></Instrument>
+    <CalibrationDate>2026-01-01T00:00:00+00:00</CalibrationDate>
+    <ProbingSystem><Type>NonContacting</Type><Identification>test</Identification></ProbingSystem>
+    <Comment>written by tests/integration/topography_writers.py</Comment></Record2>
+  <Record3>
+    <MatrixDimension><SizeX>{nx}</SizeX><SizeY>{ny}</SizeY><SizeZ>1</SizeZ></MatrixDimension>
+    {record3_data}
+  </Record3>
+  <Record4><ChecksumFile>md5checksum.hex</ChecksumFile></Record4>
+</p:ISO5436_2>
+"""
+
+
+def write_x3p(path, raw, dx, dy, ztype="D", zinc=1.0, zoff=0.0, valid=None, inline=False, corrupt=None):
+    """raw: the stored values (ny, nx) of ztype; z = zoff + zinc * raw metres. valid: bool (ny, nx)
+    written as the valid-points mask. corrupt: None or one of 'xml', 'missing-bin', 'short-bin',
+    'main-md5', 'data-md5', 'feature', 'axis' (a damaged archive, for the error tests)."""
+    ny, nx = raw.shape
+    members = {}
+    if inline:
+        data_list = ["" if (valid is not None and not valid[j, i]) else repr(float(raw[j, i]))
+                     for j in range(ny) for i in range(nx)]
+        xml = x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_list=data_list)
+    else:
+        data = np.ascontiguousarray(raw.astype(X3P_TYPES[ztype]).astype("<" + np.dtype(X3P_TYPES[ztype]).str[1:]))
+        blob = data.tobytes()  # x fastest, then y
+        if corrupt == "short-bin":
+            blob = blob[:-3]
+        link = [("PointDataLink", "bindata/data.bin"),
+                ("MD5ChecksumPointData", hashlib.md5(data.tobytes()).hexdigest() if corrupt != "data-md5"
+                 else "0" * 32)]
+        if valid is not None:
+            bits = np.packbits(valid.reshape(-1).astype(np.uint8), bitorder="little").tobytes()
+            link += [("ValidPointsLink", "bindata/valid.bin"), ("MD5ChecksumValidPoints", hashlib.md5(bits).hexdigest())]
+            members["bindata/valid.bin"] = bits
+        if corrupt != "missing-bin":
+            members["bindata/data.bin"] = blob
+        xml = x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=link,
+                           feature="PRF" if corrupt == "feature" else "SUR",
+                           x_axis_type="A" if corrupt == "axis" else "I")
+    if corrupt == "xml":
+        xml = xml.replace("</Record1>", "</Recrod1>")
+    xml_bytes = xml.encode()
+    digest = hashlib.md5(xml_bytes).hexdigest() if corrupt != "main-md5" else "f" * 32
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as z:
+        z.writestr("main.xml", xml_bytes)
+        z.writestr("md5checksum.hex", f"{digest} *main.xml\n")
+        for name, blob in members.items():
+            z.writestr(name, blob)
+
+
+SDF_TYPES = {0: "<u1", 1: "<u2", 2: "<u4", 3: "<f4", 4: "<i1", 5: "<i2", 6: "<i4", 7: "<f8"}
+
+
+def write_sdf_text(path, raw, xscale, yscale, zscale, datatype=7, truncate=False):
+    ny, nx = raw.shape
+    lines = ["aBCR-1.0", "ManufacID   = microbsdf", "CreateDate  = 261120261200", "ModDate     = 261120261200",
+             f"NumPoints   = {nx}", f"NumProfiles = {ny}", f"Xscale      = {xscale!r}", f"Yscale      = {yscale!r}",
+             f"Zscale      = {zscale!r}", "Zresolution = -1", "Compression = 0", f"DataType    = {datatype}",
+             "CheckType   = 0", "NumDataSet  = 1", "NanPresent  = 0", "*"]
+    values = [repr(float(v)) if datatype in (3, 7) else str(int(v)) for v in raw.reshape(-1)]
+    if truncate:
+        values = values[:-5]
+    for r in range(0, len(values), nx):
+        lines.append(" ".join(values[r:r + nx]))
+    lines += ["*", "trailer text", "*"]
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def write_sdf_binary(path, raw, xscale, yscale, zscale, datatype=7):
+    ny, nx = raw.shape
+    header = (b"bBCR-1.0" + b"microbsdf\0" + b"261120261200" + b"261120261200" + struct.pack("<HH", nx, ny)
+              + struct.pack("<dddd", xscale, yscale, zscale, -1.0) + bytes([0, datatype, 0]))
+    assert len(header) == 81
+    with open(path, "wb") as f:
+        f.write(header + raw.astype(SDF_TYPES[datatype]).tobytes())
+
+
+def write_gsf(path, z, xreal, yreal, xy_units="m", z_units="m", drop_units=False):
+    ny, nx = z.shape
+    head = f"Gwyddion Simple Field 1.0\nXRes = {nx}\nYRes = {ny}\nXReal = {xreal!r}\nYReal = {yreal!r}\n"
+    if not drop_units:
+        head += f"XYUnits = {xy_units}\nZUnits = {z_units}\n"
+    head += "Title = microbsdf test\n"
+    b = head.encode()
+    b += b"\0" * (4 - len(b) % 4)
+    with open(path, "wb") as f:
+        f.write(b + z.astype("<f4").tobytes())
+
+
+def write_exr(path, pixels):
+    """One FLOAT channel "Y", uncompressed scanlines, increasing y (OpenEXR file layout, 2.0)."""
+    ny, nx = pixels.shape
+
+    def attr(name, type_, value):
+        return name.encode() + b"\0" + type_.encode() + b"\0" + struct.pack("<i", len(value)) + value
+
+    header = b"\x76\x2f\x31\x01" + struct.pack("<i", 2)
+    header += attr("channels", "chlist", b"Y\0" + struct.pack("<iB3xii", 2, 0, 1, 1) + b"\0")
+    header += attr("compression", "compression", b"\0")
+    header += attr("dataWindow", "box2i", struct.pack("<iiii", 0, 0, nx - 1, ny - 1))
+    header += attr("displayWindow", "box2i", struct.pack("<iiii", 0, 0, nx - 1, ny - 1))
+    header += attr("lineOrder", "lineOrder", b"\0")
+    header += attr("pixelAspectRatio", "float", struct.pack("<f", 1.0))
+    header += attr("screenWindowCenter", "v2f", struct.pack("<ff", 0.0, 0.0))
+    header += attr("screenWindowWidth", "float", struct.pack("<f", 1.0))
+    header += b"\0"
+    start = len(header) + 8 * ny
+    lines, offsets = b"", []
+    for y in range(ny):
+        offsets.append(start + len(lines))
+        row = pixels[y].astype("<f4").tobytes()
+        lines += struct.pack("<ii", y, len(row)) + row
+    with open(path, "wb") as f:
+        f.write(header + struct.pack(f"<{ny}Q", *offsets) + lines)
