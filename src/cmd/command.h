@@ -35,6 +35,7 @@ Command addPlanCommand(CLI::App& app);
 Command addCompareSmithCommand(CLI::App& app);
 Command addExportCommand(CLI::App& app);
 Command addEvalCommand(CLI::App& app);
+Command addDiffCommand(CLI::App& app);
 
 // Comma-separated lists of the command line. Model names (GS, GM, WS, WM or a component), each
 // checked; empty items are skipped.

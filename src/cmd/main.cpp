@@ -16,10 +16,19 @@ int main(int argc, char** argv) {
   CLI::App app{"microbsdf: tabulated BSDFs (BRDF + BTDF) of explicit surface microgeometry"};
   app.require_subcommand(1);
   app.set_version_flag("--version", MICROBSDF_VERSION);
-  const std::vector<Command> commands = {addRunCommand(app, argc, argv), addInfoCommand(app),   addSliceCommand(app),
-                                         addSheetCommand(app),           addRenderCommand(app), addGeometryCommand(app),
-                                         addCheckCommand(app),           addKeysCommand(app),   addPlanCommand(app),
-                                         addCompareSmithCommand(app),    addExportCommand(app), addEvalCommand(app)};
+  const std::vector<Command> commands = {addRunCommand(app, argc, argv),
+                                         addInfoCommand(app),
+                                         addSliceCommand(app),
+                                         addSheetCommand(app),
+                                         addRenderCommand(app),
+                                         addGeometryCommand(app),
+                                         addCheckCommand(app),
+                                         addKeysCommand(app),
+                                         addPlanCommand(app),
+                                         addCompareSmithCommand(app),
+                                         addExportCommand(app),
+                                         addEvalCommand(app),
+                                         addDiffCommand(app)};
 
   setUpHdf5();
   try {

@@ -69,24 +69,52 @@ Colour3 cieXyzBar(double lambda_nm) {
   return {tableAt(data::kCieX, lambda_nm), tableAt(data::kCieY, lambda_nm), tableAt(data::kCieZ, lambda_nm)};
 }
 
-Colour3 cieXyzIntegral(double a, double b) {
-  // Exact integral of the piecewise-linear interpolant: trapezoids on the table nodes inside
-  // [a, b] plus the partial end intervals.
+namespace {
+double d65At(double lambda) {
+  const std::vector<double>& t = data::kD65;
+  const double f = (lambda - data::kD65LambdaStart_nm) / data::kD65LambdaStep_nm;
+  if (f < 0 || f > double(t.size() - 1)) return 0.0;
+  const size_t i = std::min(size_t(f), t.size() - 2);
+  const double u = f - double(i);
+  return t[i] + u * (t[i + 1] - t[i]);
+}
+}  // namespace
+
+Colour3 cieXyzIntegral(double a, double b, Illuminant illuminant) {
+  // Exact integral of the piecewise-linear interpolant (of the product, under D65): trapezoids on
+  // the table nodes inside [a, b] plus the partial end intervals.
   Colour3 sum{0, 0, 0};
   if (b <= a) return sum;
   std::vector<double> nodes{a};
   for (double l = data::kCieLambdaStart_nm; l < b; l += data::kCieLambdaStep_nm)
     if (l > a) nodes.push_back(l);
   nodes.push_back(b);
+  auto at = [illuminant](double l) {
+    Colour3 c = cieXyzBar(l);
+    if (illuminant == Illuminant::D65)
+      for (double& v : c) v *= d65At(l) / 100.0;
+    return c;
+  };
   for (size_t i = 0; i + 1 < nodes.size(); ++i) {
-    Colour3 f0 = cieXyzBar(nodes[i]), f1 = cieXyzBar(nodes[i + 1]);
+    Colour3 f0 = at(nodes[i]), f1 = at(nodes[i + 1]);
     double h = nodes[i + 1] - nodes[i];
     for (int c = 0; c < 3; ++c) sum[c] += 0.5 * h * (f0[c] + f1[c]);
   }
   return sum;
 }
 
-SpectrumToColour::SpectrumToColour(std::vector<double> lambda_nm) : lambda_(std::move(lambda_nm)) {
+Colour3 whitePoint(Illuminant illuminant) {
+  if (illuminant == Illuminant::E) return {1, 1, 1};
+  const Colour3 w = cieXyzIntegral(300, 830, Illuminant::D65);
+  return {w[0] / w[1], 1.0, w[2] / w[1]};
+}
+
+Colour3 adaptXyzEToD65(const Colour3& xyz) {
+  return mul(adaptEToD65(), xyz);
+}
+
+SpectrumToColour::SpectrumToColour(std::vector<double> lambda_nm, Illuminant illuminant)
+    : lambda_(std::move(lambda_nm)) {
   const size_t n = lambda_.size();
   if (n == 0) throw std::invalid_argument("no wavelengths");
   std::vector<double> edges(n + 1);
@@ -98,7 +126,7 @@ SpectrumToColour::SpectrumToColour(std::vector<double> lambda_nm) : lambda_(std:
   double ySum = 0;
   w_.resize(n);
   for (size_t i = 0; i < n; ++i) {
-    w_[i] = cieXyzIntegral(edges[i], edges[i + 1]);
+    w_[i] = cieXyzIntegral(edges[i], edges[i + 1], illuminant);
     ySum += w_[i][1];
   }
   if (!(ySum > 0)) throw std::invalid_argument("the wavelengths lie outside the visible range of the CIE tables");

@@ -1,6 +1,6 @@
 // Labels in pictures (contact sheets, previews, colour bars) with a 5 x 7 bitmap font: digits, '.',
-// '-', '/', ' ', '°' and the capitals B C D E F G I L M R S W — what model names, angles and the
-// colour bar's numbers and unit need; no font file to find on a cluster node.
+// '-', '+', '/', ' ', '°' and the capitals A B C D E F G I L M R S W Z — what model names, angles,
+// the colour bar's numbers and unit and diff's labels need; no font file to find on a cluster node.
 #pragma once
 #include <cstdint>
 #include <string>

@@ -342,7 +342,17 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
   Microgeometry g = (reader.*(it->second))();
   if (geo.has("defects")) g = withDefects(g, geo.table("defects"), seed, topographyOut);
   g.periodic = periodic;
-  if (groundRms_um > 0) addGroundNoise(g, groundRms_um, groundCorr, seed);
+  if (groundRms_um > 0) {
+    addGroundNoise(g, groundRms_um, groundCorr, seed);
+    // The heights reported (and written by `check --heights`) are the ones meshed, noise included.
+    if (topographyOut && topographyOut->heights)
+      if (const auto grid = heightGridOf(g)) {
+        auto t = std::make_shared<Topography>(*topographyOut->heights);
+        t->z_um = grid->h;
+        topographyOut->heights = t;
+        topographyOut->stats = topographyStats(*t, false);
+      }
+  }
   if (size_t removed = g.removeDegenerate())
     spdlog::warn("{}: removed {} degenerate (zero-area) triangles", geo.where("kind"), removed);
   g.validate(geo.file() + ": [geometry]");

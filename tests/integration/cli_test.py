@@ -1188,6 +1188,59 @@ def test_tour():
     made = sorted(os.listdir(os.path.join(root, "out")))
     print(f"README tour: {len(lines)} lines ran in order; out/ holds {', '.join(made)}")
 
+
+def test_diff():
+    """`diff`: a table against itself differs by nothing; two seeds of one job differ by noise only
+    (each component's chi-square z-score and energies' z within 5, and |mean z² − 1| small); a designed
+    surface against its produced variant ([geometry.defects]: depth −10 %, edges rounded) differs
+    beyond noise; tables on different grids are refused; the reports (.json, .csv, .png) are written."""
+    raster = '[geometry.defects]\ntexel_um = 0.05\n'
+    hemis = 'kind = "hemispheres"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\nspacing_um = 5.0\nresolution_um = 0.25\n'
+    designed = small_job(os.path.join(TMP, "designed.toml"), output="designed.h5", geometry=hemis + raster)
+    produced = small_job(os.path.join(TMP, "produced.toml"), output="produced.h5",
+                         geometry=hemis + raster + "depth_scale = 0.9\nedge_radius_um = 0.15\n")
+    seed2 = small_job(os.path.join(TMP, "seed2.toml"), output="seed2.h5", geometry=hemis + raster)
+    text = open(seed2).read().replace("seed = 7", "seed = 8")
+    open(seed2, "w").write(text)
+    for job in (designed, produced, seed2):
+        run(["run", job], mpi=2, timeout=600)
+    same = run(["diff", "designed.h5", "designed.h5", "-o", "same.json"]).stdout
+    assert "0 of 5 slices differ beyond noise" in same, same
+    j = json.load(open(os.path.join(TMP, "same.json")))
+    assert not j["beyond_noise"]
+    for s in j["slices"]:
+        for name, c in s["components"].items():
+            assert c["l1"] == 0 and c["chi2_z"] < 0, (name, c)
+        assert s["delta_e00_reflected"] == 0 and s["lobe"]["shift_deg"] == 0, s
+    seeds = run(["diff", "designed.h5", "seed2.h5", "-o", "seeds.json"]).stdout
+    j = json.load(open(os.path.join(TMP, "seeds.json")))
+    assert not j["beyond_noise"], seeds
+    for s in j["slices"]:
+        for name, c in s["components"].items():
+            assert c["chi2_z"] < 5 and max(abs(z) for z in c["energy_z"]) < 5, (s["theta_i_deg"], name, c)
+            assert c["l1"] > 0, (name, c)
+    print("two seeds:", seeds.strip().splitlines()[-2])
+    dp = run(["diff", "designed.h5", "produced.h5", "-o", "dp.json"]).stdout
+    j = json.load(open(os.path.join(TMP, "dp.json")))
+    assert j["beyond_noise"], dp
+    beyond = sum(any(c["beyond_noise"] for c in s["components"].values()) for s in j["slices"])
+    assert beyond >= 4, dp
+    print("designed vs produced:", dp.strip().splitlines()[-2])
+    run(["diff", "designed.h5", "produced.h5", "-o", "dp.csv"])
+    rows = open(os.path.join(TMP, "dp.csv")).read().strip().splitlines()
+    assert rows[0].startswith("theta_i_deg,phi_i_deg,component") and len(rows) == 1 + 5 * len(j["slices"][0]["components"])
+    run(["diff", "designed.h5", "produced.h5", "-o", "dp.png", "--theta-i", "20", "--phi-i", "10"])
+    png = plt.imread(os.path.join(TMP, "dp.png"))
+    assert png.shape[1] == 3 * 256 and png.shape[0] > 256, png.shape
+    # A table on another grid is refused, naming both files and the grids.
+    other = small_job(os.path.join(TMP, "other.toml"), output="other.h5")
+    text = open(other).read().replace("n_theta = 12", "n_theta = 10")
+    open(other, "w").write(text)
+    run(["run", other], timeout=600)
+    p = run(["diff", "designed.h5", "other.h5"], expect=2)
+    assert "designed.h5 and other.h5 are on different direction grids" in p.stderr, p.stderr
+
+
 def program_seconds(result):
     """(pilot seconds, total seconds) of a `run` from its log: the run's "done: ... in X s" plus the
     effects pilots' "in X s" (0 without components = "auto"); mpirun's start-up, about 1-2 s here, is

@@ -1,16 +1,19 @@
 #!/usr/bin/python3
-"""Measured topography input: X3P, SDF and GSF files from independent writers (topography_writers.py,
+"""Measured topography input: X3P, SDF and GSF files from independent writers (python/topography_files.py,
 written from the formats' descriptions) load with exact heights, malformed ones end in a clear error,
 and a heightfield from X3P gives byte-identical tables to the same heights from EXR.
 
 Usage: topography_test.py BUILD_DIR SOURCE_DIR TEST_NAME (see harness.py)."""
 import os
+import sys
 
 import h5py
 import numpy as np
 
 from harness import *  # noqa: F401,F403 (BUILD, SRC, EXE, TMP, run, small_job, datasets, ...)
-from topography_writers import write_exr, write_gsf, write_sdf_binary, write_sdf_text, write_x3p
+
+sys.path.insert(0, os.path.join(SRC, "python"))
+from topography_files import write_exr, write_gsf, write_sdf_binary, write_sdf_text, write_x3p  # noqa: E402
 
 
 def heightfield_job(name, file, extra=""):

@@ -1,11 +1,14 @@
-"""Independent writers of the topography formats microbsdf reads, written from the formats'
-descriptions (not from microbsdf's readers), for the tests:
+"""Writers of the topography formats microbsdf reads, written from the formats' descriptions (not
+from microbsdf's C++ readers, which the tests check against them): for simulated surfaces handed to
+metrology software (Gwyddion, MountainsMap, the openGPS tools), measured-looking test data, and the
+tests.
   X3P  ISO 25178-72: a ZIP (zipfile) with main.xml (ISO 5436-2 schema), bindata/data.bin, an optional
        valid-points bit mask and md5checksum.hex;
   SDF  Surfstand / ISO 25178-71, text (aBCR-1.0) and binary (bBCR-1.0, 81-byte packed header);
   GSF  Gwyddion Simple Field 1.0;
   EXR  OpenEXR 2, uncompressed scanlines, one FLOAT channel "Y" (no EXR module in Debian's Python).
-Heights are given in metres as a (ny, nx) numpy array; NaN marks a point not measured."""
+Heights are given in metres as a (ny, nx) numpy array (row j is y, column i is x); NaN marks a point
+not measured. Needs numpy (Debian's python3-numpy)."""
 import hashlib
 import struct
 import zipfile
@@ -32,11 +35,11 @@ def x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=None, data_list=No
       <CZ><AxisType>A</AxisType><DataType>{ztype}</DataType><Increment>{zinc!r}</Increment><Offset>{zoff!r}</Offset></CZ>
     </Axes>
   </Record1>
-  <Record2><Date>2026-11-26T12:00:00+00:00</Date><Creator>microbsdf tests</Creator>
+  <Record2><Date>2026-11-26T12:00:00+00:00</Date><Creator>microbsdf</Creator>
     <Instrument><Manufacturer>none</Manufacturer><Model>writer</Model><Serial>0</Serial><Version>1</Version></Instrument>
     <CalibrationDate>2026-01-01T00:00:00+00:00</CalibrationDate>
     <ProbingSystem><Type>NonContacting</Type><Identification>test</Identification></ProbingSystem>
-    <Comment>written by tests/integration/topography_writers.py</Comment></Record2>
+    <Comment>written by microbsdf's python/topography_files.py</Comment></Record2>
   <Record3>
     <MatrixDimension><SizeX>{nx}</SizeX><SizeY>{ny}</SizeY><SizeZ>1</SizeZ></MatrixDimension>
     {record3_data}
