@@ -19,7 +19,9 @@ X3P_TYPES = {"I": np.int16, "L": np.int32, "F": np.float32, "D": np.float64}
 
 
 def x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=None, data_list=None, feature="SUR",
-                 x_axis_type="I"):
+                 x_axis_type="I", rotation=None):
+    rotation_xml = "" if rotation is None else "<Rotation>" + "".join(
+        f"<r{r + 1}{c + 1}>{rotation[r][c]!r}</r{r + 1}{c + 1}>" for r in range(3) for c in range(3)) + "</Rotation>"
     if data_link is not None:
         record3_data = "<DataLink>" + "".join(f"<{k}>{v}</{k}>" for k, v in data_link) + "</DataLink>"
     else:
@@ -32,7 +34,7 @@ def x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=None, data_list=No
     <Axes>
       <CX><AxisType>{x_axis_type}</AxisType><DataType>D</DataType><Increment>{dx!r}</Increment><Offset>0.0</Offset></CX>
       <CY><AxisType>I</AxisType><DataType>D</DataType><Increment>{dy!r}</Increment><Offset>0.0</Offset></CY>
-      <CZ><AxisType>A</AxisType><DataType>{ztype}</DataType><Increment>{zinc!r}</Increment><Offset>{zoff!r}</Offset></CZ>
+      <CZ><AxisType>A</AxisType><DataType>{ztype}</DataType><Increment>{zinc!r}</Increment><Offset>{zoff!r}</Offset></CZ>{rotation_xml}
     </Axes>
   </Record1>
   <Record2><Date>2026-11-26T12:00:00+00:00</Date><Creator>microbsdf</Creator>
@@ -52,7 +54,8 @@ def x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=None, data_list=No
 def write_x3p(path, raw, dx, dy, ztype="D", zinc=1.0, zoff=0.0, valid=None, inline=False, corrupt=None):
     """raw: the stored values (ny, nx) of ztype; z = zoff + zinc * raw metres. valid: bool (ny, nx)
     written as the valid-points mask. corrupt: None or one of 'xml', 'missing-bin', 'short-bin',
-    'main-md5', 'data-md5', 'feature', 'axis' (a damaged archive, for the error tests)."""
+    'main-md5', 'data-md5', 'feature', 'axis', 'rotation' (a damaged or unsupported archive, for the
+    error tests)."""
     ny, nx = raw.shape
     members = {}
     if inline:
@@ -73,18 +76,25 @@ def write_x3p(path, raw, dx, dy, ztype="D", zinc=1.0, zoff=0.0, valid=None, inli
             members["bindata/valid.bin"] = bits
         if corrupt != "missing-bin":
             members["bindata/data.bin"] = blob
+        c, sn = np.cos(0.1), np.sin(0.1)
         xml = x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=link,
                            feature="PRF" if corrupt == "feature" else "SUR",
-                           x_axis_type="A" if corrupt == "axis" else "I")
+                           x_axis_type="A" if corrupt == "axis" else "I",
+                           rotation=[[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]] if corrupt == "rotation" else None)
     if corrupt == "xml":
         xml = xml.replace("</Record1>", "</Recrod1>")
     xml_bytes = xml.encode()
     digest = hashlib.md5(xml_bytes).hexdigest() if corrupt != "main-md5" else "f" * 32
-    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as z:
-        z.writestr("main.xml", xml_bytes)
-        z.writestr("md5checksum.hex", f"{digest} *main.xml\n")
+    def member(name):  # a fixed time stamp: the same surface gives the same bytes
+        info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+        info.compress_type = zipfile.ZIP_DEFLATED
+        return info
+
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr(member("main.xml"), xml_bytes)
+        z.writestr(member("md5checksum.hex"), f"{digest} *main.xml\n")
         for name, blob in members.items():
-            z.writestr(name, blob)
+            z.writestr(member(name), blob)
 
 
 SDF_TYPES = {0: "<u1", 1: "<u2", 2: "<u4", 3: "<f4", 4: "<i1", 5: "<i2", 6: "<i4", 7: "<f8"}

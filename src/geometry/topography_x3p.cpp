@@ -313,6 +313,18 @@ Topography readX3p(const std::string& path) {
   const pugi::xml_node axes = xml.child(record1, "Axes");
   const Axis cx = readAxis(xml, axes, "CX", "I"), cy = readAxis(xml, axes, "CY", "I"),
              cz = readAxis(xml, axes, "CZ", "A");
+  // An optional rotation turns the stored points into the sample's frame. Taking the heights without
+  // it would rotate or tilt the surface silently: only the identity is accepted.
+  if (const pugi::xml_node rot = axes.child("Rotation")) {
+    for (int r = 1; r <= 3; ++r)
+      for (int c = 1; c <= 3; ++c) {
+        const std::string name{'r', char('0' + r), char('0' + c)};
+        const double v = xml.number(rot, name.c_str(), r == c ? 1.0 : 0.0);
+        if (std::abs(v - (r == c ? 1.0 : 0.0)) > 1e-9)
+          throw InputError(xml.where(rot) + "the axes carry a rotation (" + name + " = " + std::to_string(v) +
+                           "); rotate the data into the sample's frame first (e.g. in Gwyddion) and save it again");
+      }
+  }
 
   const pugi::xml_node record3 = xml.child(root, "Record3");
   const pugi::xml_node dims = xml.child(record3, "MatrixDimension");

@@ -297,6 +297,19 @@ TableDiff diffTables(const BsdfFileReader& a, const BsdfFileReader& b, const std
   return out;
 }
 
+namespace {
+// The energy difference averaged over wavelengths, and the z of largest magnitude.
+double meanEnergyDelta(const ComponentDiff& c, double* zMax) {
+  double dE = 0;
+  *zMax = 0;
+  for (size_t l = 0; l < c.energyZ.size(); ++l) {
+    dE += (c.energyB[l] - c.energyA[l]) / double(c.energyZ.size());
+    if (std::abs(c.energyZ[l]) > std::abs(*zMax)) *zMax = c.energyZ[l];
+  }
+  return dE;
+}
+}  // namespace
+
 bool TableDiff::beyondNoise() const {
   for (const auto& s : slices)
     for (const auto& c : s.components)
@@ -314,11 +327,8 @@ std::string TableDiff::text() const {
     o << fmt::format("θi {:.2f}°, φi {:.2f}°\n", s.theta_deg, s.phi_deg);
     bool any = false;
     for (const auto& c : s.components) {
-      double dE = 0, zMax = 0;
-      for (size_t l = 0; l < c.energyZ.size(); ++l) {
-        dE += (c.energyB[l] - c.energyA[l]) / double(c.energyZ.size());
-        if (std::abs(c.energyZ[l]) > std::abs(zMax)) zMax = c.energyZ[l];
-      }
+      double zMax = 0;
+      const double dE = meanEnergyDelta(c, &zMax);
       const std::string noiseTest =
           c.perSliceErrors
               ? fmt::format("stated noise {:.3g} %", 100 * c.l1Noise)
@@ -352,11 +362,8 @@ std::string TableDiff::csv() const {
        "exact_bins_differing,beyond_noise,delta_e00_reflected,delta_e00_transmitted,max_bin_delta_e00,lobe_shift_deg\n";
   for (const auto& s : slices)
     for (const auto& c : s.components) {
-      double dE = 0, zMax = 0;
-      for (size_t l = 0; l < c.energyZ.size(); ++l) {
-        dE += (c.energyB[l] - c.energyA[l]) / double(c.energyZ.size());
-        if (std::abs(c.energyZ[l]) > std::abs(zMax)) zMax = c.energyZ[l];
-      }
+      double zMax = 0;
+      const double dE = meanEnergyDelta(c, &zMax);
       o << fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", s.theta_deg, s.phi_deg, c.component, dE,
                        zMax, c.l1, c.l1Noise, c.chi2Z, c.binsWithError, c.binsBeyond4, c.deterministicDiffering,
                        c.beyondNoise ? 1 : 0, s.deltaE00Reflected, s.deltaE00Transmitted, s.maxBinDeltaE00,

@@ -112,7 +112,7 @@ def test_readers_malformed():
     for corrupt, phrase in (("xml", "main.xml line 11"), ("missing-bin", "no member 'bindata/data.bin'"),
                             ("short-bin", "need 384"), ("main-md5", "MD5 checksum of main.xml"),
                             ("data-md5", "MD5 checksum of 'bindata/data.bin'"), ("feature", "FeatureType PRF"),
-                            ("axis", "AxisType A")):
+                            ("axis", "AxisType A"), ("rotation", "carry a rotation")):
         write_x3p(f"{corrupt}.x3p", z, 1e-6, 1e-6, corrupt=corrupt)
         expect_error(f"{corrupt}.x3p", phrase)
     with open("notzip.x3p", "wb") as f:
