@@ -289,6 +289,13 @@ Microgeometry withDefects(const Microgeometry& designed, const ParamDict& d, uin
   if (!(f.sidewallAngle_deg > 0 && f.sidewallAngle_deg <= 90)) d.fail("sidewall_angle_deg", "must be in (0, 90]");
   f.edgeRadius_um = d.nonNegative("edge_radius_um", 0.0);
   f.seed = seed;
+  // The raster is meshed: it obeys the generators' triangle limit.
+  if (f.texel_um > 0) {
+    const double triangles = 2 * std::round(designed.sizeX / f.texel_um) * std::round(designed.sizeY / f.texel_um);
+    if (triangles > maxGeneratedTriangles())
+      d.fail("texel_um", fmt::format("a raster of {} µm on the {} x {} µm patch makes {:.3g} triangles; at most {:.3g}",
+                                     f.texel_um, designed.sizeX, designed.sizeY, triangles, maxGeneratedTriangles()));
+  }
   Topography t = rasteriseHeights(designed, f.texel_um, d.where("texel_um"));
   f.texel_um = std::min(t.dx_um, t.dy_um);
   applyFabricationDefects(t, f, d.file() + ": [geometry.defects]");
