@@ -4,15 +4,14 @@
 // XYUnits, heights are in ZUnits; both must be lengths here (m, mm, um/µm, nm), since a height map
 // without units would be scaled by guess. A non-finite value is a point not measured.
 #include <bit>
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <map>
 
 #include "core/error.h"
 #include "geometry/mesh_loader.h"
 #include "geometry/topography.h"
+#include "geometry/topography_header.h"
 
 namespace mbsdf {
 namespace {
@@ -20,11 +19,6 @@ namespace {
 static_assert(std::endian::native == std::endian::little, "the GSF reader assumes a little-endian host");
 
 const std::string kMagic = "Gwyddion Simple Field 1.0\n";
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r");
-  return b == std::string::npos ? std::string() : s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
-}
 
 // A GSF length unit to micrometres; Gwyddion writes "m" for topography.
 double lengthUnit(const std::string& path, const std::string& key, const std::string& unit) {
@@ -45,7 +39,7 @@ Topography readGsf(const std::string& path) {
     throw InputError(path + ": not a GSF file (it must start with the line 'Gwyddion Simple Field 1.0')");
   const size_t nul = bytes.find('\0', kMagic.size());
   if (nul == std::string::npos) throw InputError(path + ": the GSF header is not ended by NUL padding");
-  std::map<std::string, std::pair<std::string, int>> keys;
+  KeyValueHeader keys(path, "GSF");
   int lineNo = 1;
   for (size_t pos = kMagic.size(); pos < nul;) {
     size_t end = bytes.find('\n', pos);
@@ -53,33 +47,16 @@ Topography readGsf(const std::string& path) {
     const std::string line = bytes.substr(pos, end - pos);
     ++lineNo;
     pos = end + 1;
-    if (trim(line).empty()) continue;
-    const auto eq = line.find('=');
-    if (eq == std::string::npos)
-      throw InputError(path + ": line " + std::to_string(lineNo) + ": '" + trim(line) + "' is not 'name = value'");
-    keys[trim(line.substr(0, eq))] = {trim(line.substr(eq + 1)), lineNo};
+    if (!trimmed(line).empty() && !keys.add(line, lineNo))
+      throw InputError(path + ": line " + std::to_string(lineNo) + ": '" + trimmed(line) + "' is not 'name = value'");
   }
-  auto value = [&](const char* name, const char* def) -> std::pair<std::string, int> {
-    const auto it = keys.find(name);
-    if (it != keys.end()) return it->second;
-    if (def) return {def, 0};
-    throw InputError(path + ": the GSF header has no " + name);
-  };
-  auto number = [&](const char* name, const char* def) {
-    const auto [s, line] = value(name, def);
-    double v = 0;
-    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    if (ec != std::errc() || end != s.data() + s.size() || !std::isfinite(v))
-      throw InputError(path + ": line " + std::to_string(line) + ": " + name + " = '" + s + "' is not a number");
-    return v;
-  };
-  const double xres = number("XRes", nullptr), yres = number("YRes", nullptr);
+  const double xres = keys.number("XRes"), yres = keys.number("YRes");
   if (xres != std::floor(xres) || yres != std::floor(yres))
     throw InputError(path + ": XRes and YRes must be whole numbers");
   checkTopographySize(path, int64_t(xres), int64_t(yres));
-  const double xy_um = lengthUnit(path, "XYUnits", value("XYUnits", nullptr).first);
-  const double z_um = lengthUnit(path, "ZUnits", value("ZUnits", nullptr).first);
-  const double xreal = number("XReal", "1.0"), yreal = number("YReal", "1.0");
+  const double xy_um = lengthUnit(path, "XYUnits", keys.text("XYUnits"));
+  const double z_um = lengthUnit(path, "ZUnits", keys.text("ZUnits"));
+  const double xreal = keys.number("XReal", 1.0), yreal = keys.number("YReal", 1.0);
   if (!(xreal > 0 && yreal > 0)) throw InputError(path + ": XReal and YReal must be positive");
 
   Topography t;

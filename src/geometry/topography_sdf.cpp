@@ -7,15 +7,14 @@
 // 2 uint32, 3 float, 4 int8, 5 int16, 6 int32, 7 double. A non-finite value is a point not measured.
 #include <algorithm>
 #include <bit>
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <map>
 #include <sstream>
 
 #include "core/error.h"
 #include "geometry/topography.h"
+#include "geometry/topography_header.h"
 
 namespace mbsdf {
 namespace {
@@ -122,52 +121,36 @@ Topography readBinary(const std::string& path, const std::string& bytes) {
   return t;
 }
 
-template <class T>
-T parseValue(const std::string& path, int line, const std::string& key, const std::string& s) {
-  T v{};
-  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-  if (ec != std::errc() || end != s.data() + s.size())
-    throw InputError(path + ": line " + std::to_string(line) + ": " + key + " = '" + s + "' is not a number");
-  return v;
-}
-
 Topography readText(const std::string& path, const std::string& bytes) {
   std::istringstream in(bytes);
   std::string line;
   std::getline(in, line);  // the version
   int lineNo = 1;
-  std::map<std::string, std::pair<std::string, int>> keys;
+  KeyValueHeader keys(path, "SDF");
   bool ended = false;
   while (std::getline(in, line)) {
     ++lineNo;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.find_first_not_of(" \t") != std::string::npos && line.substr(line.find_first_not_of(" \t"), 1) == "*") {
+    if (trimmed(line).rfind('*', 0) == 0) {
       ended = true;
       break;
     }
-    const auto eq = line.find('=');
-    if (eq == std::string::npos) continue;  // SDF allows free text lines in the header of some writers
-    auto trim = [](std::string s) {
-      const auto b = s.find_first_not_of(" \t");
-      return b == std::string::npos ? std::string() : s.substr(b, s.find_last_not_of(" \t") - b + 1);
-    };
-    keys[trim(line.substr(0, eq))] = {trim(line.substr(eq + 1)), lineNo};
+    keys.add(line, lineNo);  // a line without '=': free text, which some writers put in the header
   }
   if (!ended) throw InputError(path + ": the SDF header does not end with a line '*'");
-  auto key = [&](const char* name) -> std::pair<std::string, int> {
-    const auto it = keys.find(name);
-    if (it == keys.end()) throw InputError(path + ": the SDF header has no " + name);
-    return it->second;
-  };
   SdfHeader h;
-  h.numPoints = parseValue<int64_t>(path, key("NumPoints").second, "NumPoints", key("NumPoints").first);
-  h.numProfiles = parseValue<int64_t>(path, key("NumProfiles").second, "NumProfiles", key("NumProfiles").first);
-  h.xscale = parseValue<double>(path, key("Xscale").second, "Xscale", key("Xscale").first);
-  h.yscale = parseValue<double>(path, key("Yscale").second, "Yscale", key("Yscale").first);
-  h.zscale = parseValue<double>(path, key("Zscale").second, "Zscale", key("Zscale").first);
-  for (auto [name, field] : {std::pair{"Compression", &h.compression}, std::pair{"DataType", &h.dataType},
-                             std::pair{"CheckType", &h.checkType}})
-    if (keys.count(name)) *field = parseValue<int>(path, key(name).second, name, key(name).first);
+  h.numPoints = keys.integer("NumPoints");
+  h.numProfiles = keys.integer("NumProfiles");
+  h.xscale = keys.number("Xscale");
+  h.yscale = keys.number("Yscale");
+  h.zscale = keys.number("Zscale");
+  auto code = [&](const char* name) {  // a small code: no silent wrap-around into range
+    const int64_t v = keys.integer(name, 0);
+    if (v != int64_t(int(v))) throw InputError(path + ": " + name + " = " + std::to_string(v) + " is out of range");
+    return int(v);
+  };
+  h.compression = code("Compression");
+  h.dataType = code("DataType");
+  h.checkType = code("CheckType");
   checkHeader(path, h);
   // Each value takes at least two characters (a digit and a separator): a header promising more
   // values than the text can hold is refused before the grid is allocated.
@@ -184,11 +167,9 @@ Topography readText(const std::string& path, const std::string& bytes) {
     while (words >> token) {
       if (token == "*") break;
       if (k == t.size()) break;
-      double v = 0;
-      const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), v);
-      if (ec != std::errc() || end != token.data() + token.size())
-        throw InputError(path + ": line " + std::to_string(lineNo) + ": '" + token + "' is not a height value");
-      store(t, k++, v, h.zscale);
+      const std::optional<double> v = parseWhole<double>(token);
+      if (!v) throw InputError(path + ": line " + std::to_string(lineNo) + ": '" + token + "' is not a height value");
+      store(t, k++, *v, h.zscale);
     }
     if (token == "*") break;
   }

@@ -11,7 +11,6 @@
 
 #include <algorithm>
 #include <bit>
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -19,6 +18,7 @@
 
 #include "core/error.h"
 #include "geometry/topography.h"
+#include "geometry/topography_header.h"
 
 namespace mbsdf {
 namespace {
@@ -88,13 +88,6 @@ std::string lower(std::string s) {
   return s;
 }
 
-std::string trimmed(const char* s) {
-  std::string t(s);
-  const auto b = t.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return "";
-  return t.substr(b, t.find_last_not_of(" \t\r\n") - b + 1);
-}
-
 // main.xml with the line of each element for messages.
 struct MainXml {
   const std::string& path;
@@ -114,19 +107,15 @@ struct MainXml {
     pugi::xml_node c = n.child(name);
     if (!c && def) return *def;
     const std::string s = text(n, name);
-    double v = 0;
-    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    if (ec != std::errc() || end != s.data() + s.size() || !std::isfinite(v))
-      throw InputError(where(c) + "<" + name + "> is not a number: '" + s + "'");
-    return v;
+    const std::optional<double> v = parseWhole<double>(s);
+    if (!v || !std::isfinite(*v)) throw InputError(where(c) + "<" + name + "> is not a number: '" + s + "'");
+    return *v;
   }
   int64_t count(const pugi::xml_node& n, const char* name) const {
     const std::string s = text(n, name);
-    int64_t v = 0;
-    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    if (ec != std::errc() || end != s.data() + s.size() || v < 0)
-      throw InputError(where(child(n, name)) + "<" + name + "> is not a count: '" + s + "'");
-    return v;
+    const std::optional<int64_t> v = parseWhole<int64_t>(s);
+    if (!v || *v < 0) throw InputError(where(child(n, name)) + "<" + name + "> is not a count: '" + s + "'");
+    return *v;
   }
 };
 
@@ -252,16 +241,14 @@ void readPoints(const MainXml& xml, const X3pArchive& zip, const pugi::xml_node&
       if (k == n)
         throw InputError(xml.where(d) + "more <Datum> than the " + std::to_string(n) + " points of the matrix");
       std::string s = trimmed(d.child_value());
-      if (const auto semi = s.rfind(';'); semi != std::string::npos) s = trimmed(s.substr(semi + 1).c_str());
+      if (const auto semi = s.rfind(';'); semi != std::string::npos) s = trimmed(s.substr(semi + 1));
       if (s.empty()) {
         t.valid[k++] = 0;  // an empty Datum is a point not measured
         continue;
       }
-      double v = 0;
-      const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-      if (ec != std::errc() || end != s.data() + s.size())
-        throw InputError(xml.where(d) + "<Datum> is not a number: '" + s + "'");
-      store(k++, v);
+      const std::optional<double> v = parseWhole<double>(s);
+      if (!v) throw InputError(xml.where(d) + "<Datum> is not a number: '" + s + "'");
+      store(k++, *v);
     }
     if (k != n)
       throw InputError(xml.where(list) + "<DataList> has " + std::to_string(k) + " <Datum>; the matrix has " +
