@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -77,8 +78,22 @@ std::vector<double> energyOf(const SliceStats& s, const std::string& c, bool err
   return out;
 }
 
-ComponentDiff diffComponent(const BsdfFileReader& a, const BsdfFileReader& b, const std::string& c, int inc,
-                            const SliceStats& sa, const SliceStats& sb) {
+// One file's slice of each compared component, read once for the table and the colour comparisons:
+// the values and, where the file keeps them, the per-bin errors (empty otherwise).
+struct ComponentSlice {
+  std::vector<double> f, err;
+};
+using SliceTables = std::map<std::string, ComponentSlice>;
+
+SliceTables readSlice(const BsdfFileReader& file, const std::vector<std::string>& comps, int inc) {
+  SliceTables out;
+  for (const std::string& c : comps)
+    out[c] = {file.slice(c, inc), file.hasBinErrors(c) ? file.sliceStdError(c, inc) : std::vector<double>{}};
+  return out;
+}
+
+ComponentDiff diffComponent(const DirectionGrid& grid, const std::string& c, const ComponentSlice& ta,
+                            const ComponentSlice& tb, const SliceStats& sa, const SliceStats& sb) {
   ComponentDiff d;
   d.component = c;
   d.energyA = energyOf(sa, c, false);
@@ -92,15 +107,9 @@ ComponentDiff diffComponent(const BsdfFileReader& a, const BsdfFileReader& b, co
     d.energyZ.push_back(std::isinf(z) ? std::copysign(1e300, delta) : z);
     energyBeyond = energyBeyond || std::abs(z) > 5;
   }
-  const std::vector<double> fa = a.slice(c, inc), fb = b.slice(c, inc);
-  const DirectionGrid& grid = a.grid();
+  const std::vector<double>&fa = ta.f, &fb = tb.f, &sa2 = ta.err, &sb2 = tb.err;
   const int nB = grid.binCount(), nL = int(fa.size()) / nB;
-  d.perSliceErrors = !a.hasBinErrors(c) || !b.hasBinErrors(c);
-  std::vector<double> sa2, sb2;
-  if (!d.perSliceErrors) {
-    sa2 = a.sliceStdError(c, inc);
-    sb2 = b.sliceStdError(c, inc);
-  }
+  d.perSliceErrors = sa2.empty() || sb2.empty();
   double mass = 0, l1 = 0, noise = 0, chi2 = 0;
   for (int l = 0; l < nL; ++l)
     for (int bin = 0; bin < nB; ++bin) {
@@ -148,19 +157,17 @@ struct BinColours {
   std::vector<double> sigmaY;
 };
 
-BinColours binColours(const BsdfFileReader& f, const std::vector<std::string>& comps, int inc) {
+BinColours binColours(const BsdfFileReader& f, const SliceTables& tables) {
   const DirectionGrid& grid = f.grid();
   const int nB = grid.binCount(), nUp = grid.binsPerHemisphere();
   std::vector<double> total, var;
   bool errors = true;
-  for (const std::string& c : comps) {
-    const std::vector<double> v = f.slice(c, inc);
-    if (total.empty()) total.assign(v.size(), 0.0), var.assign(v.size(), 0.0);
-    for (size_t k = 0; k < v.size(); ++k) total[k] += v[k];
-    errors = errors && f.hasBinErrors(c);
+  for (const auto& [c, t] : tables) {
+    if (total.empty()) total.assign(t.f.size(), 0.0), var.assign(t.f.size(), 0.0);
+    for (size_t k = 0; k < t.f.size(); ++k) total[k] += t.f[k];
+    errors = errors && !t.err.empty();
     if (!errors) continue;
-    const std::vector<double> e = f.sliceStdError(c, inc);
-    for (size_t k = 0; k < e.size(); ++k) var[k] += e[k] * e[k];
+    for (size_t k = 0; k < t.err.size(); ++k) var[k] += t.err[k] * t.err[k];
   }
   const int nL = int(total.size()) / nB;
   const std::optional<SpectrumToColour> d65 =
@@ -214,8 +221,9 @@ std::vector<double> albedoSpectrum(const SliceStats& s, const std::vector<std::s
   return out;
 }
 
-void diffColour(const BsdfFileReader& a, const BsdfFileReader& b, const std::vector<std::string>& comps, int inc,
-                const SliceStats& sa, const SliceStats& sb, SliceDiff& d) {
+void diffColour(const BsdfFileReader& a, const BsdfFileReader& b, const std::vector<std::string>& comps,
+                const SliceTables& ta, const SliceTables& tb, const SliceStats& sa, const SliceStats& sb,
+                SliceDiff& d) {
   const Colour3 white = whitePoint(Illuminant::D65);
   const std::vector<double>& lambda = a.wavelengths_nm();
   const SpectrumToColour conv(lambda, Illuminant::D65);
@@ -237,7 +245,7 @@ void diffColour(const BsdfFileReader& a, const BsdfFileReader& b, const std::vec
     (reflected ? d.deltaE00Reflected : d.deltaE00Transmitted) = deltaE2000(lab(fa), lab(fb));
     (reflected ? d.deltaE00ReflectedNoise : d.deltaE00TransmittedNoise) = noise;
   }
-  const BinColours ca = binColours(a, comps, inc), cb = binColours(b, comps, inc);
+  const BinColours ca = binColours(a, ta), cb = binColours(b, tb);
   const bool errors = !ca.sigmaY.empty() && !cb.sigmaY.empty();
   double peak = 0;
   for (size_t bin = 0; bin < ca.xyz.size(); ++bin) peak = std::max({peak, ca.xyz[bin][1], cb.xyz[bin][1]});
@@ -289,8 +297,9 @@ TableDiff diffTables(const BsdfFileReader& a, const BsdfFileReader& b, const std
     d.theta_deg = a.incidenceTheta(i);
     d.phi_deg = a.incidencePhi(i);
     const SliceStats sa = a.stats(i), sb = b.stats(i);
-    for (const auto& c : common) d.components.push_back(diffComponent(a, b, c, i, sa, sb));
-    if (visible) diffColour(a, b, common, i, sa, sb, d);
+    const SliceTables ta = readSlice(a, common, i), tb = readSlice(b, common, i);
+    for (const auto& c : common) d.components.push_back(diffComponent(a.grid(), c, ta.at(c), tb.at(c), sa, sb));
+    if (visible) diffColour(a, b, common, ta, tb, sa, sb, d);
     out.slices.push_back(std::move(d));
   }
   if (out.slices.empty()) throw InputError(nameA + " and " + nameB + " have no finished slice in common");
