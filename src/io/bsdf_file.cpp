@@ -1249,10 +1249,10 @@ namespace {
 // & Lin (2003, eq. 5) extrapolate; at most the empty bins of the hemispheres the row reaches. The
 // expected number of new bins is filled, in empty bins of those hemispheres chosen by a hash of
 // the bin (the same for every wavelength: the paths are shared), each with what one hit of the
-// job leaves there — the pilot's median one-hit weight, w / (N Ω⊥), σ = f — so that the table is
-// packed as the job's will be; a wave residual over c (`residual`) loses the new value and gains its
-// variance. Bins with a value and no error are deterministic (the facet sum, `exact`): kept as they
-// are.
+// job leaves there — one of the pilot's one-hit weights w, picked by a hash of the bin, as w / (N Ω⊥),
+// σ = f: varied as the job's values are (one value repeated would compress better than they do) —
+// so that the table is packed as the job's will be; a wave residual over c (`residual`) loses the new value and gains
+// its variance. Bins with a value and no error are deterministic (the facet sum, `exact`): kept as they are.
 struct ResidualRows {  // a wave residual's rows (incoherent = WS − coherent, lost = P_msk − geo_masked)
   std::vector<double>& value;
   std::vector<double>& error;
@@ -1305,9 +1305,6 @@ void fillExpectedBins(TileResult& r, Component c, const DirectionGrid& grid, dou
     for (const auto& [hash, b] : order) {
       if (fresh <= 0) break;
       if (value[row + size_t(b)] != 0 || !reaches[grid.isUpper(b) ? 0 : 1]) continue;
-      // A one-hit weight of the pilot's, picked by the bin's hash: the new bins' values vary as the
-      // job's will (one value for all of them compresses better than the job's varied ones: the full
-      // profile's per-bin values and errors were 18 % under the paper ring's stored bytes).
       const double w = oneHitWeights[size_t(hash % oneHitWeights.size())] * pilotPaths / paths;
       value[row + size_t(b)] = w / grid.projectedSolidAngle(b);
       // One hit at the job's budget: σ = f there (toJobErrors scales the pilot's errors to it).

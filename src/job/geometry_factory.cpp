@@ -10,6 +10,7 @@
 #include "geometry/generators.h"
 #include "geometry/mesh_loader.h"
 #include "geometry/topography.h"
+#include "geometry/topography_stats.h"
 
 #include <algorithm>
 #include <cmath>
@@ -257,16 +258,15 @@ struct GeometryReader {
     c.windowFraction = geo.getDouble("window_fraction", 0.1);
     TopographyReport report;
     t = conditionTopography(std::move(t), c, geo.where("file"), &report.conditioning);
-    report.stats = topographyStats(t, false);
     if (report.conditioning.filled)
       spdlog::info("{}: {} of {} points were not measured; filled by Laplace interpolation", file,
                    report.conditioning.filled, t.size());
-    if (c.edges == EdgeTreatment::Wrap && report.stats.seamStands())
+    if (const TopographyStats stats = topographyStats(t, false); c.edges == EdgeTreatment::Wrap && stats.seamStands())
       spdlog::warn(
           "{}: the patch's opposite edges do not meet (steps across the wrap {:.3g} x and {:.3g} x the "
           "inside ones in x and y); they scatter as a ridge. [geometry] edges = \"mirror\" or \"window\" "
           "makes the patch continuous",
-          file, report.stats.seamRatioX, report.stats.seamRatioY);
+          file, stats.seamRatioX, stats.seamRatioY);
     Microgeometry g = heightfieldMesh(t.z_um, t.nx, t.ny, t.dx_um * t.nx, t.dy_um * t.ny);
     g.description = "heightfield " + file;
     if (topographyOut) {
@@ -302,10 +302,7 @@ Microgeometry withDefects(const Microgeometry& designed, const ParamDict& d, uin
   Microgeometry g = heightfieldMesh(t.z_um, t.nx, t.ny, t.dx_um * t.nx, t.dy_um * t.ny);
   g.description = designed.description + ", as produced: " + f.describe();
   spdlog::info("{}: [geometry.defects] {}", d.file(), f.describe());
-  if (topographyOut) {
-    topographyOut->heights = std::make_shared<const Topography>(std::move(t));
-    topographyOut->stats = topographyStats(*topographyOut->heights, false);
-  }
+  if (topographyOut) topographyOut->heights = std::make_shared<const Topography>(std::move(t));
   return g;
 }
 
@@ -357,7 +354,6 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
         auto t = std::make_shared<Topography>(*topographyOut->heights);
         t->z_um = grid->h;
         topographyOut->heights = t;
-        topographyOut->stats = topographyStats(*t, false);
       }
   }
   if (size_t removed = g.removeDegenerate())

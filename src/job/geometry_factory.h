@@ -6,7 +6,6 @@
 
 #include "geometry/microgeometry.h"
 #include "geometry/topography_conditioning.h"
-#include "geometry/topography_stats.h"
 #include "job/params.h"
 
 namespace mbsdf {
@@ -15,12 +14,10 @@ namespace mbsdf {
 std::string resolvePath(const std::string& base, const std::string& file);
 
 // What a heightfield geometry (or a surface with fabrication defects) was made from: the grid that
-// was meshed, how a measured one was conditioned, its texture parameters (without Sal, which
-// `check` adds).
+// was meshed and how a measured one was conditioned (`check` computes its texture parameters).
 struct TopographyReport {
   std::shared_ptr<const Topography> heights;
   ConditioningReport conditioning;
-  TopographyStats stats;
 };
 
 Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDir, std::string* kindOut,
