@@ -5,7 +5,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <map>
+#include <unordered_map>
 
 #include "core/stop.h"
 #include "optics/fresnel.h"
@@ -55,7 +55,20 @@ FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const Perio
   // Facets in one plane orientation reflect (and refract) into the same direction: where no ray is
   // needed they are one term (a grating's texels, a flat patch's two triangles, a V-groove's faces).
   // Normals equal to 1e-12 are one orientation (a direction error of 1e-12 rad).
-  std::map<std::array<long long, 3>, size_t> index;
+  struct KeyHash {
+    size_t operator()(const std::array<long long, 3>& k) const {
+      uint64_t h = 0x9E3779B97F4A7C15ull;
+      for (long long c : k) h = (h ^ uint64_t(c)) * 0xBF58476D1CE4E5B9ull;
+      return size_t(h ^ (h >> 31));
+    }
+  };
+  // A hash map, not a tree: a random heightfield's 10^5–10^6 facets are as many orientations.
+  std::unordered_map<std::array<long long, 3>, size_t, KeyHash> index;
+  index.reserve(g.triangles.size());
+  // Two passes: each facet's plane (and the planes' areas, summed in facet order), then the planes'
+  // facet lists laid end to end in facet order.
+  std::vector<uint32_t> planeOf(g.triangles.size(), UINT32_MAX);
+  std::vector<double> halfArea(g.triangles.size(), 0.0);
   for (size_t t = 0; t < g.triangles.size(); ++t) {
     const Vec3 N = g.triangleNormal(t);
     const double len = length(N);
@@ -63,11 +76,26 @@ FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const Perio
     const Vec3 n = N * (1.0 / len);
     const std::array<long long, 3> key{std::llround(n.x * 1e12), std::llround(n.y * 1e12), std::llround(n.z * 1e12)};
     auto [it, added] = index.emplace(key, planes_.size());
-    if (added) planes_.push_back(Plane{n, 0.0, {}, {}});
+    if (added) planes_.push_back(Plane{n, 0.0, 0, 0});
     Plane& p = planes_[it->second];
-    p.area += 0.5 * len;
-    p.facets.push_back(uint32_t(t));
-    p.facetArea.push_back(0.5 * len);
+    halfArea[t] = 0.5 * len;
+    p.area += halfArea[t];
+    ++p.count;
+    planeOf[t] = uint32_t(it->second);
+  }
+  std::vector<size_t> next(planes_.size());
+  for (size_t i = 0, first = 0; i < planes_.size(); ++i) {
+    planes_[i].first = first;
+    next[i] = first;
+    first += planes_[i].count;
+  }
+  planeFacets_.resize(g.triangles.size());
+  planeFacetArea_.resize(g.triangles.size());
+  for (size_t t = 0; t < g.triangles.size(); ++t) {
+    if (planeOf[t] == UINT32_MAX) continue;
+    const size_t k = next[planeOf[t]]++;
+    planeFacets_[k] = uint32_t(t);
+    planeFacetArea_[k] = halfArea[t];
   }
   facets_ = g.triangles.size();
   footprint_ = g.sizeX * g.sizeY;
@@ -126,9 +154,8 @@ FacetSingleScattering::Cost FacetSingleScattering::cost(int incidenceBin, const 
         if (dot(wi.w, side) <= 0) continue;
         const Vec3 rf = reflect(wi.w, side);
         // A reflection into the other half-space is blocked on a periodic surface: no ray.
-        if ((rf.z >= 0) == fromAbove && !(litClear && slope_.clear(rf)))
-          c.rays += perFacet * nDir * double(p.facets.size());
-        if (dielectric && !litClear) c.rays += perFacet * nDir * double(p.facets.size());  // the refracted side
+        if ((rf.z >= 0) == fromAbove && !(litClear && slope_.clear(rf))) c.rays += perFacet * nDir * double(p.count);
+        if (dielectric && !litClear) c.rays += perFacet * nDir * double(p.count);  // the refracted side
       }
       if (c.rays > stopAbove) return c;  // the caller only needs to know the budget is exceeded
     }
@@ -215,8 +242,8 @@ void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::ve
             return v;
           }
           const bool dClear = slope_.clear(d);
-          for (size_t q = 0; q < p.facets.size(); ++q) {
-            const uint32_t t = p.facets[q];
+          for (size_t q = p.first; q < p.first + p.count; ++q) {
+            const uint32_t t = planeFacets_[q];
             auto test = [&](const Vec3& x) {
               if (!litClear) {
                 ++nRays;
@@ -228,7 +255,7 @@ void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::ve
             };
             const auto& tri = g_.triangles[t];
             double u = 0;
-            const double share = p.facetArea[q] / p.area;
+            const double share = planeFacetArea_[q] / p.area;
             v.f += share * visibleFraction(g_.vertices[tri[0]], g_.vertices[tri[1]], g_.vertices[tri[2]], test,
                                            kVisibilityDepth, &u);
             v.u += share * u;

@@ -96,10 +96,11 @@ class FacetSingleScattering : public GeometricEstimator {
   struct Plane {
     Vec3 n;  // unit, into the upper medium
     double area;
-    std::vector<uint32_t> facets;
-    std::vector<double> facetArea;
+    size_t first, count;  // its facets: planeFacets_[first … first + count)
   };
-  std::vector<Plane> planes_;  // the facets grouped by orientation
+  std::vector<Plane> planes_;           // the facets grouped by orientation
+  std::vector<uint32_t> planeFacets_;   // every plane's facets, plane after plane, in mesh order
+  std::vector<double> planeFacetArea_;  // and their areas
   size_t facets_ = 0;
   double footprint_;
   SlopeBound slope_;

@@ -1,6 +1,10 @@
 #include "core/direction_grid.h"
 
 #include <gtest/gtest.h>
+#include <tbb/parallel_for.h>
+
+#include <memory>
+#include <vector>
 
 #include "core/rng.h"
 
@@ -29,6 +33,27 @@ TEST(DirectionGrid, DiskMeasuresSumToSphere) {
   EXPECT_NEAR(om, 4 * kPi, 0.02);  // rim pixels: 1/cos singularity, midpoint quadrature
   // Interior pixel: projected solid angle is the pixel area 4/(WH) (Falster et al. 2020, Eq. 11).
   EXPECT_NEAR(g.projectedSolidAngle(g.binOf({0.01, 0.01, 1})), 4.0 / (64 * 64), 1e-12);
+}
+
+// A disk grid's measures are computed once per size and process and shared: grids built at once
+// from many TBB tasks (the lock is taken inside a task) are all equal, with the measures'
+// symmetries of the disk (the rim pixels are computed alone, each by its own quadrature).
+TEST(DirectionGrid, DiskMeasuresSharedAcrossThreadsAndSymmetric) {
+  const DiskGrid layout{37, 21};
+  std::vector<std::unique_ptr<DirectionGrid>> grids(16);
+  tbb::parallel_for(0, 16, [&](int i) { grids[size_t(i)] = std::make_unique<DirectionGrid>(layout); });
+  const DirectionGrid& g0 = *grids[0];
+  for (const auto& g : grids)
+    for (int b = 0; b < g0.binCount(); ++b) {
+      ASSERT_EQ(g->solidAngle(b), g0.solidAngle(b));
+      ASSERT_EQ(g->projectedSolidAngle(b), g0.projectedSolidAngle(b));
+    }
+  for (int j = 0; j < layout.height; ++j)
+    for (int i = 0; i < layout.width; ++i) {
+      const int b = j * layout.width + i, mirrored = (layout.height - 1 - j) * layout.width + (layout.width - 1 - i);
+      EXPECT_NEAR(g0.projectedSolidAngle(b), g0.projectedSolidAngle(mirrored), 1e-12);
+      EXPECT_NEAR(g0.solidAngle(b), g0.solidAngle(mirrored), 1e-9 + 1e-6 * g0.solidAngle(b));
+    }
 }
 
 TEST(DirectionGrid, CentresAndSamplesFallInTheirBins) {
