@@ -320,6 +320,7 @@ BENCHMARK(BM_GratingPathTile)->Unit(benchmark::kMillisecond)->UseRealTime()->Ite
 namespace mbsdf {
 void printWriterSummary();  // bench_writer.cpp
 void printReadSummary();    // bench_writer.cpp
+void printWalkSummary();    // bench_walk.cpp
 }  // namespace mbsdf
 
 int main(int argc, char** argv) {
@@ -328,6 +329,7 @@ int main(int argc, char** argv) {
   benchmark::Shutdown();
   mbsdf::printWriterSummary();
   mbsdf::printReadSummary();
+  mbsdf::printWalkSummary();
   if (gOurs > 0 && gRaw > 0)
     std::printf("\npath tracer: %.3g rays/s   raw rtcIntersect1: %.3g rays/s   ratio: %.2f (target >= 0.6)\n", gOurs,
                 gRaw, gOurs / gRaw);

@@ -11,6 +11,9 @@ MicroflakeWalk::MicroflakeWalk(const MicroflakeDistribution& dist, const Materia
                                std::vector<double> lambda_um, const DirectionGrid& grid, MicroflakeSettings settings)
     : dist_(dist), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid), settings_(settings) {
   for (double l : lambda_um_) ior_.push_back(material_.isPerfectConductor() ? Complex(0, 0) : material_.ior(l));
+  // A conductor's reflectance per wavelength from a table in cos θ (optics/fresnel_table.h).
+  if (material_.isConductor() && !material_.isPerfectConductor())
+    for (const Complex& n2 : ior_) fresnel_.emplace_back(material_.outsideIor, n2);
   const bool specularDielectric = settings_.flakes == FlakeKind::Specular && !material_.isConductor();
   if (specularDielectric && !dist_.isHeightfield())
     throw std::invalid_argument(
@@ -102,7 +105,7 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
       d = normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) + *m * safeSqrt(1 - u1));
     } else if (conductor) {
       if (!perfect)
-        for (size_t k = 0; k < nl; ++k) wp[k] *= fresnelReflectance(cosM, n1, ior_[lambdas[k]]);
+        for (size_t k = 0; k < nl; ++k) wp[k] *= fresnel_[size_t(lambdas[k])](cosM);
       d = normalize(reflect(v, *m));
     } else {
       const double etaI = upper ? n1 : n2, etaT = upper ? n2 : n1;

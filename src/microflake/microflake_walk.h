@@ -25,6 +25,7 @@
 
 #include "core/direction_grid.h"
 #include "microflake/ndf.h"
+#include "optics/fresnel_table.h"
 #include "optics/material.h"
 #include "scattering/geometric_estimator.h"
 #include "scattering/path_tally.h"
@@ -68,6 +69,7 @@ class MicroflakeWalk : public GeometricEstimator {
   const Material& material_;
   std::vector<double> lambda_um_;
   std::vector<Complex> ior_;
+  std::vector<ConductorFresnelTable> fresnel_;  // conductor: per wavelength
   std::vector<std::vector<int>> groups_;
   const DirectionGrid& grid_;
   MicroflakeSettings settings_;

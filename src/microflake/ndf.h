@@ -15,9 +15,10 @@
 // The medium (density 1, z ≤ 0) has the extinction σ(d) = ∫ ⟨−d, m⟩ D(m) dm for travel direction d
 // (Dupuy et al. 2016, Eq. 4); for heightfield NDFs σ = Λ(d) d_z upward and (1 + Λ(−d)) |d_z| downward (Eqs. 18–19),
 // in closed form; for the vMF family from a numeric table. Collisions pick a visible normal with
-// density ⟨−d, m⟩ D(m) / σ(d) (Eq. 6), sampled exactly (slope-space rejection for heightfields,
-// vMF proposal with rejection for the sphere family; both have bounded expected cost because the
-// rare directions with small σ are also rarely collided with).
+// density ⟨−d, m⟩ D(m) / σ(d) (Eq. 6), sampled exactly: GGX in closed form by spherical caps (Dupuy &
+// Benyoub 2023), Beckmann by slope-space rejection, the sphere family by a vMF proposal with
+// rejection; the rejections have bounded expected cost because the rare directions with small σ
+// are also rarely collided with.
 #pragma once
 #include <optional>
 #include <string>

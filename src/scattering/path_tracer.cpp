@@ -10,6 +10,9 @@ PathTracer::PathTracer(const PeriodicScene& scene, const Material& material, std
                        const DirectionGrid& grid, PathTracerSettings settings)
     : scene_(scene), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid), settings_(settings) {
   for (double l : lambda_um_) ior_.push_back(material_.isPerfectConductor() ? Complex(0, 0) : material_.ior(l));
+  // A conductor's reflectance per wavelength from a table in cos θ (optics/fresnel_table.h).
+  if (material_.isConductor() && !material_.isPerfectConductor())
+    for (const Complex& n2 : ior_) fresnel_.emplace_back(material_.outsideIor, n2);
   groups_ = wavelengthGroups(int(lambda_um_.size()), material_.directionsIndependentOfLambda());
 }
 
@@ -87,7 +90,7 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
       double absCos = std::min(1.0, std::abs(cosi));
       if (conductor) {
         if (!perfect)
-          for (size_t k = 0; k < nl; ++k) wp[k] *= fresnelReflectance(absCos, n1, ior_[lambdas[k]]);
+          for (size_t k = 0; k < nl; ++k) wp[k] *= fresnel_[size_t(lambdas[k])](absCos);
         d = reflect(wo, nl_);
       } else {
         // Real dielectric (the imaginary part, if any, is ignored by the geometric tracer).

@@ -23,6 +23,7 @@
 
 #include "core/direction_grid.h"
 #include "geometry/embree_scene.h"
+#include "optics/fresnel_table.h"
 #include "optics/material.h"
 #include "scattering/components.h"
 #include "scattering/geometric_estimator.h"
@@ -67,8 +68,9 @@ class PathTracer : public GeometricEstimator {
   const PeriodicScene& scene_;
   const Material& material_;
   std::vector<double> lambda_um_;
-  std::vector<Complex> ior_;              // lower-medium index per wavelength
-  std::vector<std::vector<int>> groups_;  // wavelengths that share one path
+  std::vector<Complex> ior_;                    // lower-medium index per wavelength
+  std::vector<ConductorFresnelTable> fresnel_;  // conductor: per wavelength
+  std::vector<std::vector<int>> groups_;        // wavelengths that share one path
   const DirectionGrid& grid_;
   PathTracerSettings settings_;
 };

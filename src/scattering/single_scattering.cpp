@@ -99,17 +99,9 @@ FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const Perio
   }
   facets_ = g.triangles.size();
   footprint_ = g.sizeX * g.sizeY;
-  // A conductor's reflectance per wavelength, tabulated in cos θ: the complex square root and
-  // division of each Fresnel evaluation were a third of the sum's time. Linear interpolation on
-  // kFresnelTable intervals is off by at most h²/8 max|F''| (below 1e-6 for metals in the visible;
-  // a dielectric's critical angle has an infinite slope, so dielectrics are evaluated exactly).
+  // A conductor's reflectance per wavelength, tabulated in cos θ (optics/fresnel_table.h).
   if (material_.isConductor() && !material_.isPerfectConductor())
-    for (const Complex& n2 : ior_) {
-      std::vector<double> f(kFresnelTable + 1);
-      for (int i = 0; i <= kFresnelTable; ++i)
-        f[size_t(i)] = fresnelReflectance(double(i) / kFresnelTable, material_.outsideIor, n2);
-      fresnel_.push_back(std::move(f));
-    }
+    for (const Complex& n2 : ior_) fresnel_.emplace_back(material_.outsideIor, n2);
   slope_ = SlopeBound::of(g);
 }
 
@@ -271,12 +263,7 @@ void FacetSingleScattering::sum(const Rule& r, std::vector<double>& out, std::ve
           if (binR < 0) continue;
           for (int l = 0; l < nL; ++l) {
             double F = 1.0;
-            if (!perfect) {
-              const double x = cosLocal * kFresnelTable;
-              const int i = std::min(int(x), kFresnelTable - 1);
-              const std::vector<double>& tab = fresnel_[size_t(l)];
-              F = tab[size_t(i)] + (x - i) * (tab[size_t(i) + 1] - tab[size_t(i)]);
-            }
+            if (!perfect) F = fresnel_[size_t(l)](cosLocal);
             acc[size_t(l) * nB + binR] += power * F * vr.f;
             accU[size_t(l) * nB + binR] += power * F * vr.u;
           }

@@ -38,6 +38,7 @@
 #include "core/direction_grid.h"
 #include "geometry/embree_scene.h"
 #include "geometry/microgeometry.h"
+#include "optics/fresnel_table.h"
 #include "optics/material.h"
 #include "scattering/geometric_estimator.h"
 #include "scattering/tile_result.h"
@@ -104,8 +105,7 @@ class FacetSingleScattering : public GeometricEstimator {
   size_t facets_ = 0;
   double footprint_;
   SlopeBound slope_;
-  static constexpr int kFresnelTable = 4096;
-  std::vector<std::vector<double>> fresnel_;  // conductor: [λ][i] = F(i / kFresnelTable)
+  std::vector<ConductorFresnelTable> fresnel_;  // conductor: per wavelength
 };
 
 }  // namespace mbsdf

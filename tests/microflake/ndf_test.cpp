@@ -40,6 +40,8 @@ std::vector<std::pair<std::string, Ndf>> ndfs() {
           {"ggx0.8", GgxNdf{0.8, 0.8}},
           {"ggxAniso", GgxNdf{0.6, 0.25}},
           {"vmf0", VonMisesFisherNdf{0.0}},
+          {"vmf0.05", VonMisesFisherNdf{0.05}},
+          {"vmf0.45", VonMisesFisherNdf{0.45}},
           {"vmf3", VonMisesFisherNdf{3.0}},
           {"vmf40", VonMisesFisherNdf{40.0}}};
 }

@@ -1,0 +1,9 @@
+#include "optics/fresnel_table.h"
+
+namespace mbsdf {
+
+ConductorFresnelTable::ConductorFresnelTable(double n1, Complex n2) : f_(size_t(kIntervals) + 1) {
+  for (int i = 0; i <= kIntervals; ++i) f_[size_t(i)] = fresnelReflectance(double(i) / kIntervals, n1, n2);
+}
+
+}  // namespace mbsdf
