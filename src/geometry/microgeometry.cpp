@@ -5,7 +5,6 @@
 #include <fstream>
 #include <limits>
 #include <algorithm>
-#include <map>
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
@@ -221,23 +220,33 @@ SurfaceClosure surfaceClosureOf(const Microgeometry& g) {
   const double footprint = g.sizeX * g.sizeY;
   c.uncoveredFraction = footprint > 0 ? 1.0 - std::abs(signedArea) / footprint : 0.0;
   if (std::abs(c.uncoveredFraction) < 1e-9) c.uncoveredFraction = 0;
-  // Vertices matched by quantised position (meshes may repeat vertices per face).
+  // Vertices matched by quantised position (meshes may repeat vertices per face), and each edge's
+  // count of triangles, both by sorting: maps allocated a node per vertex and per edge (0.15 s on
+  // a 512² heightfield).
   const double tol = 1e-7 * std::max({g.sizeX, g.sizeY, 1e-3});
-  std::map<std::array<long long, 3>, uint32_t> ids;
-  std::vector<uint32_t> id(g.vertices.size());
+  std::vector<std::pair<std::array<long long, 3>, uint32_t>> byPosition(g.vertices.size());
   for (size_t v = 0; v < g.vertices.size(); ++v) {
     const Vec3& p = g.vertices[v];
-    const std::array<long long, 3> key{std::llround(p.x / tol), std::llround(p.y / tol), std::llround(p.z / tol)};
-    id[v] = ids.emplace(key, uint32_t(ids.size())).first->second;
+    byPosition[v] = {{std::llround(p.x / tol), std::llround(p.y / tol), std::llround(p.z / tol)}, uint32_t(v)};
   }
-  std::map<std::pair<uint32_t, uint32_t>, std::pair<int, std::pair<uint32_t, uint32_t>>> edges;
+  std::sort(byPosition.begin(), byPosition.end());
+  std::vector<uint32_t> id(g.vertices.size());
+  for (size_t i = 0; i < byPosition.size(); ++i)
+    id[byPosition[i].second] =
+        i > 0 && byPosition[i].first == byPosition[i - 1].first ? id[byPosition[i - 1].second] : uint32_t(i);
+  struct Edge {
+    uint64_t key;  // the two position ids, smaller first
+    uint32_t a, b;
+  };
+  std::vector<Edge> edges;
+  edges.reserve(3 * g.triangles.size());
   for (const auto& tri : g.triangles)
     for (int k = 0; k < 3; ++k) {
       const uint32_t a = tri[size_t(k)], b = tri[size_t((k + 1) % 3)];
-      auto& e = edges[std::minmax(id[a], id[b])];
-      ++e.first;
-      e.second = {a, b};
+      const auto [lo, hi] = std::minmax(id[a], id[b]);
+      edges.push_back({(uint64_t(lo) << 32) | hi, a, b});
     }
+  std::sort(edges.begin(), edges.end(), [](const Edge& x, const Edge& y) { return x.key < y.key; });
   double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
   for (size_t v = 0; v < g.vertices.size(); ++v)
     if (used[v]) {
@@ -249,9 +258,11 @@ SurfaceClosure surfaceClosureOf(const Microgeometry& g) {
     auto both = [&](double u, double v, double edge) { return std::abs(u - edge) < btol && std::abs(v - edge) < btol; };
     return both(a.x, b.x, x0) || both(a.x, b.x, x1) || both(a.y, b.y, y0) || both(a.y, b.y, y1);
   };
-  for (const auto& [key, e] : edges)
-    if (e.first == 1 && !(g.periodic && onBorder(g.vertices[e.second.first], g.vertices[e.second.second])))
-      ++c.openEdges;
+  for (size_t i = 0; i < edges.size(); ++i) {
+    const bool alone =
+        (i == 0 || edges[i - 1].key != edges[i].key) && (i + 1 == edges.size() || edges[i + 1].key != edges[i].key);
+    if (alone && !(g.periodic && onBorder(g.vertices[edges[i].a], g.vertices[edges[i].b]))) ++c.openEdges;
+  }
   return c;
 }
 

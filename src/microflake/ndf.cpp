@@ -244,20 +244,25 @@ std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler
     const double cphi = r > 0 ? vx / r : 1.0, sphi = r > 0 ? vy / r : 0.0;
     // Envelope |v_z| + r|s∥|: a mixture of P2 and |s|P2 (E|s| = 1/√π for Beckmann).
     const double pFirst = std::abs(v.z) / (std::abs(v.z) + r / kSqrtPi);
-    double sPar = 0;
+    // s⊥ ~ N(0, 1/2) independent of s∥: when s∥ came from P2 by Box–Muller, the pair's other
+    // deviate is one (acceptance looks at s∥ and u3 only), which saves a logarithm and a cosine.
+    double sPar = 0, sPerp = std::numeric_limits<double>::quiet_NaN();
     for (int tries = 0;; ++tries) {
       if (tries == kMaxRejections) return std::nullopt;
       const double u0 = s.get1D(), u1 = s.get1D(), u2 = s.get1D(), u3 = s.get1D();
       if (u0 < pFirst) {
-        sPar = standardNormal(u1, u2) / std::sqrt(2.0);
+        const double radius = std::sqrt(-std::log1p(-u1)), phi = 2 * kPi * u2;  // N(0, 1/2) pair
+        sPar = radius * std::cos(phi);
+        sPerp = radius * std::sin(phi);
       } else {
         const double a = std::sqrt(-std::log1p(-u1));
         sPar = u2 < 0.5 ? a : -a;
+        sPerp = std::numeric_limits<double>::quiet_NaN();
       }
       const double wgt = v.z - r * sPar;
       if (wgt > 0 && u3 * (std::abs(v.z) + r * std::abs(sPar)) < wgt) break;
     }
-    const double sPerp = standardNormal(s.get1D(), s.get1D()) / std::sqrt(2.0);
+    if (std::isnan(sPerp)) sPerp = standardNormal(s.get1D(), s.get1D()) / std::sqrt(2.0);
     const double sx = ax * (cphi * sPar - sphi * sPerp), sy = ay * (sphi * sPar + cphi * sPerp);
     return normalize(Vec3{-sx, -sy, 1.0});
   };

@@ -2,10 +2,10 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <unordered_map>
 
 #include "core/stop.h"
 #include "optics/fresnel.h"
@@ -55,47 +55,45 @@ FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const Perio
   // Facets in one plane orientation reflect (and refract) into the same direction: where no ray is
   // needed they are one term (a grating's texels, a flat patch's two triangles, a V-groove's faces).
   // Normals equal to 1e-12 are one orientation (a direction error of 1e-12 rad).
-  struct KeyHash {
-    size_t operator()(const std::array<long long, 3>& k) const {
-      uint64_t h = 0x9E3779B97F4A7C15ull;
-      for (long long c : k) h = (h ^ uint64_t(c)) * 0xBF58476D1CE4E5B9ull;
-      return size_t(h ^ (h >> 31));
-    }
+  // Grouped by sorting, not by a map: a random heightfield's 10^5–10^6 facets are as many
+  // orientations, and a tree or node-based hash map allocated one node each (0.5 s for 524 k).
+  // The planes keep the order of their first facet and list their facets in mesh order, so the
+  // sums run in the order the facets come.
+  struct Keyed {
+    std::array<long long, 3> key;
+    uint32_t t;
   };
-  // A hash map, not a tree: a random heightfield's 10^5–10^6 facets are as many orientations.
-  std::unordered_map<std::array<long long, 3>, size_t, KeyHash> index;
-  index.reserve(g.triangles.size());
-  // Two passes: each facet's plane (and the planes' areas, summed in facet order), then the planes'
-  // facet lists laid end to end in facet order.
-  std::vector<uint32_t> planeOf(g.triangles.size(), UINT32_MAX);
+  std::vector<Keyed> keyed;
+  keyed.reserve(g.triangles.size());
   std::vector<double> halfArea(g.triangles.size(), 0.0);
   for (size_t t = 0; t < g.triangles.size(); ++t) {
     const Vec3 N = g.triangleNormal(t);
     const double len = length(N);
     if (!(len > 0)) continue;  // degenerate: no area, no light
     const Vec3 n = N * (1.0 / len);
-    const std::array<long long, 3> key{std::llround(n.x * 1e12), std::llround(n.y * 1e12), std::llround(n.z * 1e12)};
-    auto [it, added] = index.emplace(key, planes_.size());
-    if (added) planes_.push_back(Plane{n, 0.0, 0, 0});
-    Plane& p = planes_[it->second];
+    keyed.push_back({{std::llround(n.x * 1e12), std::llround(n.y * 1e12), std::llround(n.z * 1e12)}, uint32_t(t)});
     halfArea[t] = 0.5 * len;
-    p.area += halfArea[t];
-    ++p.count;
-    planeOf[t] = uint32_t(it->second);
   }
-  std::vector<size_t> next(planes_.size());
-  for (size_t i = 0, first = 0; i < planes_.size(); ++i) {
-    planes_[i].first = first;
-    next[i] = first;
-    first += planes_[i].count;
-  }
-  planeFacets_.resize(g.triangles.size());
-  planeFacetArea_.resize(g.triangles.size());
-  for (size_t t = 0; t < g.triangles.size(); ++t) {
-    if (planeOf[t] == UINT32_MAX) continue;
-    const size_t k = next[planeOf[t]]++;
-    planeFacets_[k] = uint32_t(t);
-    planeFacetArea_[k] = halfArea[t];
+  std::sort(keyed.begin(), keyed.end(),
+            [](const Keyed& x, const Keyed& y) { return x.key != y.key ? x.key < y.key : x.t < y.t; });
+  std::vector<std::pair<uint32_t, size_t>> groups;  // (first facet, where its run starts in keyed)
+  for (size_t i = 0; i < keyed.size(); ++i)
+    if (i == 0 || keyed[i].key != keyed[i - 1].key) groups.emplace_back(keyed[i].t, i);
+  std::sort(groups.begin(), groups.end());
+  planes_.reserve(groups.size());
+  planeFacets_.resize(keyed.size());
+  planeFacetArea_.resize(keyed.size());
+  size_t k = 0;
+  for (const auto& [t0, start] : groups) {
+    const Vec3 N = g.triangleNormal(t0);
+    Plane p{N * (1.0 / length(N)), 0.0, k, 0};
+    for (size_t i = start; i < keyed.size() && keyed[i].key == keyed[start].key; ++i, ++k, ++p.count) {
+      const uint32_t t = keyed[i].t;
+      p.area += halfArea[t];
+      planeFacets_[k] = t;
+      planeFacetArea_[k] = halfArea[t];
+    }
+    planes_.push_back(p);
   }
   facets_ = g.triangles.size();
   footprint_ = g.sizeX * g.sizeY;
