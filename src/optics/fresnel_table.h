@@ -17,9 +17,10 @@ class ConductorFresnelTable {
  public:
   static constexpr int kIntervals = 4096;
   ConductorFresnelTable(double n1, Complex n2);
-  // cosTheta_i in [0, 1].
+  // cosTheta_i in [0, 1]; anything else (a rounding past 1, or a NaN) is clamped into it, so that
+  // the index can never leave the table.
   double operator()(double cosTheta_i) const {
-    const double x = cosTheta_i * kIntervals;
+    const double x = (cosTheta_i > 0 ? std::min(cosTheta_i, 1.0) : 0.0) * kIntervals;
     const int i = std::min(int(x), kIntervals - 1);
     return f_[size_t(i)] + (x - i) * (f_[size_t(i) + 1] - f_[size_t(i)]);
   }

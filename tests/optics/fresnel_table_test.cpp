@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "optics/material.h"
 
@@ -34,4 +35,15 @@ TEST(ConductorFresnelTable, WithinOneMillionthOfTheExactReflectanceOverTheVisibl
     }
   }
   EXPECT_GE(conductors, 4);
+}
+
+// Out of [0, 1] (rounding, or a NaN from upstream) the index stays inside the table.
+TEST(ConductorFresnelTable, ClampsItsArgument) {
+  Material al;
+  ASSERT_TRUE(builtinMaterial("Al", &al));
+  const ConductorFresnelTable table(al.outsideIor, al.ior(0.55));
+  EXPECT_EQ(table(1.0 + 1e-12), table(1.0));
+  EXPECT_EQ(table(-1e-12), table(0.0));
+  EXPECT_EQ(table(std::nan("")), table(0.0));
+  EXPECT_EQ(table(std::numeric_limits<double>::infinity()), table(1.0));
 }
