@@ -105,8 +105,8 @@ void printWalkSummary() {
   for (const WalkFigures& f : gWalk) any = any || f.pathsPerSecondPerThread > 0;
   if (!any) return;
   std::printf(
-      "\nmicroflake walk, per thread (parts measured on one thread in the same run; per path: "
-      "collisions x (free path + visible normal + Fresnel) + exit bin + ~5 random numbers per collision)\n");
+      "\nmicroflake walk, per thread (parts measured on one thread in the same run, each with its own random "
+      "numbers; parts/path = collisions x (free path + visible normal + Fresnel) + exit flight + exit bin)\n");
   std::printf("%-28s %12s %10s %9s %9s %9s %9s %9s %12s\n", "case", "paths/s/thr", "coll/path", "rng ns", "flight ns",
               "vndf ns", "bin ns", "fres ns", "parts/path");
   for (size_t c = 0; c < gWalk.size(); ++c) {

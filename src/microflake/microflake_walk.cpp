@@ -11,9 +11,7 @@ MicroflakeWalk::MicroflakeWalk(const MicroflakeDistribution& dist, const Materia
                                std::vector<double> lambda_um, const DirectionGrid& grid, MicroflakeSettings settings)
     : dist_(dist), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid), settings_(settings) {
   for (double l : lambda_um_) ior_.push_back(material_.isPerfectConductor() ? Complex(0, 0) : material_.ior(l));
-  // A conductor's reflectance per wavelength from a table in cos θ (optics/fresnel_table.h).
-  if (material_.isConductor() && !material_.isPerfectConductor())
-    for (const Complex& n2 : ior_) fresnel_.emplace_back(material_.outsideIor, n2);
+  fresnel_ = conductorFresnelTables(material_, ior_);  // optics/fresnel_table.h
   const bool specularDielectric = settings_.flakes == FlakeKind::Specular && !material_.isConductor();
   if (specularDielectric && !dist_.isHeightfield())
     throw std::invalid_argument(

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "optics/fresnel.h"
+#include "optics/material.h"
 
 namespace mbsdf {
 
@@ -28,5 +29,9 @@ class ConductorFresnelTable {
  private:
   std::vector<double> f_;
 };
+
+// One table per wavelength for a conductor that is not perfect (ior: the lower medium's index per
+// wavelength); empty otherwise (perfect conductors reflect 1, dielectrics are evaluated exactly).
+std::vector<ConductorFresnelTable> conductorFresnelTables(const Material& material, const std::vector<Complex>& ior);
 
 }  // namespace mbsdf

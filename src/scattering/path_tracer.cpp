@@ -10,9 +10,7 @@ PathTracer::PathTracer(const PeriodicScene& scene, const Material& material, std
                        const DirectionGrid& grid, PathTracerSettings settings)
     : scene_(scene), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid), settings_(settings) {
   for (double l : lambda_um_) ior_.push_back(material_.isPerfectConductor() ? Complex(0, 0) : material_.ior(l));
-  // A conductor's reflectance per wavelength from a table in cos θ (optics/fresnel_table.h).
-  if (material_.isConductor() && !material_.isPerfectConductor())
-    for (const Complex& n2 : ior_) fresnel_.emplace_back(material_.outsideIor, n2);
+  fresnel_ = conductorFresnelTables(material_, ior_);  // optics/fresnel_table.h
   groups_ = wavelengthGroups(int(lambda_um_.size()), material_.directionsIndependentOfLambda());
 }
 

@@ -97,9 +97,7 @@ FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const Perio
   }
   facets_ = g.triangles.size();
   footprint_ = g.sizeX * g.sizeY;
-  // A conductor's reflectance per wavelength, tabulated in cos θ (optics/fresnel_table.h).
-  if (material_.isConductor() && !material_.isPerfectConductor())
-    for (const Complex& n2 : ior_) fresnel_.emplace_back(material_.outsideIor, n2);
+  fresnel_ = conductorFresnelTables(material_, ior_);  // optics/fresnel_table.h
   slope_ = SlopeBound::of(g);
 }
 
