@@ -91,7 +91,64 @@ const DiskMeasures& diskMeasures(const DiskGrid& g) {
   return *slot;
 }
 
+// floor(x) for a bin coordinate x known to within ±err; −1 when a bin edge lies within reach, and
+// then the caller applies the exact rule.
+int floorAwayFromEdges(double x, double err) {
+  const double f = std::floor(x);
+  if (!(x - f > err && f + 1 - x > err)) return -1;
+  return int(f);
+}
+
+// The grid's rule for a unit direction: θ = acos|z| and φ = atan2(y, x) in [0, 2π), each scaled to
+// its bin count and truncated.
+int exactThetaPhiBin(const ThetaPhiGrid& g, const Vec3& w) {
+  const double theta = safeAcos(std::abs(w.z));
+  const int t = std::min(g.nTheta - 1, int(theta / (0.5 * kPi) * g.nTheta));
+  const int p = std::min(g.nPhi - 1, int(sphericalPhi(w) / (2 * kPi) * g.nPhi));
+  return t * g.nPhi + p;
+}
+
+// The same bin from polynomial angles (about 3x cheaper than acos and atan2, which were a fifth
+// of a short microflake walk): the polynomials are within kApproxAngleError, so away from a bin
+// edge by more than that they give the exact rule's bin; directions closer to an edge (including
+// those exactly on one, such as an incidence on a ring edge) and non-finite ones take the exact
+// rule, so every direction lands where the exact rule puts it.
+int fastThetaPhiBin(const ThetaPhiGrid& g, const Vec3& w) {
+  using detail::kApproxAngleError;
+  const double thetaScale = g.nTheta / (0.5 * kPi), phiScale = g.nPhi / (2 * kPi);
+  const int t = floorAwayFromEdges(detail::approxAcos(std::abs(w.z)) * thetaScale, kApproxAngleError * thetaScale);
+  const double ax = std::abs(w.x), ay = std::abs(w.y), big = std::max(ax, ay);
+  if (t < 0 || t >= g.nTheta || !(big > 0)) return exactThetaPhiBin(g, w);
+  // Angle in the first quadrant by the octant's arctangent, then the quadrant of (x, y).
+  const double at = detail::approxAtan(std::min(ax, ay) / big);
+  const double a = ay > ax ? 0.5 * kPi - at : at;
+  const double phi = w.x >= 0 ? (w.y >= 0 ? a : 2 * kPi - a) : (w.y >= 0 ? kPi - a : kPi + a);
+  const int p = floorAwayFromEdges(phi * phiScale, kApproxAngleError * phiScale);
+  if (p < 0 || p >= g.nPhi) return exactThetaPhiBin(g, w);
+  return t * g.nPhi + p;
+}
+
 }  // namespace
+
+namespace detail {
+double approxAcos(double x) {
+  // Abramowitz & Stegun 1964, Eq. 4.4.46: |error| <= 2.2e-8 with these 10-digit coefficients.
+  constexpr double a[8] = {1.5707963050, -0.2145988016, 0.0889789874, -0.0501743046,
+                           0.0308918810, -0.0170881256, 0.0066700901, -0.0012624911};
+  double p = a[7];
+  for (int i = 6; i >= 0; --i) p = p * x + a[i];
+  return std::sqrt(1 - x) * p;
+}
+double approxAtan(double x) {
+  // Abramowitz & Stegun 1964, Eq. 4.4.49: |error| <= 1.4e-8 on [0, 1].
+  constexpr double a[9] = {1.0,           -0.3333314528, 0.1999355085,  -0.1420889944, 0.1065626393,
+                           -0.0752896400, 0.0429096138,  -0.0161657367, 0.0028662257};
+  const double x2 = x * x;
+  double p = a[8];
+  for (int i = 7; i >= 0; --i) p = p * x2 + a[i];
+  return x * p;
+}
+}  // namespace detail
 
 DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
   std::visit(Overloaded{[&](const ThetaPhiGrid& g) {
@@ -111,6 +168,8 @@ DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
                               omegaProj_[t * g.nPhi + p] = op;
                             }
                           }
+                          ringSin_.resize(size_t(g.nTheta) + 1);
+                          for (int t = 0; t <= g.nTheta; ++t) ringSin_[size_t(t)] = std::sin(t * 0.5 * kPi / g.nTheta);
                         },
                         [&](const DiskGrid& g) {
                           if (g.width < 1 || g.height < 1 || int64_t(g.width) * g.height > (int64_t(1) << 30))
@@ -131,12 +190,7 @@ std::string DirectionGrid::kind() const {
 int DirectionGrid::binOf(const Vec3& wIn) const {
   Vec3 w = normalize(wIn);
   int hemi = w.z >= 0 ? 0 : 1;
-  int local = std::visit(Overloaded{[&](const ThetaPhiGrid& g) {
-                                      double theta = safeAcos(std::abs(w.z));
-                                      int t = std::min(g.nTheta - 1, int(theta / (0.5 * kPi) * g.nTheta));
-                                      int p = std::min(g.nPhi - 1, int(sphericalPhi(w) / (2 * kPi) * g.nPhi));
-                                      return t * g.nPhi + p;
-                                    },
+  int local = std::visit(Overloaded{[&](const ThetaPhiGrid& g) { return fastThetaPhiBin(g, w); },
                                     [&](const DiskGrid& g) {
                                       int i = std::clamp(int((w.x + 1) * 0.5 * g.width), 0, g.width - 1);
                                       int j = std::clamp(int((w.y + 1) * 0.5 * g.height), 0, g.height - 1);
@@ -188,33 +242,34 @@ DirectionSample DirectionGrid::sampleUniform(int bin, double u1, double u2) cons
 
 DirectionSample DirectionGrid::sampleCosine(int bin, double u1, double u2) const {
   int hemi = bin / perHemisphere_, local = bin % perHemisphere_;
-  DirectionSample s = std::visit(
-      Overloaded{[&](const ThetaPhiGrid& g) {
-                   int t = local / g.nPhi, p = local % g.nPhi;
-                   double s0 = std::sin(t * 0.5 * kPi / g.nTheta), s1 = std::sin((t + 1) * 0.5 * kPi / g.nTheta);
-                   // density ∝ cos theta sin theta: uniform in sin^2 theta
-                   double sin2 = s0 * s0 + (s1 * s1 - s0 * s0) * u1;
-                   double sinT = std::sqrt(sin2), cosT = safeSqrt(1 - sin2);
-                   double phi = (p + u2) * 2 * kPi / g.nPhi;
-                   return DirectionSample{{sinT * std::cos(phi), sinT * std::sin(phi), cosT}, 1.0};
-                 },
-                 [&](const DiskGrid& g) {
-                   // Uniform on (pixel ∩ disk) = cosine-distributed directions; rejection of the
-                   // part of the pixel outside the disk with a deterministic fallback.
-                   int i = local % g.width, j = local / g.width;
-                   double x0 = -1 + 2.0 * i / g.width, y0 = -1 + 2.0 * j / g.height;
-                   double dx = 2.0 / g.width, dy = 2.0 / g.height;
-                   double a = u1, b = u2;
-                   for (int k = 0; k < 64; ++k) {
-                     double x = x0 + dx * a, y = y0 + dy * b;
-                     if (x * x + y * y < 1) return DirectionSample{{x, y, std::sqrt(1 - x * x - y * y)}, 1.0};
-                     // Low-discrepancy re-draw derived from the inputs (keeps determinism).
-                     a = std::fmod(a + 0.7548776662466927, 1.0);
-                     b = std::fmod(b + 0.5698402909980532, 1.0);
-                   }
-                   return DirectionSample{centre(local), 1.0};
-                 }},
-      layout_);
+  DirectionSample s =
+      std::visit(Overloaded{[&](const ThetaPhiGrid& g) {
+                              int t = local / g.nPhi, p = local % g.nPhi;
+                              const double s0 = ringSin_[size_t(t)], s1 = ringSin_[size_t(t) + 1];
+                              // density ∝ cos theta sin theta: uniform in sin^2 theta
+                              double sin2 = s0 * s0 + (s1 * s1 - s0 * s0) * u1;
+                              double sinT = std::sqrt(sin2), cosT = safeSqrt(1 - sin2);
+                              double phi = (p + u2) * 2 * kPi / g.nPhi;
+                              return DirectionSample{{sinT * std::cos(phi), sinT * std::sin(phi), cosT}, 1.0};
+                            },
+                            [&](const DiskGrid& g) {
+                              // Uniform on (pixel ∩ disk) = cosine-distributed directions; rejection of the
+                              // part of the pixel outside the disk with a deterministic fallback.
+                              int i = local % g.width, j = local / g.width;
+                              double x0 = -1 + 2.0 * i / g.width, y0 = -1 + 2.0 * j / g.height;
+                              double dx = 2.0 / g.width, dy = 2.0 / g.height;
+                              double a = u1, b = u2;
+                              for (int k = 0; k < 64; ++k) {
+                                double x = x0 + dx * a, y = y0 + dy * b;
+                                if (x * x + y * y < 1)
+                                  return DirectionSample{{x, y, std::sqrt(1 - x * x - y * y)}, 1.0};
+                                // Low-discrepancy re-draw derived from the inputs (keeps determinism).
+                                a = std::fmod(a + 0.7548776662466927, 1.0);
+                                b = std::fmod(b + 0.5698402909980532, 1.0);
+                              }
+                              return DirectionSample{centre(local), 1.0};
+                            }},
+                 layout_);
   if (hemi == 1) s.w.z = -s.w.z;
   return s;
 }

@@ -66,6 +66,16 @@ class DirectionGrid {
   int perHemisphere_ = 0;
   std::vector<double> omega_, omegaProj_;
   std::vector<double> diskCentre_;  // disk layout: (x, y) centroid of pixel ∩ unit disk
+  std::vector<double> ringSin_;     // theta-phi layout: sin of the ring edges, t · (π/2) / n_theta
 };
+
+namespace detail {
+// Polynomial arccosine and arctangent for the grid's fast bin search (Abramowitz & Stegun 1964,
+// Eqs. 4.4.46 and 4.4.49), within kApproxAngleError radians on their domains; exposed for the test
+// that checks that bound.
+constexpr double kApproxAngleError = 1e-7;
+double approxAcos(double x);  // x in [0, 1]
+double approxAtan(double x);  // x in [0, 1]
+}  // namespace detail
 
 }  // namespace mbsdf

@@ -48,6 +48,11 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
   double pad = 1e-3 * extent + 0.01 * (zmax - zmin);
   zLo_ = zmin - pad;
   zHi_ = zmax + pad;
+  // No triangle reaches outside [zGeoLo_, zGeoHi_], even as Embree's float copy (two float ulps of
+  // the largest |z|): a ray that crosses one of these planes outward has met everything it can.
+  const double margin = std::ldexp(std::max(std::abs(zmin), std::abs(zmax)), -22);
+  zGeoLo_ = std::max(zLo_, zmin - margin);
+  zGeoHi_ = std::min(zHi_, zmax + margin);
   scene_.reset(rtcNewScene(device_.get()));
   rtcSetSceneFlags(scene_.get(), RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(scene_.get(), RTC_BUILD_QUALITY_HIGH);
@@ -95,7 +100,10 @@ bool PeriodicScene::intersectRaw(const Vec3& o, const Vec3& d, double tfar, doub
 }
 
 TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d, int ignorePrim) const {
-  const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zHi_};
+  // The slab a ray is followed through ends at the geometry's own z bounds: a ray leaving it by
+  // the top or bottom escapes there, without further queries of empty periodic copies (the last
+  // ray of every path, and many wraps for rays near the horizon).
+  const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zGeoLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zGeoHi_};
   const double size[2] = {sizeX_, sizeY_};
   const double inf = std::numeric_limits<double>::infinity();
   TraceResult r;
@@ -104,6 +112,16 @@ TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d, int ignorePrim) const {
     double tExit = inf;
     int face = 2;
     if (periodic_) {
+      // Above (below) every triangle and not moving towards them: the ray has met all it can,
+      // however close to the horizon it travels (the wrap limit would otherwise end it).
+      if (d.z >= 0 && o.z >= zGeoHi_) {
+        r.kind = TraceResult::Kind::EscapedUp;
+        return r;
+      }
+      if (d.z <= 0 && o.z <= zGeoLo_) {
+        r.kind = TraceResult::Kind::EscapedDown;
+        return r;
+      }
       for (int a = 0; a < 3; ++a) {
         double t = inf;
         if (d[a] > 0)

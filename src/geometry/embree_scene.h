@@ -49,6 +49,8 @@ class PeriodicScene {
 
   // Trace from o along unit direction d through the (periodic) patch. Hits on `ignorePrim` (the
   // triangle the ray leaves) are skipped: a flat triangle cannot be hit again by a ray leaving it.
+  // On a periodic patch a ray escapes once it is above (below) every triangle and not travelling
+  // down (up), however close to the horizon: no query of the empty copies beyond.
   TraceResult trace(Vec3 o, const Vec3& d, int ignorePrim = -1) const;
   // One raw Embree query without wrapping (used by the benchmark baseline).
   bool intersectRaw(const Vec3& o, const Vec3& d, double tfar, double* t) const;
@@ -69,6 +71,7 @@ class PeriodicScene {
   EmbreeDevicePtr device_;
   EmbreeScenePtr scene_;
   double sizeX_, sizeY_, zLo_, zHi_, eps_, zMean_ = 0;
+  double zGeoLo_ = 0, zGeoHi_ = 0;  // the triangles' z range with a margin for float rounding
   bool periodic_;
   int maxWraps_;
   std::vector<Vec3> normals_;   // unit normals in double, from the mesh (not Embree's float Ng)

@@ -25,8 +25,10 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
   const std::vector<int>& lambdas = groups_[group];
   const size_t nl = lambdas.size();
   Sampler s(settings_.seed, uint32_t(tile), path, uint32_t(group));
-  DirectionSample wi = grid_.sampleCosine(incidenceBin, s.get1D(), s.get1D());
-  if (exact) wi = DirectionSample{*exact, 1.0};
+  // Two numbers for the incidence in its bin, drawn even for an exact incidence (the rest of the
+  // path keeps its numbers); the azimuth's number is drawn first.
+  const double uPhi = s.get1D(), uSin2 = s.get1D();
+  const DirectionSample wi = exact ? DirectionSample{*exact, 1.0} : grid_.sampleCosine(incidenceBin, uSin2, uPhi);
   double w[64];
   std::vector<double> wbig;
   double* wp = w;

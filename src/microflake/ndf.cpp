@@ -225,6 +225,13 @@ double MicroflakeDistribution::sigma(const Vec3& d) const {
   if (const auto* v = std::get_if<VonMisesFisherNdf>(&ndf_)) return v->kappa == 0 ? 1.0 : sigmaTable(d.z);
   if (std::holds_alternative<TabulatedNdf>(ndf_)) return sigmaTable(d.z);
   if (d.z >= 0) return sigmaUpHeightfield(d);
+  if (const auto* b = std::get_if<BeckmannNdf>(&ndf_)) {
+    // Steep downward flights of a smooth Beckmann surface: Λ(−d)|d_z| <= q e^{−ν²} / (2√π) is below
+    // 2^−54 |d_z| once ν = |d_z| / q > 6.5, so the sum below rounds to |d_z| exactly; skip its
+    // exponential and erfc (a third of a short walk's cost at α = 0.1).
+    const double q = stretchedSin(*b, d);
+    if (-d.z > 6.5 * q) return -d.z;
+  }
   return -d.z + sigmaUpHeightfield(-d);  // Dupuy et al. 2016, Eq. 19: (1 + Λ(−d)) |d_z|
 }
 
@@ -262,7 +269,10 @@ std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler
       const double wgt = v.z - r * sPar;
       if (wgt > 0 && u3 * (std::abs(v.z) + r * std::abs(sPar)) < wgt) break;
     }
-    if (std::isnan(sPerp)) sPerp = standardNormal(s.get1D(), s.get1D()) / std::sqrt(2.0);
+    if (std::isnan(sPerp)) {
+      const double uAngle = s.get1D(), uRadius = s.get1D();  // in this order (the angle's first)
+      sPerp = standardNormal(uRadius, uAngle) / std::sqrt(2.0);
+    }
     const double sx = ax * (cphi * sPar - sphi * sPerp), sy = ay * (sphi * sPar + cphi * sPerp);
     return normalize(Vec3{-sx, -sy, 1.0});
   };

@@ -197,7 +197,13 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     dirs.allocate(M);
     for (int k = 0; k < M; ++k) {
       Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(b) * uint64_t(M) + uint64_t(k), kWaveStream);
-      Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s.get1D(), s.get1D()).w;
+      Vec3 wi;
+      if (exactDirection) {
+        wi = normalize(*exactDirection);
+      } else {
+        const double uPhi = s.get1D(), uSin2 = s.get1D();  // in this order (the azimuth's first)
+        wi = grid.sampleCosine(incidenceBin, uSin2, uPhi).w;
+      }
       double u1 = s.get1D(), u2 = s.get1D();
       Vec3 wo;
       if (!dirs.sample(dirs.technique(k), u1, u2, &wo)) continue;  // outside the bin: estimate 0
@@ -209,7 +215,8 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
       std::fill(qv.begin(), qv.end(), 0.0);
       std::fill(qm.begin(), qm.end(), 0.0);
       for (int j = 0; j < N; ++j) {
-        SurfaceSample sp = sampler_.sample(s.get1D(), s.get1D(), s.get1D());
+        const double u3 = s.get1D(), u2 = s.get1D(), u1 = s.get1D();  // in this order (the last argument's first)
+        SurfaceSample sp = sampler_.sample(u1, u2, u3);
         const Vec3 m = fromAbove ? sp.n : -sp.n;  // facing the incident medium
         const double cosLocal = dot(m, wi);
         if (cosLocal <= 0) continue;  // back-facing: X_j = 0

@@ -324,7 +324,8 @@ void accumulateGroupSums(const WaveContext& ctx, const SurfaceSampler& sampler, 
       Sampler ps(ctx.settings.seed, uint32_t(tile), (uint64_t(k) << 32) | uint64_t(j), kOrdersStream + 1);
       // Stratified over the surface within each group (the groups are independent replicas).
       const double u1 = (double(j - j0) + ps.get1D()) / double(j1 - j0);
-      SurfaceSample sp = sampler.sample(u1, ps.get1D(), ps.get1D());
+      const double u3 = ps.get1D(), u2 = ps.get1D();  // in this order (the last argument's first)
+      SurfaceSample sp = sampler.sample(u1, u2, u3);
       const Vec3 m = fromAbove ? sp.n : -sp.n;
       const double cosLocal = dot(m, wi);
       if (cosLocal <= 0) continue;
@@ -757,7 +758,8 @@ WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::f
     if (deterministic) return rule[size_t(k)].wi;
     if (exactDirection) return normalize(*exactDirection);
     Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(k), kOrdersStream);
-    return grid.sampleCosine(incidenceBin, s.get1D(), s.get1D()).w;
+    const double uPhi = s.get1D(), uSin2 = s.get1D();  // in this order (the azimuth's first)
+    return grid.sampleCosine(incidenceBin, uSin2, uPhi).w;
   };
   for (int k = 0; k < K; ++k) {
     const Vec3 wi = incidence(k);

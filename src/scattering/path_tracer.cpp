@@ -31,8 +31,10 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
   const std::vector<int>& lambdas = groups_[group];
   const size_t nl = lambdas.size();
   Sampler s(settings_.seed, uint32_t(tile), path, uint32_t(group));
-  DirectionSample wi = grid_.sampleCosine(incidenceBin, s.get1D(), s.get1D());
-  if (exact) wi = DirectionSample{*exact, 1.0};
+  // Two numbers for the incidence in its bin, drawn even for an exact incidence (the rest of the
+  // path keeps its numbers); the azimuth's number is drawn first.
+  const double uPhi = s.get1D(), uSin2 = s.get1D();
+  const DirectionSample wi = exact ? DirectionSample{*exact, 1.0} : grid_.sampleCosine(incidenceBin, uSin2, uPhi);
   double px = (s.get1D() - 0.5) * scene_.sizeX(), py = (s.get1D() - 0.5) * scene_.sizeY();
   bool fromAbove = wi.w.z >= 0;
   Vec3 o = pathOrigin(scene_, wi.w, px, py);

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>
 
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -72,6 +73,66 @@ TEST(DirectionGrid, CentresAndSamplesFallInTheirBins) {
         ASSERT_NEAR(length(u.w), 1.0, 1e-12);
       }
     }
+  }
+}
+
+// The polynomial angles behind the fast bin search stay within the bound the search relies on,
+// with a margin of 4 (a dense sweep of their domain, ends included).
+TEST(DirectionGrid, PolynomialAnglesWithinTheirBound) {
+  double acosErr = 0, atanErr = 0;
+  const int n = 1 << 20;
+  for (int i = 0; i <= n; ++i) {
+    const double x = double(i) / n;
+    acosErr = std::max(acosErr, std::abs(detail::approxAcos(x) - std::acos(x)));
+    atanErr = std::max(atanErr, std::abs(detail::approxAtan(x) - std::atan(x)));
+  }
+  EXPECT_LT(acosErr, detail::kApproxAngleError / 4);
+  EXPECT_LT(atanErr, detail::kApproxAngleError / 4);
+}
+
+// binOf's fast search must put every direction where the grid's rule (θ = acos|z|, φ = atan2(y, x)
+// in [0, 2π), scaled and truncated) puts it: random directions, directions exactly on ring and
+// azimuth edges and a few ulps either side of them, the poles, the horizon and signed zeros.
+TEST(DirectionGrid, FastBinSearchFollowsTheGridsRule) {
+  auto ruleBin = [](const ThetaPhiGrid& g, const Vec3& wIn) {
+    const Vec3 w = normalize(wIn);
+    const int t = std::min(g.nTheta - 1, int(safeAcos(std::abs(w.z)) / (0.5 * kPi) * g.nTheta));
+    const int p = std::min(g.nPhi - 1, int(sphericalPhi(w) / (2 * kPi) * g.nPhi));
+    return (w.z >= 0 ? 0 : g.nTheta * g.nPhi) + t * g.nPhi + p;
+  };
+  for (const ThetaPhiGrid layout : {ThetaPhiGrid{30, 120}, ThetaPhiGrid{75, 300}, ThetaPhiGrid{1, 1},
+                                    ThetaPhiGrid{7, 13}, ThetaPhiGrid{1000, 4096}}) {
+    const DirectionGrid g(layout);
+    std::vector<Vec3> ws = {{0, 0, 1},      {0, 0, -1},     {1, 0, 0},        {-1, 0, 0},   {0, 1, 0},       {0, -1, 0},
+                            {-0.0, 0.0, 1}, {0.0, -0.0, 1}, {-0.0, -0.0, -1}, {1, -0.0, 0}, {-1, -0.0, -0.0}};
+    Sampler s(7, 0, 0);
+    for (int i = 0; i < 200000; ++i) {
+      const double z = 2 * s.get1D() - 1, phi = 2 * kPi * s.get1D(), r = safeSqrt(1 - z * z);
+      ws.push_back({r * std::cos(phi), r * std::sin(phi), z});
+    }
+    // Edges: every ring edge at a few azimuths, every azimuth edge at a few polar angles, each
+    // exactly and nudged by 1 to 3 ulps in each coordinate.
+    std::vector<Vec3> edges;
+    for (int t = 0; t <= layout.nTheta; ++t)
+      for (double phi : {0.1, 1.0, 2.5, 4.0, 6.0})
+        edges.push_back(sphericalDirection(t * 0.5 * kPi / layout.nTheta, phi));
+    for (int p = 0; p <= layout.nPhi; ++p)
+      for (double theta : {0.01, 0.3, 1.0, 1.5, 1.5707})
+        edges.push_back(sphericalDirection(theta, p * 2 * kPi / layout.nPhi));
+    for (const Vec3& e : edges)
+      for (int a = 0; a < 3; ++a)
+        for (double toward : {-1.0, 1.0}) {
+          Vec3 w = e;
+          ws.push_back(w);
+          for (int k = 0; k < 3; ++k) {
+            w[a] = std::nextafter(w[a], toward);
+            ws.push_back(w);
+            ws.push_back({w.x, w.y, -w.z});
+          }
+        }
+    for (const Vec3& w : ws)
+      ASSERT_EQ(g.binOf(w), ruleBin(layout, w))
+          << layout.nTheta << "x" << layout.nPhi << " w = (" << w.x << ", " << w.y << ", " << w.z << ")";
   }
 }
 

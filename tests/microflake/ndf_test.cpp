@@ -93,6 +93,24 @@ TEST(Ndf, SmithLambdaClosedForms) {
   }
 }
 
+// A steep downward flight through a smooth Beckmann medium has σ = |d_z| exactly: the shadowed
+// term Λ(−d)|d_z| is below half an ulp of |d_z| there. Swept over α (isotropic and not), azimuth
+// and polar angle from ν = 6.5 down to the vertical, against Λ's closed form.
+TEST(Ndf, SteepBeckmannExtinctionIsExactlyTheCosine) {
+  for (const BeckmannNdf ndf : {BeckmannNdf{0.01, 0.01}, BeckmannNdf{0.1, 0.1}, BeckmannNdf{0.5, 0.5},
+                                BeckmannNdf{2.0, 2.0}, BeckmannNdf{0.05, 0.4}}) {
+    MicroflakeDistribution dist(ndf);
+    for (double phi = 0; phi < 2 * kPi; phi += 0.37)
+      for (double nu = 6.5; nu < 1e4; nu *= 1.05) {
+        // ν = |d_z| / (α(φ) sin θ): tan θ = 1 / (α(φ) ν).
+        const double alphaPhi = std::hypot(ndf.alphaX * std::cos(phi), ndf.alphaY * std::sin(phi));
+        const Vec3 up = sphericalDirection(std::atan(1 / (alphaPhi * nu)), phi), d = -up;
+        ASSERT_EQ(dist.sigma(d), up.z) << "alpha " << ndf.alphaX << "/" << ndf.alphaY << " nu " << nu;
+        ASSERT_LT(dist.lambda(up) * up.z, std::ldexp(up.z, -54)) << "nu " << nu;
+      }
+  }
+}
+
 // Visible normals: sample moments against ∫ g(m) ⟨v,m⟩ D(m) dm / σ(−v) by quadrature (Eq. 6).
 TEST(Ndf, VisibleNormalSamplingMatchesEq6) {
   const uint64_t N = 100000;

@@ -1,0 +1,118 @@
+// The periodic Embree scene against a double-precision brute force over the periodic copies, and
+// rays at the horizon just above or below the geometry (swept in elevation).
+#include "geometry/embree_scene.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include "core/rng.h"
+#include "geometry/generators.h"
+
+namespace mbsdf {
+namespace {
+
+// A binary mirror grating: plateaus at z = 0 and z = 1 joined by vertical walls; the patch is
+// narrow along the grooves (y), so rays along them wrap many times.
+Microgeometry grating() {
+  return makeBinaryGrating(2.0, 0.3, 2.0, 1.0, 0.5, 0.1);
+}
+
+// First intersection along o + t d (t > 0) with every triangle of the periodic copies the ray can
+// reach while inside the geometry's z range, by Möller–Trumbore in double; the point returned is
+// mapped back into the base patch.
+std::optional<Vec3> bruteForceHit(const Microgeometry& g, const Vec3& o, const Vec3& d) {
+  const double zmin = g.zMin(), zmax = g.zMax();
+  double tMax = std::numeric_limits<double>::infinity();
+  if (d.z > 0) tMax = (zmax - o.z) / d.z;
+  if (d.z < 0) tMax = (zmin - o.z) / d.z;
+  const double reachX = std::abs(d.x) * tMax, reachY = std::abs(d.y) * tMax;
+  const int nx = int(std::ceil(reachX / g.sizeX)) + 1, ny = int(std::ceil(reachY / g.sizeY)) + 1;
+  double best = std::numeric_limits<double>::infinity();
+  for (int i = -nx; i <= nx; ++i)
+    for (int j = -ny; j <= ny; ++j) {
+      const Vec3 shift{i * g.sizeX, j * g.sizeY, 0};
+      for (const auto& tri : g.triangles) {
+        const Vec3 a = g.vertices[tri[0]] + shift, e1 = g.vertices[tri[1]] - g.vertices[tri[0]],
+                   e2 = g.vertices[tri[2]] - g.vertices[tri[0]];
+        const Vec3 p = cross(d, e2);
+        const double det = dot(e1, p);
+        if (std::abs(det) < 1e-14) continue;
+        const Vec3 s = o - a;
+        const double u = dot(s, p) / det;
+        if (u < 0 || u > 1) continue;
+        const Vec3 q = cross(s, e1);
+        const double v = dot(d, q) / det;
+        if (v < 0 || u + v > 1) continue;
+        const double t = dot(e2, q) / det;
+        if (t > 1e-9 && t < best) best = t;
+      }
+    }
+  if (!std::isfinite(best)) return std::nullopt;
+  Vec3 p = o + d * best;
+  p.x -= g.sizeX * std::floor(p.x / g.sizeX + 0.5);
+  p.y -= g.sizeY * std::floor(p.y / g.sizeY + 0.5);
+  return p;
+}
+
+// Random rays from inside the slab: the scene finds the brute force's first hit (the same point
+// in the base patch), or the ray escapes on the side its direction points to.
+TEST(PeriodicScene, FirstHitsMatchABruteForceOverThePeriodicCopies) {
+  const Microgeometry g = grating();
+  const PeriodicScene scene(g);
+  Sampler s(11, 0, 0);
+  int hits = 0, escapes = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const Vec3 o{(s.get1D() - 0.5) * g.sizeX, (s.get1D() - 0.5) * g.sizeY,
+                 g.zMin() + s.get1D() * (g.zMax() - g.zMin())};
+    const double z = s.get1D() < 0.5 ? 0.1 + 0.9 * s.get1D() : -(0.1 + 0.9 * s.get1D()), phi = 2 * kPi * s.get1D();
+    const double r = std::sqrt(1 - z * z);
+    const Vec3 d{r * std::cos(phi), r * std::sin(phi), z};
+    const TraceResult tr = scene.trace(o, d);
+    const std::optional<Vec3> ref = bruteForceHit(g, o, d);
+    if (ref) {
+      ASSERT_EQ(tr.kind, TraceResult::Kind::Hit) << "ray " << k;
+      Vec3 dp = tr.p - *ref;
+      dp.x -= g.sizeX * std::round(dp.x / g.sizeX);
+      dp.y -= g.sizeY * std::round(dp.y / g.sizeY);
+      ASSERT_LT(length(dp), 1e-5) << "ray " << k;
+      ++hits;
+    } else {
+      ASSERT_EQ(tr.kind, d.z > 0 ? TraceResult::Kind::EscapedUp : TraceResult::Kind::EscapedDown) << "ray " << k;
+      ++escapes;
+    }
+  }
+  EXPECT_GT(hits, 1000);
+  EXPECT_GT(escapes, 300);
+}
+
+// Rays leaving the top plateau at elevations from 0.1 down to 1e-14 rad, along the grooves (where
+// the narrow patch wraps them every 0.3 µm) and across them: nothing lies above the plateau, so
+// every one escapes upward (they used to wrap until the wrap limit, and count as blocked); along
+// the grooves the same rays pointed down by as little meet the plateau they started above.
+TEST(PeriodicScene, NearHorizonRaysAboveTheTopPlateau) {
+  const Microgeometry g = grating();
+  const PeriodicScene scene(g);
+  const double zTopPlateau = g.zMax();
+  for (double phi : {0.0, 0.4, kPi / 2, 2.0, kPi, 1.5 * kPi, 4.0})
+    for (double elevation = 0.1; elevation > 1e-14; elevation /= 3) {
+      const Vec3 up{std::cos(elevation) * std::cos(phi), std::cos(elevation) * std::sin(phi), std::sin(elevation)};
+      // A point of the upper plateau (x in [-0.5, 0.5] for this grating), lifted as a path lifts
+      // a secondary ray off a hit.
+      const Vec3 o{0.1, 0.05, zTopPlateau + scene.rayEpsilon()};
+      const TraceResult escaped = scene.trace(o, up);
+      ASSERT_EQ(escaped.kind, TraceResult::Kind::EscapedUp) << "phi " << phi << " elevation " << elevation;
+      // Down, along the grooves (across them the ray would pass the ridge's edge first).
+      if (std::abs(std::cos(phi)) > 1e-12 || elevation < 1e-6) continue;
+      const Vec3 down{up.x, up.y, -up.z};
+      const TraceResult hit = scene.trace(o, down);
+      ASSERT_EQ(hit.kind, TraceResult::Kind::Hit) << "phi " << phi << " elevation " << elevation;
+      EXPECT_NEAR(hit.p.z, zTopPlateau, 1e-9) << "phi " << phi << " elevation " << elevation;
+      EXPECT_EQ(hit.n.z, 1.0);
+    }
+}
+
+}  // namespace
+}  // namespace mbsdf
