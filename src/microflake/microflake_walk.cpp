@@ -58,8 +58,13 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
   int depth = 0;
   while (true) {
     // Free flight (Dupuy et al. 2016, Eqs. 9–11); escape through z = 0 when travelling upward.
-    const double ell = dist_.freePath(d, s.get1D());
-    const double zNext = z + ell * d.z;
+    const double u = s.get1D();
+    // A steep flight up through a smooth medium escapes unless its exponential number is below
+    // σ's bound times the depth (about 1e-20): decided without σ's exponential and erfc, and
+    // whenever decided so, the exact flight below escapes too (a margin covers its rounding).
+    const double bound = dist_.steepUpwardSigmaBound(d);
+    const bool certainEscape = bound >= 0 && -std::log1p(-u) * d.z >= bound * -z * (1 + 1e-9);
+    const double zNext = certainEscape ? 0.0 : z + dist_.freePath(d, u) * d.z;
     if (d.z > 0 && !(zNext < 0)) {  // depth >= 1: the first flight is downward
       const Vec3 wo = upper ? d : -d;
       const int bin = grid_.binOf(wo);

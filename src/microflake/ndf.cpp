@@ -235,6 +235,15 @@ double MicroflakeDistribution::sigma(const Vec3& d) const {
   return -d.z + sigmaUpHeightfield(-d);  // Dupuy et al. 2016, Eq. 19: (1 + Λ(−d)) |d_z|
 }
 
+double MicroflakeDistribution::steepUpwardSigmaBound(const Vec3& d) const {
+  const auto* b = std::get_if<BeckmannNdf>(&ndf_);
+  if (!b || !(d.z > 0)) return -1;
+  // σ(d) = Λ(d) d_z <= q e^{−ν²} / (2√π) with q = d_z / ν (the erfc term is subtracted); for
+  // ν >= 6.5 that is at most 1.95e-20 d_z.
+  const double q = stretchedSin(*b, d);
+  return d.z > 6.5 * q ? 2e-20 * d.z : -1;
+}
+
 double MicroflakeDistribution::freePath(const Vec3& d, double u) const {
   const double s = sigma(d);
   if (!(s > 0)) return std::numeric_limits<double>::infinity();

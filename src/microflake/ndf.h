@@ -77,6 +77,9 @@ class MicroflakeDistribution {
   double sigma(const Vec3& d) const;
   // Free path along d for a uniform number u (Dupuy et al. 2016, Eq. 10); +inf when σ(d) = 0.
   double freePath(const Vec3& d, double u) const;
+  // A cheap upper bound on σ(d) for a steep upward flight through a smooth Beckmann medium, where
+  // σ is tiny and its exact value costs an exponential and an erfc; negative when there is none.
+  double steepUpwardSigmaBound(const Vec3& d) const;
   // A normal with density ⟨v, m⟩ D(m) / σ(−v) (Dupuy et al. 2016, Eq. 6 with v = −d, the direction the light
   // came from). Empty only if the rejection loop hits its cap (reported as truncated).
   std::optional<Vec3> sampleVisible(const Vec3& v, Sampler& s) const;

@@ -94,9 +94,9 @@ TEST(Ndf, SmithLambdaClosedForms) {
 }
 
 // A steep downward flight through a smooth Beckmann medium has σ = |d_z| exactly: the shadowed
-// term Λ(−d)|d_z| is below half an ulp of |d_z| there. Swept over α (isotropic and not), azimuth
-// and polar angle from ν = 6.5 down to the vertical, against Λ's closed form.
-TEST(Ndf, SteepBeckmannExtinctionIsExactlyTheCosine) {
+// term Λ(−d)|d_z| is below half an ulp of |d_z| there; upward, σ is below the walk's bound. Swept over α (isotropic and
+// not), azimuth and polar angle from ν = 6.5 down to the vertical, against Λ's closed form.
+TEST(Ndf, SteepBeckmannExtinctionIsTheCosineDownAndBoundedUp) {
   for (const BeckmannNdf ndf : {BeckmannNdf{0.01, 0.01}, BeckmannNdf{0.1, 0.1}, BeckmannNdf{0.5, 0.5},
                                 BeckmannNdf{2.0, 2.0}, BeckmannNdf{0.05, 0.4}}) {
     MicroflakeDistribution dist(ndf);
@@ -107,7 +107,16 @@ TEST(Ndf, SteepBeckmannExtinctionIsExactlyTheCosine) {
         const Vec3 up = sphericalDirection(std::atan(1 / (alphaPhi * nu)), phi), d = -up;
         ASSERT_EQ(dist.sigma(d), up.z) << "alpha " << ndf.alphaX << "/" << ndf.alphaY << " nu " << nu;
         ASSERT_LT(dist.lambda(up) * up.z, std::ldexp(up.z, -54)) << "nu " << nu;
+        // The walk's bound on the upward flight's σ, with which it decides certain escapes.
+        if (nu > 6.5 * (1 + 1e-9)) {
+          ASSERT_GE(dist.steepUpwardSigmaBound(up), dist.sigma(up)) << "nu " << nu;
+        }
+        ASSERT_LT(dist.steepUpwardSigmaBound(d), 0.0);
       }
+    for (double nu = 0.01; nu < 6.4; nu *= 1.05) {  // no bound below ν = 6.5
+      const Vec3 up = sphericalDirection(std::atan(1 / (ndf.alphaX * nu)), 0.0);
+      ASSERT_LT(dist.steepUpwardSigmaBound(up), 0.0) << "nu " << nu;
+    }
   }
 }
 
