@@ -15,14 +15,15 @@ class Sampler {
       : key_{{uint32_t(seed), uint32_t(seed >> 32)}},
         ctr_{{tile, uint32_t(sample), uint32_t(sample >> 32) ^ (stream << 16), 0}} {}
 
-  // Next uniform double in [0, 1); each call consumes one dimension.
+  // Next uniform double in [0, 1). One Philox block (one "dimension" of the counter) gives two.
   double get1D() {
     if (have_ == 0) refill();
     uint64_t bits = (uint64_t(buf_[2 * (2 - have_)]) << 32) | buf_[2 * (2 - have_) + 1];
     --have_;
     return double(bits >> 11) * 0x1.0p-53;
   }
-  // Jump to a given dimension (so a sample's d-th number is the same whatever came before).
+  // Jump to block `dim`, whose two numbers are the sample's numbers 2·dim and 2·dim + 1 whatever
+  // came before (skipping a block that is not needed costs nothing).
   void setDimension(uint32_t dim) {
     ctr_.v[3] = dim;
     have_ = 0;

@@ -25,10 +25,15 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
   const std::vector<int>& lambdas = groups_[group];
   const size_t nl = lambdas.size();
   Sampler s(settings_.seed, uint32_t(tile), path, uint32_t(group));
-  // Two numbers for the incidence in its bin, drawn even for an exact incidence (the rest of the
-  // path keeps its numbers); the azimuth's number is drawn first.
-  const double uPhi = s.get1D(), uSin2 = s.get1D();
-  const DirectionSample wi = exact ? DirectionSample{*exact, 1.0} : grid_.sampleCosine(incidenceBin, uSin2, uPhi);
+  // The incidence in its bin takes the sampler's first block (two numbers, the azimuth's first); an
+  // exact incidence skips that block, so the rest of the path keeps its numbers either way.
+  DirectionSample wi{exact.value_or(Vec3{}), 1.0};
+  if (exact) {
+    s.setDimension(1);
+  } else {
+    const double uPhi = s.get1D(), uSin2 = s.get1D();
+    wi = grid_.sampleCosine(incidenceBin, uSin2, uPhi);
+  }
   double w[64];
   std::vector<double> wbig;
   double* wp = w;
