@@ -69,6 +69,7 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
   }
 
   while (true) {
+    if (rec) rec->rays.push_back({o, d, lastPrim});
     TraceResult tr = scene_.trace(o, d, lastPrim);
     ++out.rays;
     if (tr.kind == TraceResult::Kind::Hit) {

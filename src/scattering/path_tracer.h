@@ -57,6 +57,12 @@ class PathTracer : public GeometricEstimator {
     int depth = 0;
     std::vector<double> weight;
     std::vector<Vec3> vertices;
+    // Every ray the path asked the scene for, as asked: origin, direction, triangle it leaves.
+    struct Ray {
+      Vec3 o, d;
+      int ignorePrim = -1;
+    };
+    std::vector<Ray> rays;
   };
   PathRecord replay(int tile, int incidenceBin, uint64_t path, int group = 0,
                     std::optional<Vec3> exactDirection = std::nullopt) const;
