@@ -10,7 +10,7 @@ namespace mbsdf {
 MicroflakeWalk::MicroflakeWalk(const MicroflakeDistribution& dist, const Material& material,
                                std::vector<double> lambda_um, const DirectionGrid& grid, MicroflakeSettings settings)
     : dist_(dist), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid), settings_(settings) {
-  for (double l : lambda_um_) ior_.push_back(material_.isPerfectConductor() ? Complex(0, 0) : material_.ior(l));
+  ior_ = material_.iorAt(lambda_um_);
   fresnel_ = conductorFresnelTables(material_, ior_);  // optics/fresnel_table.h
   const bool specularDielectric = settings_.flakes == FlakeKind::Specular && !material_.isConductor();
   if (specularDielectric && !dist_.isHeightfield())
@@ -25,15 +25,7 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
   const std::vector<int>& lambdas = groups_[group];
   const size_t nl = lambdas.size();
   Sampler s(settings_.seed, uint32_t(tile), path, uint32_t(group));
-  // The incidence in its bin takes the sampler's first block (two numbers, the azimuth's first); an
-  // exact incidence skips that block, so the rest of the path keeps its numbers either way.
-  DirectionSample wi{exact.value_or(Vec3{}), 1.0};
-  if (exact) {
-    s.setDimension(1);
-  } else {
-    const double uPhi = s.get1D(), uSin2 = s.get1D();
-    wi = grid_.sampleCosine(incidenceBin, uSin2, uPhi);
-  }
+  const DirectionSample wi = pathIncidence(grid_, incidenceBin, exact, s);
   double w[64];
   std::vector<double> wbig;
   double* wp = w;

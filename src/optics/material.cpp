@@ -54,6 +54,13 @@ std::pair<double, double> Material::validRange_nm() const {
   return {0.0, inf};
 }
 
+std::vector<Complex> Material::iorAt(const std::vector<double>& lambda_um) const {
+  std::vector<Complex> out;
+  out.reserve(lambda_um.size());
+  for (double l : lambda_um) out.push_back(isPerfectConductor() ? Complex(0, 0) : ior(l));
+  return out;
+}
+
 Complex Material::ior(double lambda_um) const {
   return std::visit(
       Overloaded{[&](const Conductor& c) {

@@ -51,6 +51,9 @@ struct Material {
   // Complex index of the lower medium at a wavelength (µm). Throws std::out_of_range outside the
   // table; the job validation checks the range first and names the key.
   Complex ior(double lambda_um) const;
+  // The index at each wavelength (µm) as the estimators use it: 0 for a perfect conductor, which
+  // has none.
+  std::vector<Complex> iorAt(const std::vector<double>& lambda_um) const;
   std::string describe() const;
 };
 

@@ -11,6 +11,16 @@
 
 namespace mbsdf {
 
+DirectionSample pathIncidence(const DirectionGrid& grid, int incidenceBin, const std::optional<Vec3>& exact,
+                              Sampler& s) {
+  if (exact) {
+    s.setDimension(1);
+    return {*exact, 1.0};
+  }
+  const double uPhi = s.get1D(), uSin2 = s.get1D();
+  return grid.sampleCosine(incidenceBin, uSin2, uPhi);
+}
+
 std::vector<std::vector<int>> wavelengthGroups(int nLambda, bool shared) {
   std::vector<std::vector<int>> groups;
   if (shared) {

@@ -7,9 +7,11 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "core/direction_grid.h"
+#include "core/rng.h"
 #include "scattering/components.h"
 #include "scattering/tile_result.h"
 
@@ -50,6 +52,12 @@ struct PathTallyPlan {
 using PathFunction = std::function<void(uint64_t path, int group, PathChunk& out)>;
 TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
                     const std::function<void(uint64_t)>& progress);
+
+// A path's incidence: cosine-distributed in its bin from the sampler's first block (two numbers,
+// the azimuth's first), or the exact direction, which skips that block, so that the rest of the
+// path draws the same numbers either way.
+DirectionSample pathIncidence(const DirectionGrid& grid, int incidenceBin, const std::optional<Vec3>& exact,
+                              Sampler& s);
 
 // Wavelength groups: one group for all wavelengths when paths do not depend on λ, else one each.
 std::vector<std::vector<int>> wavelengthGroups(int nLambda, bool shared);

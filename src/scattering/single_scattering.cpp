@@ -51,7 +51,7 @@ FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const Perio
                                              const Material& material, std::vector<double> lambda_um,
                                              const DirectionGrid& grid)
     : g_(g), scene_(scene), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid) {
-  for (double l : lambda_um_) ior_.push_back(material_.isPerfectConductor() ? Complex(0, 0) : material_.ior(l));
+  ior_ = material_.iorAt(lambda_um_);
   // Facets in one plane orientation reflect (and refract) into the same direction: where no ray is
   // needed they are one term (a grating's texels, a flat patch's two triangles, a V-groove's faces).
   // Normals equal to 1e-12 are one orientation (a direction error of 1e-12 rad).

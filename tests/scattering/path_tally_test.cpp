@@ -31,13 +31,19 @@ SyntheticPath syntheticPath(uint64_t path, int group, int nBins) {
   return p;
 }
 
-TEST(PathTally, BatchedParallelSumsEqualASerialLoopInPathOrder) {
-  const DirectionGrid grid(ThetaPhiGrid{6, 12});
+PathTallyPlan planOf(const DirectionGrid& grid, int nLambda, uint64_t paths) {
   PathTallyPlan plan;
   plan.grid = &grid;
-  plan.nLambda = 2;
-  plan.groups = wavelengthGroups(2, true);
-  plan.paths = 3 * 256 * 1024 + 777;  // three full batches and part of a fourth
+  plan.nLambda = nLambda;
+  plan.groups = wavelengthGroups(nLambda, true);
+  plan.paths = paths;
+  plan.components = {Component::Coherent};
+  return plan;
+}
+
+TEST(PathTally, BatchedParallelSumsEqualASerialLoopInPathOrder) {
+  const DirectionGrid grid(ThetaPhiGrid{6, 12});
+  PathTallyPlan plan = planOf(grid, 2, 3 * 256 * 1024 + 777);  // three full batches and part of a fourth
   plan.firstPath = 5;
   plan.components = {Component::Coherent, Component::Multiple};
   const int nB = grid.binCount();
@@ -76,12 +82,7 @@ TEST(PathTally, BatchedParallelSumsEqualASerialLoopInPathOrder) {
 
 TEST(PathTally, AThrowingProgressAbandonsTheTile) {
   const DirectionGrid grid(ThetaPhiGrid{2, 4});
-  PathTallyPlan plan;
-  plan.grid = &grid;
-  plan.nLambda = 1;
-  plan.groups = wavelengthGroups(1, true);
-  plan.paths = 4 * 256 * 1024;
-  plan.components = {Component::Coherent};
+  const PathTallyPlan plan = planOf(grid, 1, 4 * 256 * 1024);
   uint64_t traced = 0;
   auto trace = [&](uint64_t, int group, PathChunk& out) {
     const double w = 1;
