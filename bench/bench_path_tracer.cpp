@@ -82,7 +82,7 @@ void BM_RawEmbreeRays(benchmark::State& state) {
       uint64_t local = 0;
       for (uint64_t j = c * 1024; j < std::min(n, (c + 1) * 1024); ++j) {
         Sampler s(7, uint32_t(tile), j);
-        DirectionSample wi = f.grid.sampleCosine(bin, s.get1D(), s.get1D());
+        DirectionSample wi = f.grid.sampleCosine(bin, s);
         Vec3 o{(s.get1D() - 0.5) * 20, (s.get1D() - 0.5) * 20, f.scene.zTop()};
         double t;
         local += f.scene.intersectRaw(o, -wi.w, 1e30, &t);

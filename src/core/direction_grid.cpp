@@ -240,6 +240,16 @@ DirectionSample DirectionGrid::sampleUniform(int bin, double u1, double u2) cons
   return s;
 }
 
+DirectionSample DirectionGrid::sampleUniform(int bin, Sampler& s) const {
+  const double u2 = s.get1D(), u1 = s.get1D();
+  return sampleUniform(bin, u1, u2);
+}
+
+DirectionSample DirectionGrid::sampleCosine(int bin, Sampler& s) const {
+  const double u2 = s.get1D(), u1 = s.get1D();
+  return sampleCosine(bin, u1, u2);
+}
+
 DirectionSample DirectionGrid::sampleCosine(int bin, double u1, double u2) const {
   int hemi = bin / perHemisphere_, local = bin % perHemisphere_;
   DirectionSample s =

@@ -10,6 +10,7 @@
 #include <variant>
 #include <vector>
 
+#include "core/rng.h"
 #include "core/vecmath.h"
 
 namespace mbsdf {
@@ -56,6 +57,10 @@ class DirectionGrid {
   DirectionSample sampleUniform(int bin, double u1, double u2) const;
   // Density proportional to |cos theta| inside the bin (weight 1 for cosine-weighted averages).
   DirectionSample sampleCosine(int bin, double u1, double u2) const;
+  // The two samplers above with their two numbers drawn from `s` in the order every estimator
+  // uses (the azimuth's u2 first), so that a sample's numbers do not depend on the compiler.
+  DirectionSample sampleUniform(int bin, Sampler& s) const;
+  DirectionSample sampleCosine(int bin, Sampler& s) const;
   // Bounding box of the bin's directions projected on the xy plane (x = sin θ cos φ, y = sin θ sin φ).
   void xyBounds(int bin, double* xmin, double* xmax, double* ymin, double* ymax) const;
   // Bin for an incidence direction given in degrees (theta in [0, 180], phi any).

@@ -197,13 +197,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     dirs.allocate(M);
     for (int k = 0; k < M; ++k) {
       Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(b) * uint64_t(M) + uint64_t(k), kWaveStream);
-      Vec3 wi;
-      if (exactDirection) {
-        wi = normalize(*exactDirection);
-      } else {
-        const double uPhi = s.get1D(), uSin2 = s.get1D();  // in this order (the azimuth's first)
-        wi = grid.sampleCosine(incidenceBin, uSin2, uPhi).w;
-      }
+      const Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s).w;
       double u1 = s.get1D(), u2 = s.get1D();
       Vec3 wo;
       if (!dirs.sample(dirs.technique(k), u1, u2, &wo)) continue;  // outside the bin: estimate 0

@@ -758,8 +758,7 @@ WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::f
     if (deterministic) return rule[size_t(k)].wi;
     if (exactDirection) return normalize(*exactDirection);
     Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(k), kOrdersStream);
-    const double uPhi = s.get1D(), uSin2 = s.get1D();  // in this order (the azimuth's first)
-    return grid.sampleCosine(incidenceBin, uSin2, uPhi).w;
+    return grid.sampleCosine(incidenceBin, s).w;
   };
   for (int k = 0; k < K; ++k) {
     const Vec3 wi = incidence(k);

@@ -31,8 +31,7 @@ WaveTileResult PaperWaveEstimator::run(const TileRequest& request, const std::fu
   const bool masked = ctx_.settings.computeMasked;
   // One incidence direction for the whole slice (Appendix A).
   Sampler s0(ctx_.settings.seed, uint32_t(tile), 0, kPaperStream);
-  const double uPhi = s0.get1D(), uSin2 = s0.get1D();  // in this order (the azimuth's first)
-  const Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, uSin2, uPhi).w;
+  const Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s0).w;
   const bool fromAbove = wi.z >= 0;
   const double cosI = std::abs(wi.z);
   const wave::Media media(ctx_);
@@ -62,8 +61,7 @@ WaveTileResult PaperWaveEstimator::run(const TileRequest& request, const std::fu
         uy = (s.get1D() - 0.5) * Ly;
         pdfU = 1.0 / (Lx * Ly);
       }
-      const double uPhi = s.get1D(), uTheta = s.get1D();  // in this order (the azimuth's first)
-      Vec3 wo = grid.sampleUniform(b, uTheta, uPhi).w;
+      Vec3 wo = grid.sampleUniform(b, s).w;
       // Map u into the base patch (periodic copies) and trace to the first surface point.
       double shiftX = 0, shiftY = 0;
       if (scene.periodic()) {

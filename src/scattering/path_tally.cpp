@@ -17,8 +17,7 @@ DirectionSample pathIncidence(const DirectionGrid& grid, int incidenceBin, const
     s.setDimension(1);
     return {*exact, 1.0};
   }
-  const double uPhi = s.get1D(), uSin2 = s.get1D();
-  return grid.sampleCosine(incidenceBin, uSin2, uPhi);
+  return grid.sampleCosine(incidenceBin, s);
 }
 
 std::vector<std::vector<int>> wavelengthGroups(int nLambda, bool shared) {

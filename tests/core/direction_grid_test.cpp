@@ -66,8 +66,8 @@ TEST(DirectionGrid, CentresAndSamplesFallInTheirBins) {
       if (g.projectedSolidAngle(b) <= 0) continue;
       EXPECT_EQ(g.binOf(g.centre(b)), b) << g.kind();
       for (int k = 0; k < 20; ++k) {
-        DirectionSample u = g.sampleUniform(b, s.get1D(), s.get1D());
-        DirectionSample c = g.sampleCosine(b, s.get1D(), s.get1D());
+        DirectionSample u = g.sampleUniform(b, s);
+        DirectionSample c = g.sampleCosine(b, s);
         ASSERT_EQ(g.binOf(u.w), b) << g.kind();
         ASSERT_EQ(g.binOf(c.w), b) << g.kind();
         ASSERT_NEAR(length(u.w), 1.0, 1e-12);
@@ -143,7 +143,7 @@ TEST(DirectionGrid, UniformSampleWeightsAverageToOne) {
   for (int b : {0, 55, 199, 250}) {
     double sum = 0;
     const int n = 20000;
-    for (int k = 0; k < n; ++k) sum += g.sampleUniform(b, s.get1D(), s.get1D()).weight;
+    for (int k = 0; k < n; ++k) sum += g.sampleUniform(b, s).weight;
     EXPECT_NEAR(sum / n, 1.0, 0.01);
   }
 }
