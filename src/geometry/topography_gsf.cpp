@@ -4,6 +4,7 @@
 // XYUnits, heights are in ZUnits; both must be lengths here (m, mm, um/µm, nm), since a height map
 // without units would be scaled by guess. A non-finite value is a point not measured.
 #include <bit>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -53,7 +54,10 @@ Topography readGsf(const std::string& path) {
   const double xres = keys.number("XRes"), yres = keys.number("YRes");
   if (xres != std::floor(xres) || yres != std::floor(yres))
     throw InputError(path + ": XRes and YRes must be whole numbers");
-  checkTopographySize(path, int64_t(xres), int64_t(yres));
+  // Bounded before the conversion (one beyond int64, or an infinity, would be undefined); the
+  // size check then says what the limits are.
+  auto points = [](double res) { return int64_t(std::clamp(res, -1.0, double(kMaxTopographySide) + 1)); };
+  checkTopographySize(path, points(xres), points(yres));
   const double xy_um = lengthUnit(path, "XYUnits", keys.text("XYUnits"));
   const double z_um = lengthUnit(path, "ZUnits", keys.text("ZUnits"));
   const double xreal = keys.number("XReal", 1.0), yreal = keys.number("YReal", 1.0);
