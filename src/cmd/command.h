@@ -28,6 +28,7 @@ Command addInfoCommand(CLI::App& app);
 Command addSliceCommand(CLI::App& app);
 Command addSheetCommand(CLI::App& app);
 Command addRenderCommand(CLI::App& app);
+Command addReportCommand(CLI::App& app);
 Command addGeometryCommand(CLI::App& app);
 Command addCheckCommand(CLI::App& app);
 Command addKeysCommand(CLI::App& app);

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
                                          addSliceCommand(app),
                                          addSheetCommand(app),
                                          addRenderCommand(app),
+                                         addReportCommand(app),
                                          addGeometryCommand(app),
                                          addCheckCommand(app),
                                          addKeysCommand(app),

@@ -149,6 +149,11 @@ Colour3 SpectrumToColour::xyz(const double* v) const {
 Colour3 SpectrumToColour::linearSrgb(const double* v) const {
   return xyzToLinearSrgb(xyz(v));
 }
+std::vector<Colour3> SpectrumToColour::linearSrgbPerSample() const {
+  std::vector<Colour3> out;
+  for (const Colour3& w : w_) out.push_back(xyzToLinearSrgb(w));
+  return out;
+}
 Colour3 SpectrumToColour::cieRgb(const double* v) const {
   return xyzToCieRgb(xyz(v));
 }

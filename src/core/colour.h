@@ -35,6 +35,8 @@ class SpectrumToColour {
   Colour3 linearSrgb(const double* values) const;
   Colour3 cieRgb(const double* values) const;
   const std::vector<Colour3>& weights() const { return w_; }
+  // Each sample's share of linear sRGB (linearSrgb is linear: the sum of these times the values).
+  std::vector<Colour3> linearSrgbPerSample() const;
 
  private:
   SpectrumToColour() = default;

@@ -91,6 +91,11 @@ inline double sphericalPhi(const Vec3& w) {
   double p = std::atan2(w.y, w.x);
   return p < 0 ? p + 2 * kPi : p;
 }
+// w turned by `angle` (radians) about the z axis, the surface normal.
+inline Vec3 turnedAboutZ(const Vec3& w, double angle) {
+  const double c = std::cos(angle), s = std::sin(angle);
+  return {c * w.x - s * w.y, s * w.x + c * w.y, w.z};
+}
 inline double radians(double deg) {
   return deg * kPi / 180.0;
 }

@@ -467,6 +467,17 @@ namespace {
 std::string readStringAttr(hid_t obj, const std::string& name) {
   H5Attribute a(H5Aopen(obj, name.c_str(), H5P_DEFAULT), "open attribute " + name);
   H5Datatype t(H5Aget_type(a), "H5Aget_type");
+  // A number (seed, paths_per_slice, …) as text: read in its class, not as bytes of a string.
+  if (H5Tget_class(t) == H5T_INTEGER) {
+    int64_t v = 0;
+    h5check(H5Aread(a, H5T_NATIVE_INT64, &v), "read attribute " + name);
+    return std::to_string(v);
+  }
+  if (H5Tget_class(t) == H5T_FLOAT) {
+    double v = 0;
+    h5check(H5Aread(a, H5T_NATIVE_DOUBLE, &v), "read attribute " + name);
+    return fmt::format("{}", v);
+  }
   std::string text(H5Tget_size(t), '\0');
   h5check(H5Aread(a, t, text.data()), "read attribute " + name);
   while (!text.empty() && text.back() == '\0') text.pop_back();
@@ -1753,10 +1764,10 @@ void BsdfFileWriter::finish() {
 BsdfFileReader::BsdfFileReader(const std::string& path) {
   if (!std::filesystem::exists(path)) {
     if (std::filesystem::exists(path + ".partial"))
-      throw std::runtime_error(path + ": no such file; " + path +
-                               ".partial holds the slices of a run that has not "
-                               "finished (being written, stopped or killed): open that to look at them");
-    throw std::runtime_error(path + ": no such file");
+      throw InputError(path + ": no such file; " + path +
+                       ".partial holds the slices of a run that has not "
+                       "finished (being written, stopped or killed): open that to look at them");
+    throw InputError(path + ": no such file");
   }
   // A SWMR reader opens a partial file while its run writes it, or after the run was killed (the
   // file still says it is open for writing); complete files open the same way.
@@ -1765,7 +1776,11 @@ BsdfFileReader::BsdfFileReader(const std::string& path) {
     H5Eclear2(H5E_DEFAULT);
     id = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   }
-  file_ = H5File(id, "open " + path + " (not a microbsdf HDF5 file?)");
+  if (id < 0) {
+    H5Eclear2(H5E_DEFAULT);
+    throw InputError(path + ": cannot be opened as HDF5 (not a microbsdf output file, or no permission to read it)");
+  }
+  file_ = H5File(id, "open " + path);
   lambda_nm_ = read1D<double>(file_, "/spectrum/wavelength_nm", H5T_NATIVE_DOUBLE);
   incBin_ = read1D<int>(file_, "/incidence/bin", H5T_NATIVE_INT);
   incTheta_ = read1D<double>(file_, "/incidence/theta_deg", H5T_NATIVE_DOUBLE);

@@ -245,6 +245,7 @@ class BsdfFileReader {
   // How the tables are stored (the root attribute storage_profile; "full" in files before it).
   std::string storageProfile() const;
   SliceStats stats(int incidence) const;
+  // A root attribute as text (a number written out in decimal).
   std::string attribute(const std::string& name) const;
   bool hasAttribute(const std::string& name) const;
   int64_t intAttribute(const std::string& name) const;

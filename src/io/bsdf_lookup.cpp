@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <stdexcept>
 
 #include "core/error.h"
@@ -119,23 +118,20 @@ double BsdfLookup::eval(int incidence, const Vec3& wo, int l) const {
   return f;
 }
 
-namespace {
-Vec3 turned(const Vec3& w, double angle) {
-  const double c = std::cos(angle), s = std::sin(angle);
-  return {c * w.x - s * w.y, s * w.x + c * w.y, w.z};
-}
-}  // namespace
-
 double BsdfLookup::eval(const Vec3& wi, const Vec3& wo, int l) const {
-  return acrossIncidences(wi, wo, [&](int i, const Vec3& w) { return eval(i, w, l); });
+  double f = 0;
+  for (const IncidenceWeight& iw : incidenceWeights(wi))
+    f += iw.weight * eval(iw.incidence, turnedAboutZ(wo, iw.turn), l);
+  return f;
 }
 
 double BsdfLookup::hemisphericalIntegral(const Vec3& wi, int l, bool upper) const {
-  return acrossIncidences(wi, wi, [&](int i, const Vec3&) { return hemisphericalIntegral(i, l, upper); });
+  double e = 0;
+  for (const IncidenceWeight& iw : incidenceWeights(wi)) e += iw.weight * hemisphericalIntegral(iw.incidence, l, upper);
+  return e;
 }
 
-double BsdfLookup::acrossIncidences(const Vec3& wi, const Vec3& wo,
-                                    const std::function<double(int, const Vec3&)>& value) const {
+std::vector<BsdfLookup::IncidenceWeight> BsdfLookup::incidenceWeights(const Vec3& wi) const {
   // The nearest incidence of the other side would be another experiment altogether.
   if (!(wi.z >= 0 ? hasUpper_ : hasLower_))
     throw InputError(std::string("the table holds no incidence from ") + (wi.z >= 0 ? "above" : "below") +
@@ -148,33 +144,32 @@ double BsdfLookup::acrossIncidences(const Vec3& wi, const Vec3& wo,
     const std::vector<Ring>& rings = wi.z >= 0 ? ringsUpper_ : ringsLower_;
     const Vec3 n = normalize(wi);
     const double theta = safeAcos(std::abs(n.z)), phi = sphericalPhi(n);
-    auto ringValue = [&](const Ring& r) { return value(r.incidence, turned(wo, r.phi - phi)); };
+    auto on = [&](const Ring& r, double w) { return IncidenceWeight{r.incidence, r.phi - phi, w}; };
     const auto above =
         std::lower_bound(rings.begin(), rings.end(), theta, [](const Ring& r, double t) { return r.theta < t; });
-    if (above == rings.begin()) return ringValue(rings.front());
-    if (above == rings.end()) return ringValue(rings.back());
+    if (above == rings.begin()) return {on(rings.front(), 1)};
+    if (above == rings.end()) return {on(rings.back(), 1)};
     const Ring& below = *(above - 1);
     // On a ring (an exporter's node, up to rounding): that ring alone, not a blend read from two slices.
-    if (above->theta - theta < 1e-9) return ringValue(*above);
-    if (theta - below.theta < 1e-9) return ringValue(below);
+    if (above->theta - theta < 1e-9) return {on(*above, 1)};
+    if (theta - below.theta < 1e-9) return {on(below, 1)};
     const double w = (theta - below.theta) / (above->theta - below.theta);
-    return (1 - w) * ringValue(below) + w * ringValue(*above);
+    return {on(below, 1 - w), on(*above, w)};
   }
   if (allIncidenceBins_) {
-    double f = 0;
-    bool complete = true;
+    std::vector<IncidenceWeight> out;
     for (const auto& [b, wt] : interpolationWeights(grid_, wi)) {
       const int i = incidenceOfBin_[size_t(b)];
       if (i < 0 || !file_.done(i)) {
-        complete = false;
+        out.clear();
         break;
       }
-      f += wt * value(i, wo);
+      out.push_back({i, 0.0, wt});
     }
-    if (complete) return f;
+    if (!out.empty()) return out;
   }
   const Vec3 n = normalize(wi);
-  return value(file_.nearestIncidence(degrees(safeAcos(n.z)), degrees(sphericalPhi(n))), wo);
+  return {{file_.nearestIncidence(degrees(safeAcos(n.z)), degrees(sphericalPhi(n))), 0.0, 1.0}};
 }
 
 double BsdfLookup::hemisphericalIntegral(int incidence, int l, bool upper) const {

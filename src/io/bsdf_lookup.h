@@ -11,7 +11,6 @@
 // the azimuth of an incidence it holds at each θ — exact for such a table — and interpolates linearly
 // in θi between the two nearest such rings of incidences (held beyond the first and last).
 #pragma once
-#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -43,6 +42,21 @@ class BsdfLookup {
   // f(wi → wo) at wavelength l: between incidences as above. wi points away from the surface
   // towards the light; InputError when the table holds no incidence on wi's side.
   double eval(const Vec3& wi, const Vec3& wo, int l) const;
+  // The rule between incidences made explicit: eval(wi, wo, l) = Σ weight · eval(incidence,
+  // turnedAboutZ(wo, turn), l) over these (the weights sum to 1; turn is the angle about the normal by which
+  // an isotropic table's pair of directions is turned onto the incidence's azimuth, else 0). Reads no
+  // slice. InputError when the table holds no incidence on wi's side.
+  struct IncidenceWeight {
+    int incidence;
+    double turn;
+    double weight;
+  };
+  std::vector<IncidenceWeight> incidenceWeights(const Vec3& wi) const;
+  // One incidence's slice, nλ × nBins (read from the file when first needed; InputError when the slice
+  // is not finished). Callers on several threads read each slice once under their own lock first.
+  const std::vector<double>& slice(int incidence) const;
+  // Whether the table holds a finished incidence from above (below) the surface.
+  bool holdsIncidencesFrom(bool above) const { return above ? hasUpper_ : hasLower_; }
   // Whether eval(wi, …) falls back to the nearest incidence (an anisotropic table without every bin).
   bool nearestOnly() const { return !allIncidenceBins_ && !isotropic_; }
   // How eval(wi, …) finds values between incidences, in words.
@@ -65,7 +79,6 @@ class BsdfLookup {
   int nL_ = 0, nB_ = 0;
   // Per incidence: nλ × nBins, read when first needed (a large table's eval touches a few slices).
   mutable std::vector<std::vector<double>> slices_;
-  const std::vector<double>& slice(int incidence) const;
   std::vector<int> incidenceOfBin_;  // incidence index of each bin, or −1
   bool allIncidenceBins_ = false;
   bool isotropic_ = false;
@@ -74,9 +87,7 @@ class BsdfLookup {
     int incidence;
   };
   std::vector<Ring> ringsUpper_, ringsLower_;  // ascending θ
-  // value(incidence, wo as seen from that incidence) blended over the incidences around wi (the rule above).
-  double acrossIncidences(const Vec3& wi, const Vec3& wo, const std::function<double(int, const Vec3&)>& value) const;
-  bool hasUpper_ = false, hasLower_ = false;  // incidences from above, from below
+  bool hasUpper_ = false, hasLower_ = false;   // incidences from above, from below
 };
 
 }  // namespace mbsdf

@@ -6,6 +6,8 @@
 #include <memory>
 #include <stdexcept>
 
+#include "core/error.h"
+
 namespace mbsdf {
 namespace {
 struct FileCloser {
@@ -13,17 +15,22 @@ struct FileCloser {
 };
 }  // namespace
 
-void writePng(const std::string& path, const RgbImage& img) {
-  std::unique_ptr<FILE, FileCloser> f(std::fopen(path.c_str(), "wb"));
-  if (!f) throw std::runtime_error("cannot write " + path);
+std::vector<uint8_t> encodePng(const RgbImage& img) {
+  std::vector<uint8_t> out;
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
   png_infop info = png ? png_create_info_struct(png) : nullptr;
   if (!png || !info) throw std::runtime_error("libpng: out of memory");
   if (setjmp(png_jmpbuf(png))) {
     png_destroy_write_struct(&png, &info);
-    throw std::runtime_error("libpng: error writing " + path);
+    throw std::runtime_error("libpng: error encoding an image");
   }
-  png_init_io(png, f.get());
+  png_set_write_fn(
+      png, &out,
+      [](png_structp p, png_bytep data, png_size_t n) {
+        auto* o = static_cast<std::vector<uint8_t>*>(png_get_io_ptr(p));
+        o->insert(o->end(), data, data + n);
+      },
+      nullptr);
   png_set_IHDR(png, info, png_uint_32(img.width), png_uint_32(img.height), 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
                PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_write_info(png, info);
@@ -31,6 +38,15 @@ void writePng(const std::string& path, const RgbImage& img) {
     png_write_row(png, const_cast<png_bytep>(img.rgb.data() + size_t(y) * img.width * 3));
   png_write_end(png, nullptr);
   png_destroy_write_struct(&png, &info);
+  return out;
+}
+
+void writePng(const std::string& path, const RgbImage& img) {
+  const std::vector<uint8_t> bytes = encodePng(img);
+  std::unique_ptr<FILE, FileCloser> f(std::fopen(path.c_str(), "wb"));
+  if (!f) throw std::runtime_error("cannot write " + path);
+  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), f.get()) == bytes.size();
+  if (!written || std::fclose(f.release()) != 0) throw WriteError("cannot write " + path + " (disk full?)");
 }
 
 RgbImage readPng(const std::string& path) {

@@ -1,139 +1,124 @@
 #include "render/preview.h"
 
 #include <cmath>
-#include <map>
-#include <optional>
 #include <stdexcept>
 
-#include "core/colour.h"
 #include "core/error.h"
-#include "geometry/embree_scene.h"
-#include "io/bsdf_lookup.h"
 #include "io/bitmap_text.h"
 #include "io/slice_export.h"
-#include "scattering/components.h"
+#include "optics/material.h"
+#include "render/ggx_material.h"
+#include "render/shapes.h"
+#include "render/tabulated_material.h"
 
 namespace mbsdf {
 
+Camera previewCamera(const RenderRequest& req) {
+  // Far enough that the unit ball fills about 80 % of a 30° field.
+  const double el = radians(req.cameraElevation_deg), az = radians(req.cameraAzimuth_deg);
+  const double distance = 1.25 / std::sin(radians(req.fovY_deg) / 2);
+  const Vec3 eye = distance * Vec3{std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
+  return Camera(eye, {0, 0, 0}, {0, 0, 1}, req.fovY_deg, req.size, req.size);
+}
+
+Environment previewEnvironment(const RenderRequest& req) {
+  const std::string& e = req.environment;
+  Environment env =
+      (e.size() > 4 && e.substr(e.size() - 4) == ".exr") ? Environment::fromExr(e) : Environment::builtIn(e);
+  if (req.environmentTurn_deg == 0) return env;
+  // Turning the map by whole columns keeps its pixels (and their sampling) exact.
+  const int shift = int(std::lround(req.environmentTurn_deg / 360 * env.width())) % env.width();
+  std::vector<float> rgb(size_t(env.width()) * env.height() * 3);
+  for (int r = 0; r < env.height(); ++r)
+    for (int c = 0; c < env.width(); ++c) {
+      const Colour3 L = env.radiance(env.pixelCentre(c, r));
+      const size_t to = (size_t(r) * env.width() + size_t((c + shift + env.width()) % env.width())) * 3;
+      for (int k = 0; k < 3; ++k) rgb[to + size_t(k)] = float(L[size_t(k)]);
+    }
+  return Environment(env.width(), env.height(), std::move(rgb), env.name());
+}
+
 namespace {
 
-// A unit sphere as a closed triangle mesh (latitude-longitude, nLat x nLon).
-Microgeometry unitSphere(int nLat, int nLon) {
-  Microgeometry g;
-  g.sizeX = g.sizeY = 2.0;
-  g.periodic = false;
-  for (int i = 0; i <= nLat; ++i)
-    for (int j = 0; j < nLon; ++j) {
-      const double th = kPi * i / nLat, ph = 2 * kPi * j / nLon;
-      g.addVertex(sphericalDirection(th, ph));
-    }
-  auto v = [&](int i, int j) { return uint32_t(i * nLon + (j % nLon)); };
-  for (int i = 0; i < nLat; ++i)
-    for (int j = 0; j < nLon; ++j) {
-      // Counter-clockwise seen from outside (normals outward).
-      if (i > 0) g.triangles.push_back({v(i, j), v(i + 1, j), v(i, j + 1)});
-      if (i + 1 < nLat) g.triangles.push_back({v(i, j + 1), v(i + 1, j), v(i + 1, j + 1)});
-    }
-  return g;
+std::vector<Colour3> linearSrgbOfWavelengths(const std::vector<double>& lambda_nm) {
+  try {
+    return SpectrumToColour(lambda_nm).linearSrgbPerSample();
+  } catch (const std::invalid_argument&) {  // no visible wavelength: grey
+    const double w = 1.0 / double(lambda_nm.size());
+    return std::vector<Colour3>(lambda_nm.size(), Colour3{w, w, w});
+  }
 }
 
 }  // namespace
 
-RgbImage renderPreview(const BsdfFileReader& file, const RenderRequest& req) {
+std::vector<PreviewPanel> renderPreview(const BsdfFileReader& file, const RenderRequest& req,
+                                        const std::function<void(int, int)>& progress) {
   const std::vector<std::string> models = req.models.empty() ? availableModels(file) : req.models;
-  if (models.empty()) throw std::runtime_error("the file holds no complete model");
-  const int nL = file.channelCount();
-  std::optional<SpectrumToColour> colour;
-  try {
-    colour.emplace(file.toColour());
-  } catch (const std::invalid_argument&) {
+  if (models.empty() && !req.ggx) throw InputError("the file holds no complete model");
+  const RenderScene scene(shapeByName(req.shape));
+  const Camera camera = previewCamera(req);
+  const Environment env = previewEnvironment(req);
+  std::vector<PreviewPanel> panels;
+  auto render = [&](const std::string& label, const RenderMaterial& material) {
+    PreviewPanel p;
+    p.label = label;
+    RenderCounts counts;
+    const int index = int(panels.size());
+    p.image = renderImage(
+        scene, camera, material, env, req.settings,
+        [&](int rows) {
+          if (progress) progress(index, rows);
+        },
+        &counts);
+    p.dropped = counts.dropped;
+    panels.push_back(std::move(p));
+  };
+  for (const std::string& model : models) {
+    const TabulatedMaterial material(file, model, req.insideIor);
+    render(model, material);
+    panels.back().reciprocityUsed = material.reciprocityUsed();
+    panels.back().etaFactorMissing = material.etaFactorMissing();
+    panels.back().lightSliceInside = material.lightSliceInside();
+    panels.back().nearestSlice = material.lookup().nearestOnly();
+    panels.back().unfinishedReplaced = material.unfinishedReplaced();
   }
-  const Microgeometry sphere = unitSphere(96, 192);
-  const PeriodicScene scene(sphere);
-  const Vec3 light = sphericalDirection(radians(req.lightTheta_deg), radians(req.lightPhi_deg));
-  const Vec3 view{0, 0, 1};
+  if (req.ggx) {
+    Material m;
+    if (!builtinMaterial(req.ggx->material, &m) || !m.isConductor() || m.isPerfectConductor())
+      throw InputError("--ggx-reference: \"" + req.ggx->material +
+                       "\" is not a built-in conductor with an index (Al, Ag, Au, Cu)");
+    std::vector<double> lambda_um;
+    for (double nm : file.wavelengths_nm()) lambda_um.push_back(nm / 1000);
+    std::vector<Complex> eta;
+    for (const Complex& n : m.iorAt(lambda_um)) eta.push_back(n / m.outsideIor);
+    const GgxConductorMaterial ggx(req.ggx->alpha, eta, linearSrgbOfWavelengths(file.wavelengths_nm()));
+    render("GGX " + req.ggx->material, ggx);
+  }
+  return panels;
+}
 
-  const int S = req.size, top = 7 * std::max(1, S / 96) + 8;
-  RgbImage img;
-  img.width = S * int(models.size());
-  img.height = S + top;
-  img.rgb.assign(size_t(img.width) * img.height * 3, 0);
-  for (size_t mi = 0; mi < models.size(); ++mi) {
-    // f between bins and incidences as every reader of a table sees it (io/bsdf_lookup.h); its slices
-    // are read as pixels need them.
-    const BsdfLookup lookup(file, models[mi]);
-    // Directional albedo a(λ) of the model: the file's per-component energy_reflected of the slice
-    // (no need to read the whole table for the environment term).
-    const std::vector<Component> comps = *modelComponents(models[mi]);
-    std::map<int, std::vector<double>> albedos;
-    auto albedo = [&](int inc) -> const std::vector<double>& {
-      auto it = albedos.find(inc);
-      if (it != albedos.end()) return it->second;
-      const SliceStats st = file.stats(inc);
-      std::vector<double> a(nL, 0.0);
-      for (Component c : comps) {
-        const auto& e = st.energyReflected.at(componentName(c));
-        for (int l = 0; l < nL; ++l) a[l] += e[l];
-      }
-      return albedos.emplace(inc, a).first->second;
-    };
-    auto nearestDone = [&](const Vec3& w) {
-      const int inc = file.nearestIncidence(degrees(sphericalTheta(w)), degrees(sphericalPhi(w)));
-      return file.done(inc) ? inc : -1;
-    };
-    std::vector<double> L(nL);
-    for (int j = 0; j < S; ++j)
-      for (int i = 0; i < S; ++i) {
-        const double x = -1 + 2.0 * (i + 0.5) / S, y = 1 - 2.0 * (j + 0.5) / S;
-        TraceResult hit = scene.trace({x, y, 3.0}, {0, 0, -1});
-        if (hit.kind != TraceResult::Kind::Hit) continue;
-        const Vec3 n = normalize(hit.p);  // the smooth sphere's normal at the hit
-        Vec3 t = cross(Vec3{0, 1, 0}, n);
-        t = length(t) > 1e-9 ? normalize(t) : Vec3{1, 0, 0};
-        const Vec3 b = cross(n, t);
-        auto local = [&](const Vec3& w) { return Vec3{dot(w, t), dot(w, b), dot(w, n)}; };
-        const Vec3 wo = local(view), wi = local(light);
-        std::fill(L.begin(), L.end(), 0.0);
-        if (wo.z <= 0) continue;
-        // A pixel whose slice the file does not hold yet (a partial file) is drawn as a magenta
-        // and black checker, never as a dark surface.
-        bool missing = false;
-        if (wi.z > 0) {
-          try {
-            for (int l = 0; l < nL; ++l) L[l] += lookup.eval(wi, wo, l) * req.lightIrradiance * wi.z;
-          } catch (const InputError&) {  // a slice the interpolation needs is not finished yet
-            missing = true;
-          }
-        }
-        if (req.environment > 0) {
-          if (int inc = nearestDone(wo); inc >= 0) {
-            const auto& a = albedo(inc);
-            for (int l = 0; l < nL; ++l) L[l] += req.environment * a[l];
-          } else {
-            missing = true;
-          }
-        }
-        if (missing) {
-          const bool on = ((i / 8) + (j / 8)) % 2 == 0;
-          const size_t p = (size_t(j + top) * img.width + size_t(mi) * S + i) * 3;
-          img.rgb[p] = on ? 255 : 0, img.rgb[p + 1] = 0, img.rgb[p + 2] = on ? 255 : 0;
-          continue;
-        }
-        Colour3 rgb;
-        if (colour) {
-          rgb = colour->linearSrgb(L.data());
-        } else {
-          double m = 0;
-          for (double v : L) m += v / nL;
-          rgb = {m, m, m};
-        }
-        const size_t p = (size_t(j + top) * img.width + size_t(mi) * S + i) * 3;
+LinearImage composeLinear(const std::vector<PreviewPanel>& panels) {
+  LinearImage out;
+  if (panels.empty()) return out;
+  const int S = panels.front().image.width, H = panels.front().image.height;
+  out.width = S * int(panels.size());
+  out.height = H;
+  out.rgb.assign(size_t(out.width) * H * 3, 0.f);
+  for (size_t i = 0; i < panels.size(); ++i)
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < S; ++x)
         for (int k = 0; k < 3; ++k)
-          img.rgb[p + k] =
-              uint8_t(std::lround(std::clamp(srgbEncode(std::max(0.0, rgb[k]) * req.exposure), 0.0, 1.0) * 255));
-      }
-    drawText(img, int(mi) * S + 4, 4, models[mi], std::max(1, S / 96), 235);
-  }
+          out.rgb[(size_t(y) * out.width + i * S + size_t(x)) * 3 + size_t(k)] =
+              panels[i].image.rgb[(size_t(y) * S + size_t(x)) * 3 + size_t(k)];
+  return out;
+}
+
+RgbImage composePanels(const std::vector<PreviewPanel>& panels, double exposureStops, ToneCurve curve) {
+  RgbImage img = toneMap(composeLinear(panels), exposureStops, curve);
+  if (panels.empty()) return img;
+  const int S = panels.front().image.width, scale = std::max(1, S / 192);
+  for (size_t i = 0; i < panels.size(); ++i)
+    drawText(img, int(i) * S + 4 * scale, 4 * scale, panels[i].label, scale, 235);
   return img;
 }
 

@@ -1643,56 +1643,128 @@ def test_slice_export():
     print("sheet:", (w, h))
 
 
-def test_render():
-    """`render` of a flat-mirror BSDF under a directional light, no environment: black except the
-    highlight, which sits where the sphere's normal bisects the light and the view (within the
-    table's bin resolution)."""
-    job = os.path.join(TMP, "mirror.toml")
-    open(job, "w").write("""[geometry]
-kind = "flat"
+def gold_ggx_job(name, extra=""):
+    """A statistical GGX gold surface (alpha 0.3) at five incidences, declared isotropic so that a
+    renderer interpolates between them: a table in a second. Returns the job's path; it writes
+    <name>.h5."""
+    job = os.path.join(TMP, name + ".toml")
+    open(job, "w").write(f"""[geometry]
+kind = "statistical"
+ndf = "ggx"
+alpha = 0.3
 [material]
-name = "mirror"
+name = "Au"
 [spectrum]
-wavelengths_nm = [550.0]
+wavelengths_nm = [450.0, 550.0, 650.0]
 [directions]
 n_theta = 18
-n_phi = 36
-incidence = "all"
-[effects]
-components = ["coherent", "multiple"]
-[sampling]
-paths_per_slice = 2000
+n_phi = 72
+incidence = [[5.0, 0.0], [25.0, 0.0], [45.0, 0.0], [65.0, 0.0], [85.0, 0.0]]
+symmetry = "isotropic"
+{extra}[sampling]
+paths_per_slice = 20000
 [output]
-path = "mirror.h5"
+path = "{name}.h5"
 """)
-    run(["run", job], timeout=600)
-    size = 128
-    # Light at θ = 45°, φ = 5°: the highlight's local incidence (22.5°, 4.7°) is inside a 5° x 10°
-    # bin. (At θ = 40°, φ = 0 it sits on bin edges, where the mirror of the incidence bin and the
-    # exit bin of ωo never coincide: a tabulated mirror has no highlight there.)
-    run(["render", "mirror.h5", "-o", "render.png", "--size", str(size), "--light-theta", "45", "--light-phi", "5",
-         "--environment", "0", "--models", "GS"])
+    return job
+
+
+def test_render():
+    """`render` end to end: a statistical GGX gold table as PNG panels (GS, GM and the closed-form GGX
+    reference) and as linear EXR, on the built-in shapes and environments, an OBJ shape and an EXR
+    environment; bad options exit 2 naming what is wrong. (The images themselves are checked against
+    closed forms by the unit tests in tests/render/.)"""
+    job = gold_ggx_job("ggx-render")
+    run(["run", job])
+    size = 48
+    p = run(["render", "ggx-render.h5", "-o", "render.png", "--size", str(size), "--spp", "4",
+             "--ggx-reference", "0.3,Au"])
     img = plt.imread(os.path.join(TMP, "render.png"))
-    top = img.shape[0] - size
-    sphere = img[top:, :size, :3]
-    lit = np.argwhere(sphere.max(axis=2) > 0)
-    assert len(lit) > 0, "no highlight"
-    h = np.array([np.sin(np.radians(45)) * np.cos(np.radians(5)), np.sin(np.radians(45)) * np.sin(np.radians(5)),
-                  1 + np.cos(np.radians(45))])
-    h /= np.linalg.norm(h)
-    worst = 0.0
-    for j, i in lit:
-        x, y = -1 + 2 * (i + 0.5) / size, 1 - 2 * (j + 0.5) / size
-        n = np.array([x, y, np.sqrt(max(0.0, 1 - x * x - y * y))])
-        worst = max(worst, np.degrees(np.arccos(np.clip(n @ h, -1, 1))))
-    # Bins of 5° x 10°: exit and nearest-incidence quantisation move the reflected direction by up
-    # to ~12°, the normal by half of it.
-    assert worst < 8.0, f"lit pixels up to {worst:.1f}° from the highlight normal"
-    # The exact highlight pixel is lit.
-    ih, jh = int((h[0] + 1) / 2 * size), int((1 - h[1]) / 2 * size)
-    assert sphere[jh, ih].max() > 0, "the exact highlight is dark"
-    print(f"render: {len(lit)} lit pixels of {size * size}, all within {worst:.1f}° of the highlight normal")
-    run(["render", "mirror.h5", "-o", "render_all.png", "--size", "64"])
+    assert img.shape[:2] == (size, 3 * size), f"three panels expected, image {img.shape}"
+    for k in range(3):
+        panel = img[:, k * size:(k + 1) * size, :3]
+        centre = panel[size // 3:2 * size // 3, size // 3:2 * size // 3].mean(axis=(0, 1))
+        # Gold: red above blue, in every panel.
+        assert centre[0] > centre[2] > 0, f"panel {k}: centre colour {centre}"
+    run(["render", "ggx-render.h5", "-o", "render.exr", "--size", "24", "--spp", "2", "--models", "GS"])
+    assert open(os.path.join(TMP, "render.exr"), "rb").read(4) == bytes([0x76, 0x2F, 0x31, 0x01]), "not an EXR"
+    tetra = os.path.join(TMP, "tetra.obj")
+    open(tetra, "w").write("v 0 0 1\nv 1 0 -0.5\nv -0.5 0.87 -0.5\nv -0.5 -0.87 -0.5\n"
+                           "f 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n")
+    # Any float EXR with R, G, B serves as an environment map: a slice of the table is one.
+    run(["slice", "ggx-render.h5", "--theta-i", "45", "-o", "env.exr"])
+    for shape, env in (("ball", "sky"), (tetra, "studio"), ("sphere", "env.exr")):
+        run(["render", "ggx-render.h5", "-o", "r.png", "--size", "24", "--spp", "2", "--models", "GS",
+             "--shape", shape, "--environment", env])
+    for args, says in ((["--shape", "teapot.stl"], "teapot.stl"), (["--environment", "nowhere.exr"], "nowhere.exr"),
+                       (["--tone-curve", "reinhard"], "reinhard"), (["--spp", "0"], "--spp"),
+                       (["--ggx-reference", "0.3,BK7"], "BK7"), (["--models", "XX"], "XX")):
+        p = run(["render", "ggx-render.h5", "-o", "bad.png", "--size", "24"] + args, expect=2)
+        assert says in p.stderr, f"{args}: the error does not name {says}:\n{p.stderr}"
+    assert not os.path.exists(os.path.join(TMP, "bad.png"))
+    print("render: PNG panels, EXR, shapes, environments and refusals as expected")
+
+
+def chromium_dom(html, fragment, profile):
+    """Opens html#fragment in Debian's headless Chromium with every network request refused, lets its
+    scripts run, and returns the DOM as the page left it and the browser's console lines."""
+    p = subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--user-data-dir=" + profile,
+                        "--proxy-server=127.0.0.1:9", "--proxy-bypass-list=<-loopback>", "--enable-logging=stderr",
+                        "--v=0", "--virtual-time-budget=10000", "--dump-dom", "file://" + html + "#" + fragment],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, f"chromium exited {p.returncode}:\n{p.stderr[-3000:]}"
+    console = [l for l in p.stderr.splitlines() if ":CONSOLE" in l]
+    return p.stdout, console
+
+
+def test_report():
+    """`report`: one self-contained HTML file. Opened in headless Chromium with the network cut off:
+    no console message and no script error, every part present; the slider's position (set through the
+    address, #incidence=K, which sets the slider and fires its own input event) changes the slice pictures, the lobes
+    and the label; nothing is fetched from outside the file; bad options exit 2, and a report that
+    cannot be written (a folder in its place) exits 2 before any work; the existing report stays as it
+    was."""
+    job = gold_ggx_job("ggx-report", '[effects]\ncomponents = ["auto"]\n')
+    run(["run", job])
+    html = os.path.join(TMP, "report.html")
+    run(["report", "ggx-report.h5", "-o", html, "--slice-size", "64", "--render-size", "32", "--render-spp", "2"])
+    text = open(html, encoding="utf-8").read()
+    # Self-contained: no reference leaves the file (the SVG namespace is a name, not an address).
+    outside = re.findall(r'(?:src|href)\s*=\s*["\']?(?!data:|#)[a-z]+:|url\(\s*["\']?(?!data:)|@import', text)
+    assert not outside, f"references outside the file: {outside[:5]}"
+    for part in ("Provenance", "Effects planner", "Slices: energy and errors", "Plane of incidence",
+                 "Albedo against", "Material preview", "multiple"):
+        assert part in text, f"the report lacks {part}"
+    profile = os.path.join(TMP, "chromium-profile")
+    doms = {}
+    for k in (0, 3):
+        dom, console = chromium_dom(html, f"incidence={k}", profile)
+        assert not console, f"console messages at #incidence={k}:\n" + "\n".join(console)
+        assert 'data-ready="1"' in dom, "the report's script did not finish"
+        assert re.search(r'<pre id="errors"></pre>', dom), "script errors: " + dom[dom.find('id="errors"'):][:500]
+        assert dom.count("<polyline") >= 2 and dom.count("<circle") >= 5, "lobes or albedo not drawn"
+        doms[k] = dom
+    def shown(dom, element):
+        m = re.search(r'<img id="' + element + r'"[^>]*src="([^"]+)"', dom) or \
+            re.search(r'<img[^>]*src="([^"]+)"[^>]*id="' + element + r'"', dom)
+        assert m, f"{element} shows no picture"
+        return m.group(1)
+    for element in ("false-GS", "true-GS", "false-GM"):
+        assert shown(doms[0], element) != shown(doms[3], element), f"{element}: the slider does not change it"
+    label = lambda dom: re.search(r'id="incidence-label">([^<]*)<', dom).group(1)
+    assert "theta_i = 5.00" in label(doms[0]) and "theta_i = 65.00" in label(doms[3]), (label(doms[0]), label(doms[3]))
+    lobes = lambda dom: re.search(r'<svg id="lobes".*?</svg>', dom, re.S).group(0)
+    assert lobes(doms[0]) != lobes(doms[3]), "the lobes do not follow the slider"
+    # Refusals, and a failed write that leaves the existing report whole.
+    p = run(["report", "ggx-report.h5", "-o", html, "--slice-size", "8"], expect=2)
+    assert "--slice-size" in p.stderr
+    before = sha(html)
+    p = run(["report", "ggx-report.h5", "-o", TMP, "--render-size", "0"], expect=2)
+    assert TMP in p.stderr, p.stderr
+    run(["report", "missing.h5", "-o", html], expect=2)
+    assert sha(html) == before, "a failed report damaged the existing one"
+    print(f"report: {len(text) / 1e6:.2f} MB, opens in headless Chromium without console messages; the slider "
+          "changes slices, lobes and label; no reference outside the file")
 
 
 def test_bad_input():
