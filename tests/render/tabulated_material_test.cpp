@@ -42,7 +42,7 @@ void expectConsistentSampling(const TabulatedMaterial& m, const char* what) {
       EXPECT_LE(mass, 1 + std::abs(mass - sphereQuadrature([&](const Vec3& wi) { return m.pdf(wo, wi); }, 180)))
           << what << " θo " << thetaO;
       EXPECT_GT(mass, 0.5) << what << " θo " << thetaO;
-      const int n = 40000;
+      const int n = 20000;
       double sum = 0, sum2 = 0;
       for (int i = 0; i < n; ++i) {
         Sampler s(7, 1, uint64_t(i));
