@@ -51,22 +51,38 @@ bool tableIsIsotropic(const BsdfFileReader& file) {
   return file.hasAttribute("symmetry") && file.attribute("symmetry").rfind("isotropic", 0) == 0;
 }
 
+GridCoords gridCoords(const DirectionGrid& grid, const Vec3& w) {
+  if (const auto* g = std::get_if<ThetaPhiGrid>(&grid.layout()))
+    return {safeAcos(std::abs(w.z)) / (0.5 * kPi) * g->nTheta - 0.5, sphericalPhi(w) / (2 * kPi) * g->nPhi - 0.5};
+  const auto& d = std::get<DiskGrid>(grid.layout());
+  return {(w.x + 1) * 0.5 * d.width - 0.5, (w.y + 1) * 0.5 * d.height - 0.5};
+}
+
+int binAtCoords(const DirectionGrid& grid, int i, int j, bool upper) {
+  const int offset = upper ? 0 : grid.binsPerHemisphere();
+  if (const auto* g = std::get_if<ThetaPhiGrid>(&grid.layout())) {
+    if (i < 0 || i >= g->nTheta) return -1;
+    return offset + i * g->nPhi + ((j % g->nPhi) + g->nPhi) % g->nPhi;
+  }
+  const auto& d = std::get<DiskGrid>(grid.layout());
+  if (i < 0 || i >= d.width || j < 0 || j >= d.height) return -1;
+  return offset + j * d.width + i;
+}
+
 std::vector<std::pair<int, double>> interpolationWeights(const DirectionGrid& grid, const Vec3& wIn) {
   const Vec3 w = normalize(wIn);
-  const int offset = w.z >= 0 ? 0 : grid.binsPerHemisphere();
+  const bool upper = w.z >= 0;
+  auto bin = [&](int i, int j) { return binAtCoords(grid, i, j, upper); };
+  const GridCoords c = gridCoords(grid, w);
   std::vector<std::pair<int, double>> out;
   if (const auto* g = std::get_if<ThetaPhiGrid>(&grid.layout())) {
-    // Continuous ring and sector coordinates whose integers are the bins' centres.
-    const double uRaw = safeAcos(std::abs(w.z)) / (0.5 * kPi) * g->nTheta - 0.5;
-    const double u = std::clamp(uRaw, 0.0, g->nTheta - 1.0);
-    const double v = sphericalPhi(w) / (2 * kPi) * g->nPhi - 0.5;
+    const double u = std::clamp(c.u, 0.0, g->nTheta - 1.0);
     const int t0 = std::min(int(std::floor(u)), g->nTheta - 1), t1 = std::min(t0 + 1, g->nTheta - 1);
-    const int p0 = int(std::floor(v)), p1 = p0 + 1;
-    const double fu = u - t0, fv = v - p0;
-    auto bin = [&](int t, int p) { return offset + t * g->nPhi + ((p % g->nPhi) + g->nPhi) % g->nPhi; };
+    const int p0 = int(std::floor(c.v)), p1 = p0 + 1;
+    const double fu = u - t0, fv = c.v - p0;
     // Inside the first ring's centres the value tends to the ring's mean at the pole, where every
     // azimuth meets (continuous across the pole).
-    const double toPole = uRaw < 0 ? std::min(1.0, -2 * uRaw) : 0.0;
+    const double toPole = c.u < 0 ? std::min(1.0, -2 * c.u) : 0.0;
     out = {{bin(t0, p0), (1 - toPole) * (1 - fu) * (1 - fv)},
            {bin(t0, p1), (1 - toPole) * (1 - fu) * fv},
            {bin(t1, p0), (1 - toPole) * fu * (1 - fv)},
@@ -75,12 +91,10 @@ std::vector<std::pair<int, double>> interpolationWeights(const DirectionGrid& gr
       for (int p = 0; p < g->nPhi; ++p) out.emplace_back(bin(0, p), toPole / g->nPhi);
   } else {
     const auto& d = std::get<DiskGrid>(grid.layout());
-    const double x = std::clamp((w.x + 1) * 0.5 * d.width - 0.5, 0.0, d.width - 1.0);
-    const double y = std::clamp((w.y + 1) * 0.5 * d.height - 0.5, 0.0, d.height - 1.0);
+    const double x = std::clamp(c.u, 0.0, d.width - 1.0), y = std::clamp(c.v, 0.0, d.height - 1.0);
     const int i0 = std::min(int(std::floor(x)), d.width - 1), i1 = std::min(i0 + 1, d.width - 1);
     const int j0 = std::min(int(std::floor(y)), d.height - 1), j1 = std::min(j0 + 1, d.height - 1);
     const double fx = x - i0, fy = y - j0;
-    auto bin = [&](int i, int j) { return offset + j * d.width + i; };
     out = {{bin(i0, j0), (1 - fx) * (1 - fy)},
            {bin(i1, j0), fx * (1 - fy)},
            {bin(i0, j1), (1 - fx) * fy},

@@ -20,6 +20,17 @@
 
 namespace mbsdf {
 
+// A grid's continuous coordinates of a unit direction on its hemisphere, the integers at the bins'
+// centres: (ring, sector) on a theta-phi grid (u < 0 inside the first ring's centres, v in
+// [−½, nφ − ½)), (column, row) on the disk grid. The interpolation below is bilinear in them.
+struct GridCoords {
+  double u, v;
+};
+GridCoords gridCoords(const DirectionGrid& grid, const Vec3& w);
+// The bin at integer coordinates (i along u, j along v; j periodic on a theta-phi grid) of the upper
+// or lower hemisphere; −1 outside the grid.
+int binAtCoords(const DirectionGrid& grid, int i, int j, bool upper);
+
 // The (bin, weight) pairs of the interpolation above at direction w (any length): the weights sum to
 // 1, the bins lie on w's side and hold directions.
 std::vector<std::pair<int, double>> interpolationWeights(const DirectionGrid& grid, const Vec3& w);

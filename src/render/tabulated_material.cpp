@@ -16,20 +16,8 @@ constexpr double kDefensive = 0.1;  // share of cosine-weighted draws
 // a lobe is a bin wide, and the wide tent covers that offset.
 constexpr double kWide = 0.25;
 
-// A grid's continuous coordinates (u, v) on one hemisphere, bin centres at the integers: (ring,
-// sector) on a theta-phi grid, (column, row) on the disk.
-struct GridCoords {
-  double u, v;
-};
-
-GridCoords coordsOf(const DirectionGrid& grid, const Vec3& w) {
-  if (const auto* g = std::get_if<ThetaPhiGrid>(&grid.layout()))
-    return {safeAcos(std::abs(w.z)) / (0.5 * kPi) * g->nTheta - 0.5, sphericalPhi(w) / (2 * kPi) * g->nPhi - 0.5};
-  const auto& d = std::get<DiskGrid>(grid.layout());
-  return {(w.x + 1) * 0.5 * d.width - 0.5, (w.y + 1) * 0.5 * d.height - 0.5};
-}
-
-// The direction at coordinates (u, v) on the upper (lower) hemisphere; empty outside it.
+// The direction at grid coordinates (u, v) (io/bsdf_lookup.h gridCoords) on the upper (lower)
+// hemisphere; empty outside it.
 std::optional<Vec3> directionAt(const DirectionGrid& grid, double u, double v, bool upper) {
   Vec3 w;
   if (const auto* g = std::get_if<ThetaPhiGrid>(&grid.layout())) {
@@ -52,18 +40,6 @@ double jacobian(const DirectionGrid& grid, const Vec3& w) {
     return safeSqrt(1 - w.z * w.z) * (0.5 * kPi / g->nTheta) * (2 * kPi / g->nPhi);
   const auto& d = std::get<DiskGrid>(grid.layout());
   return (2.0 / d.width) * (2.0 / d.height) / std::abs(w.z);
-}
-
-// The bin at integer coordinates (i along u, j along v) of a hemisphere, or −1 outside the grid.
-int binAt(const DirectionGrid& grid, int i, int j, bool upper) {
-  const int offset = upper ? 0 : grid.binsPerHemisphere();
-  if (const auto* g = std::get_if<ThetaPhiGrid>(&grid.layout())) {
-    if (i < 0 || i >= g->nTheta) return -1;
-    return offset + i * g->nPhi + ((j % g->nPhi) + g->nPhi) % g->nPhi;
-  }
-  const auto& d = std::get<DiskGrid>(grid.layout());
-  if (i < 0 || i >= d.width || j < 0 || j >= d.height) return -1;
-  return offset + j * d.width + i;
 }
 
 std::pair<int, int> binCoords(const DirectionGrid& grid, int bin) {
@@ -214,22 +190,22 @@ Colour3 TabulatedMaterial::eval(const Vec3& wi, const Vec3& wo) const {
   return f;
 }
 
-std::pair<int, double> TabulatedMaterial::samplingIncidence(const Vec3& wo) const {
-  if (!holds(wo.z >= 0)) return {-1, 0.0};
+TabulatedMaterial::Drawn TabulatedMaterial::drawnFrom(const Vec3& wo) const {
+  if (!holds(wo.z >= 0)) return {};
   const auto weights = lookup_.incidenceWeights(wo);
   const auto best = std::max_element(weights.begin(), weights.end(),
                                      [](const auto& a, const auto& b) { return a.weight < b.weight; });
-  return {finished(best->incidence), best->turn};
+  return {&slice(finished(best->incidence)), best->turn};
 }
 
 double TabulatedMaterial::tentPdf(const Slice& s, const Vec3& w) const {
   const DirectionGrid& grid = file_.grid();
-  const GridCoords c = coordsOf(grid, w);
+  const GridCoords c = gridCoords(grid, w);
   const int i0 = int(std::floor(c.u)), j0 = int(std::floor(c.v));
   double q = 0;
   for (int i = i0 - 1; i <= i0 + 2; ++i)
     for (int j = j0 - 1; j <= j0 + 2; ++j) {
-      const int b = binAt(grid, i, j, w.z >= 0);
+      const int b = binAtCoords(grid, i, j, w.z >= 0);
       if (b < 0 || s.prob[size_t(b)] == 0) continue;
       q += s.prob[size_t(b)] *
            ((1 - kWide) * tent(c.u - i, 1) * tent(c.v - j, 1) + kWide * tent(c.u - i, 2) * tent(c.v - j, 2));
@@ -238,35 +214,35 @@ double TabulatedMaterial::tentPdf(const Slice& s, const Vec3& w) const {
   return jac > 0 ? q / jac : 0.0;
 }
 
+double TabulatedMaterial::pdfIn(const Drawn& d, const Vec3& wi) const {
+  const double cosine = (wi.z >= 0 ? d.upperShare() : 1 - d.upperShare()) * std::abs(wi.z) / kPi;
+  if (!d.fromTable()) return cosine;
+  return (1 - kDefensive) * tentPdf(*d.slice, turnedAboutZ(wi, d.turn)) + kDefensive * cosine;
+}
+
 double TabulatedMaterial::pdf(const Vec3& wo, const Vec3& wi) const {
-  const auto [incidence, turn] = samplingIncidence(wo);
-  const Slice* s = incidence >= 0 ? &slice(incidence) : nullptr;
-  const double upperShare = s && !s->empty ? s->upperShare : 0.5;
-  const double cosine = (wi.z >= 0 ? upperShare : 1 - upperShare) * std::abs(wi.z) / kPi;
-  if (!s || s->empty) return cosine;
-  return (1 - kDefensive) * tentPdf(*s, turnedAboutZ(wi, turn)) + kDefensive * cosine;
+  return pdfIn(drawnFrom(wo), wi);
 }
 
 std::optional<MaterialSample> TabulatedMaterial::sample(const Vec3& wo, Sampler& sampler) const {
   const double uChoice = sampler.get1D(), uBin = sampler.get1D();  // the branch, the bin (or side)
   const double u1 = sampler.get1D(), u2 = sampler.get1D();
-  const auto [incidence, turn] = samplingIncidence(wo);
-  const Slice* s = incidence >= 0 ? &slice(incidence) : nullptr;
+  const Drawn d = drawnFrom(wo);
   MaterialSample out;
-  if (!s || s->empty || uChoice < kDefensive) {
-    const double upperShare = s && !s->empty ? s->upperShare : 0.5;
-    out.wi = cosineHemisphere(u1, u2, uBin < upperShare);
+  if (!d.fromTable() || uChoice < kDefensive) {
+    out.wi = cosineHemisphere(u1, u2, uBin < d.upperShare());
   } else {
-    const int b = std::clamp(int(std::upper_bound(s->cdf.begin(), s->cdf.end(), uBin) - s->cdf.begin()) - 1, 0,
+    const Slice& s = *d.slice;
+    const int b = std::clamp(int(std::upper_bound(s.cdf.begin(), s.cdf.end(), uBin) - s.cdf.begin()) - 1, 0,
                              file_.grid().binCount() - 1);
     const auto [i, j] = binCoords(file_.grid(), b);
     // uChoice beyond the defensive share picks the tent's width.
     const double h = uChoice < kDefensive + (1 - kDefensive) * kWide ? 2 : 1;
     const auto w = directionAt(file_.grid(), i + tentOffset(u1, h), j + tentOffset(u2, h), file_.grid().isUpper(b));
     if (!w) return std::nullopt;
-    out.wi = turnedAboutZ(*w, -turn);
+    out.wi = turnedAboutZ(*w, -d.turn);
   }
-  out.pdf = pdf(wo, out.wi);
+  out.pdf = pdfIn(d, out.wi);
   if (!(out.pdf > 0)) return std::nullopt;
   const Colour3 f = eval(out.wi, wo);
   for (int k = 0; k < 3; ++k) out.weight[size_t(k)] = f[size_t(k)] * std::abs(out.wi.z) / out.pdf;

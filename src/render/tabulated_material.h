@@ -68,8 +68,16 @@ class TabulatedMaterial : public RenderMaterial {
   const Slice& slice(int incidence) const;
   Colour3 evalAt(int incidence, const Vec3& wo) const;  // bilinear between bins
   Colour3 evalFrom(const Vec3& wi, const Vec3& wo) const;
-  // The incidence sampling uses for the viewer at wo and the turn onto it; −1 when none.
-  std::pair<int, double> samplingIncidence(const Vec3& wo) const;
+  // The slice sampling draws from for the viewer at wo and the turn onto it; no slice when the table
+  // holds none on wo's side.
+  struct Drawn {
+    const Slice* slice = nullptr;
+    double turn = 0;
+    bool fromTable() const { return slice && !slice->empty; }
+    double upperShare() const { return fromTable() ? slice->upperShare : 0.5; }
+  };
+  Drawn drawnFrom(const Vec3& wo) const;
+  double pdfIn(const Drawn& d, const Vec3& wi) const;  // pdf(wo, wi) for d = drawnFrom(wo)
   // `incidence` when finished, else the finished one nearest to it on its side.
   int finished(int incidence) const;
   double tentPdf(const Slice& s, const Vec3& w) const;

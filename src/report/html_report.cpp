@@ -109,12 +109,13 @@ std::string infoTable(const nlohmann::json& summary) {
   return h + "</tbody></table>\n";
 }
 
-bool transmits(const BsdfFileReader& f) {
-  for (int i = 0; i < f.incidenceCount(); ++i) {
-    if (!f.done(i)) continue;
-    for (const auto& [c, v] : f.stats(i).energyTransmitted)
-      for (double e : v)
-        if (c != "lost" && e > 0) return true;
+// Whether a finished slice of fileSummary's sends energy through the surface (lost left out).
+bool transmits(const nlohmann::json& summary) {
+  for (const auto& sl : summary["slices"]) {
+    if (!sl["done"].get<bool>()) continue;
+    for (const auto& [c, v] : sl["energy"]["transmitted"].items())
+      for (const auto& e : v)
+        if (c != "lost" && e.get<double>() > 0) return true;
   }
   return false;
 }
@@ -135,8 +136,8 @@ std::vector<double> lobe(const BsdfLookup& lookup, const BsdfFileReader& f, int 
   return out;
 }
 
-nlohmann::json slicesData(const BsdfFileReader& f, const std::vector<int>& incidences, const ReportRequest& req,
-                          const std::vector<std::string>& models) {
+nlohmann::json slicesData(const BsdfFileReader& f, const nlohmann::json& summary, const std::vector<int>& incidences,
+                          const ReportRequest& req, const std::vector<std::string>& models) {
   nlohmann::json d;
   bool trueColour = true;
   try {
@@ -144,7 +145,7 @@ nlohmann::json slicesData(const BsdfFileReader& f, const std::vector<int>& incid
   } catch (const std::invalid_argument&) {
     trueColour = false;
   }
-  const bool both = transmits(f);
+  const bool both = transmits(summary);
   d["both"] = both;
   d["true_colour"] = trueColour;
   for (int i : incidences)
@@ -172,15 +173,18 @@ nlohmann::json slicesData(const BsdfFileReader& f, const std::vector<int>& incid
   return d;
 }
 
-nlohmann::json albedoData(const BsdfFileReader& f) {
+// Per component, (θi, albedo as the mean over λ of reflected + transmitted) of each finished slice.
+nlohmann::json albedoData(const nlohmann::json& summary) {
   nlohmann::json d = nlohmann::json::object();
-  for (int i = 0; i < f.incidenceCount(); ++i) {
-    if (!f.done(i)) continue;
-    const SliceStats st = f.stats(i);
-    for (const auto& [c, v] : st.energyReflected) {
+  for (const auto& sl : summary["slices"]) {
+    if (!sl["done"].get<bool>()) continue;
+    const auto& reflected = sl["energy"]["reflected"];
+    const auto& transmitted = sl["energy"]["transmitted"];
+    for (const auto& [c, v] : reflected.items()) {
       double e = 0;
-      for (size_t l = 0; l < v.size(); ++l) e += (v[l] + st.energyTransmitted.at(c)[l]) / double(v.size());
-      d[c].push_back({f.incidenceTheta(i), e});
+      for (size_t l = 0; l < v.size(); ++l)
+        e += (v[l].get<double>() + transmitted.at(c)[l].get<double>()) / double(v.size());
+      d[c].push_back({sl["theta_deg"].get<double>(), e});
     }
   }
   return d;
@@ -392,8 +396,8 @@ std::string htmlReport(const BsdfFileReader& f, const std::string& path, const R
   const std::vector<std::string> models = availableModels(f);
   const std::vector<int> incidences = reportIncidences(f, std::max(2, req.maxIncidences));
   step("slices and lobes");
-  nlohmann::json data = slicesData(f, incidences, req, models);
-  data["albedo"] = albedoData(f);
+  nlohmann::json data = slicesData(f, summary, incidences, req, models);
+  data["albedo"] = albedoData(summary);
   step("preview");
   const std::string preview =
       models.empty() ? "<p>The file holds no complete model to render.</p>\n" : previewSection(f, req);
