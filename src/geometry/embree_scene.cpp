@@ -1,5 +1,6 @@
 #include "geometry/embree_scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -72,19 +73,17 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
   rtcAttachGeometry(scene_.get(), geom);
   rtcReleaseGeometry(geom);
   rtcCommitScene(scene_.get());
-  vertices_ = g.vertices;
-  triangles_ = g.triangles;
-  normals_.resize(g.triangles.size());
+  hitTriangles_.resize(g.triangles.size());
   double zw = 0, w = 0;
   for (size_t t = 0; t < g.triangles.size(); ++t) {
+    const auto& tri = g.triangles[t];
     Vec3 n = g.triangleNormal(t);
     if (n.z > 0) {
-      const auto& tri = g.triangles[t];
       zw += n.z * (g.vertices[tri[0]].z + g.vertices[tri[1]].z + g.vertices[tri[2]].z) / 3;
       w += n.z;
     }
     double l = length(n);
-    normals_[t] = l > 0 ? n / l : Vec3(0, 0, 1);
+    hitTriangles_[t] = {g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], l > 0 ? n / l : Vec3(0, 0, 1)};
   }
   zMean_ = w > 0 ? zw / w : 0.5 * (zmin + zmax);
 }
@@ -99,85 +98,218 @@ bool PeriodicScene::intersectRaw(const Vec3& o, const Vec3& d, double tfar, doub
   return true;
 }
 
+bool PeriodicScene::slabExit(const Vec3& o, const Vec3& d, double* tExit, int* face, TraceResult* r) const {
+  *tExit = std::numeric_limits<double>::infinity();
+  *face = 2;
+  if (!periodic_) return false;  // a finite patch: one unbounded query
+  // Above (below) every triangle and not moving towards them: the ray has met all it can, however
+  // close to the horizon it travels (the wrap limit would otherwise end it).
+  if (d.z >= 0 && o.z >= zGeoHi_) {
+    r->kind = TraceResult::Kind::EscapedUp;
+    return true;
+  }
+  if (d.z <= 0 && o.z <= zGeoLo_) {
+    r->kind = TraceResult::Kind::EscapedDown;
+    return true;
+  }
+  const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zGeoLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zGeoHi_};
+  for (int a = 0; a < 3; ++a) {
+    double t = std::numeric_limits<double>::infinity();
+    if (d[a] > 0)
+      t = (hi[a] - o[a]) / d[a];
+    else if (d[a] < 0)
+      t = (lo[a] - o[a]) / d[a];
+    if (t < *tExit) {
+      *tExit = t;
+      *face = a;
+    }
+  }
+  *tExit = std::max(*tExit, 0.0);
+  return false;
+}
+
+TraceResult PeriodicScene::hitRecord(unsigned primID, float u_f, float v_f, float tfar) const {
+  // Rebuild the point on the double-precision triangle (the origin was re-based by whole periods
+  // at each wrap, so it is in the patch's own coordinates).
+  const HitTriangle& tri = hitTriangles_[primID];
+  const double u = u_f, v = v_f;
+  TraceResult r;
+  r.kind = TraceResult::Kind::Hit;
+  r.t = tfar;
+  r.p = tri.v0 * (1 - u - v) + tri.v1 * u + tri.v2 * v;
+  r.n = tri.n;
+  r.prim = primID;
+  return r;
+}
+
+bool PeriodicScene::wrapOrEscape(Vec3* o, const Vec3& d, double tExit, int face, TraceResult* r) const {
+  if (!periodic_) {
+    // Left the finite patch: up, down, or exactly sideways.
+    r->kind = d.z > 0 ? TraceResult::Kind::EscapedUp
+                      : (d.z < 0 ? TraceResult::Kind::EscapedDown : TraceResult::Kind::EscapedSide);
+    return true;
+  }
+  if (face == 2) {
+    r->kind = d.z > 0 ? TraceResult::Kind::EscapedUp : TraceResult::Kind::EscapedDown;
+    return true;
+  }
+  // Re-enter from the opposite side at the same height with the same direction.
+  const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zGeoLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zGeoHi_};
+  const double size[2] = {sizeX_, sizeY_};
+  *o = *o + d * tExit;
+  (*o)[face] = d[face] > 0 ? lo[face] : hi[face];
+  const int other = 1 - face;
+  if ((*o)[other] < lo[other]) (*o)[other] += size[other];
+  if ((*o)[other] > hi[other]) (*o)[other] -= size[other];
+  return false;
+}
+
+static float segmentEnd(double tExit, double eps) {
+  return tExit == std::numeric_limits<double>::infinity() ? std::numeric_limits<float>::infinity() : float(tExit + eps);
+}
+
 TraceResult PeriodicScene::trace(Vec3 o, const Vec3& d, int ignorePrim) const {
+  return traceFrom(o, d, ignorePrim, 0);
+}
+
+TraceResult PeriodicScene::traceFrom(Vec3 o, const Vec3& d, int ignorePrim, int firstWrap) const {
   // The slab a ray is followed through ends at the geometry's own z bounds: a ray leaving it by
   // the top or bottom escapes there, without further queries of empty periodic copies (the last
   // ray of every path, and many wraps for rays near the horizon).
-  const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zGeoLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zGeoHi_};
-  const double size[2] = {sizeX_, sizeY_};
-  const double inf = std::numeric_limits<double>::infinity();
   TraceResult r;
-  for (int wrap = 0; wrap <= maxWraps_; ++wrap) {
-    // Distance to the side of the slab the ray leaves by (a finite patch: unbounded query).
-    double tExit = inf;
-    int face = 2;
-    if (periodic_) {
-      // Above (below) every triangle and not moving towards them: the ray has met all it can,
-      // however close to the horizon it travels (the wrap limit would otherwise end it).
-      if (d.z >= 0 && o.z >= zGeoHi_) {
-        r.kind = TraceResult::Kind::EscapedUp;
-        return r;
-      }
-      if (d.z <= 0 && o.z <= zGeoLo_) {
-        r.kind = TraceResult::Kind::EscapedDown;
-        return r;
-      }
-      for (int a = 0; a < 3; ++a) {
-        double t = inf;
-        if (d[a] > 0)
-          t = (hi[a] - o[a]) / d[a];
-        else if (d[a] < 0)
-          t = (lo[a] - o[a]) / d[a];
-        if (t < tExit) {
-          tExit = t;
-          face = a;
-        }
-      }
-      tExit = std::max(tExit, 0.0);
-    }
+  for (int wrap = firstWrap; wrap <= maxWraps_; ++wrap) {
+    double tExit;
+    int face;
+    if (slabExit(o, d, &tExit, &face, &r)) return r;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh;
     float tnear = 0.f;
     for (int retry = 0; retry < 4; ++retry) {
-      rh = makeRayHit(o, d, tnear, tExit == inf ? std::numeric_limits<float>::infinity() : float(tExit + eps_));
+      rh = makeRayHit(o, d, tnear, segmentEnd(tExit, eps_));
       rtcIntersect1(scene_.get(), &ctx, &rh);
       // Only the first segment after a hit can meet the triangle it leaves (a flat triangle
       // cannot be crossed twice by one straight segment; after a wrap it is another copy).
       if (wrap > 0 || rh.hit.geomID == RTC_INVALID_GEOMETRY_ID || int(rh.hit.primID) != ignorePrim) break;
       tnear = std::nextafter(rh.ray.tfar, std::numeric_limits<float>::infinity());
     }
-    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && !(wrap == 0 && int(rh.hit.primID) == ignorePrim)) {
-      r.kind = TraceResult::Kind::Hit;
-      r.t = rh.ray.tfar;
-      // Rebuild the point on the double-precision triangle (o was re-based by whole periods at
-      // each wrap, so it is in the patch's own coordinates).
-      const auto& tri = triangles_[rh.hit.primID];
-      double u = rh.hit.u, v = rh.hit.v;
-      r.p = vertices_[tri[0]] * (1 - u - v) + vertices_[tri[1]] * u + vertices_[tri[2]] * v;
-      r.n = normals_[rh.hit.primID];
-      r.prim = rh.hit.primID;
-      return r;
-    }
-    if (!periodic_) {
-      // Left the finite patch: up, down, or exactly sideways.
-      r.kind = d.z > 0 ? TraceResult::Kind::EscapedUp
-                       : (d.z < 0 ? TraceResult::Kind::EscapedDown : TraceResult::Kind::EscapedSide);
-      return r;
-    }
-    if (face == 2) {
-      r.kind = d.z > 0 ? TraceResult::Kind::EscapedUp : TraceResult::Kind::EscapedDown;
-      return r;
-    }
-    // Re-enter from the opposite side at the same height with the same direction.
-    o = o + d * tExit;
-    o[face] = d[face] > 0 ? lo[face] : hi[face];
-    int other = 1 - face;
-    if (o[other] < lo[other]) o[other] += size[other];
-    if (o[other] > hi[other]) o[other] -= size[other];
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && !(wrap == 0 && int(rh.hit.primID) == ignorePrim))
+      return hitRecord(rh.hit.primID, rh.hit.u, rh.hit.v, rh.ray.tfar);
+    if (wrapOrEscape(&o, d, tExit, face, &r)) return r;
   }
   r.kind = TraceResult::Kind::TooManyWraps;
   return r;
+}
+
+// Interleaves the bits of a 16-bit x and y: the position of (x, y) along a Morton (Z-order) curve.
+static uint32_t mortonCode(uint32_t x, uint32_t y) {
+  auto spread = [](uint32_t v) {
+    v &= 0xFFFF;
+    v = (v | (v << 8)) & 0x00FF00FF;
+    v = (v | (v << 4)) & 0x0F0F0F0F;
+    v = (v | (v << 2)) & 0x33333333;
+    return (v | (v << 1)) & 0x55555555;
+  };
+  return spread(x) | (spread(y) << 1);
+}
+
+void PeriodicScene::traceMany(std::span<const Vec3> o, std::span<const Vec3> d, std::span<const int> ignorePrim,
+                              TraceMode mode, std::span<TraceResult> out) const {
+  const size_t n = o.size();
+  auto leaves = [&](size_t i) { return ignorePrim.empty() ? -1 : ignorePrim[i]; };
+  // Each ray's first segment (wrap 0): where it ends, and what Embree met on it.
+  struct Segment {
+    double tExit = 0;
+    int face = 2;
+    bool asked = false;
+    unsigned primID = RTC_INVALID_GEOMETRY_ID;
+    float u = 0, v = 0, tfar = 0;
+  };
+  thread_local std::vector<Segment> segments;
+  segments.assign(n, Segment{});
+  // The record of each hit is prefetched as Embree returns it, so that its memory latency overlaps
+  // the next rays' traversal instead of stalling each ray in turn; the records are read after all
+  // rays have been asked.
+  auto met = [&](size_t i, unsigned primID, float u, float v, float tfar) {
+    Segment& sg = segments[i];
+    sg.primID = primID;
+    sg.u = u;
+    sg.v = v;
+    sg.tfar = tfar;
+    __builtin_prefetch(&hitTriangles_[primID]);
+    __builtin_prefetch(reinterpret_cast<const char*>(&hitTriangles_[primID]) + 64);
+  };
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  if (mode == TraceMode::Single) {
+    for (size_t i = 0; i < n; ++i) {
+      Segment& sg = segments[i];
+      if (slabExit(o[i], d[i], &sg.tExit, &sg.face, &out[i])) continue;
+      sg.asked = true;
+      RTCRayHit rh = makeRayHit(o[i], d[i], 0.f, segmentEnd(sg.tExit, eps_));
+      rtcIntersect1(scene_.get(), &ctx, &rh);
+      if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) met(i, rh.hit.primID, rh.hit.u, rh.hit.v, rh.ray.tfar);
+    }
+  } else {
+    // Packets of neighbours along a Morton curve of the origins (periodic patch: of the origins
+    // within a period), which traverse the same part of the tree.
+    thread_local std::vector<uint64_t> order;  // Morton code << 32 | ray
+    order.resize(n);
+    auto cell = [](double x, double size) {
+      const double f = x / size + 0.5;
+      return uint32_t(std::clamp(f - std::floor(f), 0.0, 1.0) * 65535.0);
+    };
+    for (size_t i = 0; i < n; ++i)
+      order[i] = uint64_t(mortonCode(cell(o[i].x, sizeX_), cell(o[i].y, sizeY_))) << 32 | uint64_t(i);
+    std::sort(order.begin(), order.end());
+    constexpr size_t K = 16;
+    for (size_t p0 = 0; p0 < n; p0 += K) {
+      alignas(64) RTCRayHit16 rh;
+      alignas(64) int valid[K];
+      for (size_t k = 0; k < K; ++k) {
+        valid[k] = 0;
+        rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
+        if (p0 + k >= n) continue;
+        const uint32_t i = uint32_t(order[p0 + k]);
+        Segment& sg = segments[i];
+        if (slabExit(o[i], d[i], &sg.tExit, &sg.face, &out[i])) continue;
+        sg.asked = true;
+        valid[k] = -1;
+        rh.ray.org_x[k] = float(o[i].x);
+        rh.ray.org_y[k] = float(o[i].y);
+        rh.ray.org_z[k] = float(o[i].z);
+        rh.ray.dir_x[k] = float(d[i].x);
+        rh.ray.dir_y[k] = float(d[i].y);
+        rh.ray.dir_z[k] = float(d[i].z);
+        rh.ray.tnear[k] = 0.f;
+        rh.ray.tfar[k] = segmentEnd(sg.tExit, eps_);
+        rh.ray.mask[k] = 0xFFFFFFFFu;
+        rh.ray.flags[k] = 0;
+        rh.ray.time[k] = 0.f;
+        rh.ray.id[k] = 0;
+      }
+      rtcIntersect16(valid, scene_.get(), &ctx, &rh);
+      for (size_t k = 0; k < K && p0 + k < n; ++k)
+        if (valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID)
+          met(uint32_t(order[p0 + k]), rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k], rh.ray.tfar[k]);
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    const Segment& sg = segments[i];
+    if (!sg.asked) continue;
+    if (sg.primID != RTC_INVALID_GEOMETRY_ID && int(sg.primID) == leaves(i)) {
+      // It met the triangle it leaves: trace() asks again beyond it, as it does.
+      out[i] = traceFrom(o[i], d[i], leaves(i), 0);
+      continue;
+    }
+    if (sg.primID != RTC_INVALID_GEOMETRY_ID) {
+      out[i] = hitRecord(sg.primID, sg.u, sg.v, sg.tfar);
+      continue;
+    }
+    Vec3 oi = o[i];
+    if (!wrapOrEscape(&oi, d[i], sg.tExit, sg.face, &out[i])) out[i] = traceFrom(oi, d[i], leaves(i), 1);
+  }
 }
 
 }  // namespace mbsdf

@@ -13,6 +13,7 @@
 
 #include <array>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "core/vecmath.h"
@@ -41,6 +42,8 @@ struct TraceResult {
   double t = 0;
 };
 
+enum class TraceMode { Single, Packets };
+
 class PeriodicScene {
  public:
   explicit PeriodicScene(const Microgeometry& g, int maxWraps = 100000);
@@ -52,6 +55,16 @@ class PeriodicScene {
   // On a periodic patch a ray escapes once it is above (below) every triangle and not travelling
   // down (up), however close to the horizon: no query of the empty copies beyond.
   TraceResult trace(Vec3 o, const Vec3& d, int ignorePrim = -1) const;
+  // The same for many rays: out[i] is trace(o[i], d[i], ignorePrim[i]) (no triangle to skip when
+  // ignorePrim is empty). Their first segments are asked of Embree one after the other
+  // (TraceMode::Single) or as packets of 16 neighbours along a Morton curve through their origins
+  // (TraceMode::Packets: for near-parallel rays from above or below the slab, such as the first
+  // rays of paths, whose traversals share the tree's nodes). Embree's packet kernels give each ray
+  // the hit its single-ray kernel gives (tests/geometry/embree_scene_test.cpp compares them ray by
+  // ray). Either way the hits' records are read only after every ray has been asked, so that their
+  // memory latencies overlap.
+  void traceMany(std::span<const Vec3> o, std::span<const Vec3> d, std::span<const int> ignorePrim, TraceMode mode,
+                 std::span<TraceResult> out) const;
   // One raw Embree query without wrapping (used by the benchmark baseline).
   bool intersectRaw(const Vec3& o, const Vec3& d, double tfar, double* t) const;
 
@@ -68,15 +81,30 @@ class PeriodicScene {
   RTCScene scene() const { return scene_.get(); }
 
  private:
+  // Where the ray leaves the slab it is followed through at this wrap (tExit, face: 0 x, 1 y, 2 top
+  // or bottom), or true when it has already met all it can (r set to the escape).
+  bool slabExit(const Vec3& o, const Vec3& d, double* tExit, int* face, TraceResult* r) const;
+  // The hit Embree reported (triangle, barycentrics, distance), rebuilt in double.
+  TraceResult hitRecord(unsigned primID, float u, float v, float tfar) const;
+  // After a segment that met nothing: true when the ray escaped (r set), else o re-enters from the
+  // opposite side of the patch.
+  bool wrapOrEscape(Vec3* o, const Vec3& d, double tExit, int face, TraceResult* r) const;
+  // trace() from wrap `firstWrap` on.
+  TraceResult traceFrom(Vec3 o, const Vec3& d, int ignorePrim, int firstWrap) const;
+
   EmbreeDevicePtr device_;
   EmbreeScenePtr scene_;
   double sizeX_, sizeY_, zLo_, zHi_, eps_, zMean_ = 0;
   double zGeoLo_ = 0, zGeoHi_ = 0;  // the triangles' z range with a margin for float rounding
   bool periodic_;
   int maxWraps_;
-  std::vector<Vec3> normals_;   // unit normals in double, from the mesh (not Embree's float Ng)
-  std::vector<Vec3> vertices_;  // double copies: hit points are rebuilt from barycentrics
-  std::vector<std::array<uint32_t, 3>> triangles_;
+  // Double copies of each triangle's corners and its unit normal (from the mesh, not Embree's float
+  // Ng), in one record: a hit is rebuilt from Embree's barycentrics by reading one place in
+  // memory, two cache lines, instead of four scattered ones.
+  struct alignas(32) HitTriangle {
+    Vec3 v0, v1, v2, n;
+  };
+  std::vector<HitTriangle> hitTriangles_;
 };
 
 }  // namespace mbsdf

@@ -34,6 +34,14 @@ std::vector<std::vector<int>> wavelengthGroups(int nLambda, bool shared) {
 
 TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
                     const std::function<void(uint64_t)>& progress) {
+  return runPaths(plan, PathRangeFunction([&](uint64_t p0, uint64_t n, int g, PathChunk& c) {
+                    for (uint64_t p = p0; p < p0 + n; ++p) trace(p, g, c);
+                  }),
+                  progress);
+}
+
+TileResult runPaths(const PathTallyPlan& plan, const PathRangeFunction& trace,
+                    const std::function<void(uint64_t)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = *plan.grid;
   const int nL = plan.nLambda, nB = grid.binCount();
@@ -72,12 +80,14 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
       batches.push_back({g, c0, std::min(nChunks, c0 + kChunksPerBatch)});
 
   auto compute = [&](const Batch& b, std::vector<PathChunk>& chunks) {
-    chunks.assign(b.c1 - b.c0, PathChunk(nL));
+    // The chunks' storage is kept from batch to batch (allocating it anew costs page faults).
+    chunks.resize(b.c1 - b.c0, PathChunk(nL));
     tbb::parallel_for(uint64_t(0), b.c1 - b.c0, [&](uint64_t ci) {
       PathChunk& c = chunks[ci];
+      c.clear();
       const uint64_t p0 = (b.c0 + ci) * kChunk, p1 = std::min(N, p0 + kChunk);
       c.events.reserve(p1 - p0);
-      for (uint64_t p = p0; p < p1; ++p) trace(plan.firstPath + p, b.group, c);
+      trace(plan.firstPath + p0, p1 - p0, b.group, c);
     });
   };
   // Merge in chunk order: identical sums for any number of threads.

@@ -5,6 +5,7 @@
 // result is the bin-averaged BSDF f(Ωo) = Σ w / (N Ω⊥(Ωo)) with the
 // standard error of that mean (docs/physics.md §3–4).
 #pragma once
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -24,6 +25,15 @@ class PathChunk {
   void tally(int bin, Component c, int group, const double* w, size_t n) {
     events.push_back({bin, int(c), group, int(weights.size())});
     weights.insert(weights.end(), w, w + n);
+  }
+  // Empty again, keeping the storage.
+  void clear() {
+    events.clear();
+    weights.clear();
+    std::fill(truncated.begin(), truncated.end(), 0.0);
+    std::fill(leaked.begin(), leaked.end(), 0.0);
+    std::fill(missed.begin(), missed.end(), 0.0);
+    rays = 0;
   }
   struct Event {
     int32_t bin, component, group, weightOffset;
@@ -51,6 +61,11 @@ struct PathTallyPlan {
 // (it may throw to abandon the tile).
 using PathFunction = std::function<void(uint64_t path, int group, PathChunk& out)>;
 TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
+                    const std::function<void(uint64_t)>& progress);
+// The same with `trace(firstPath, count, group, chunk)` called for the consecutive paths of each
+// chunk at once (an estimator that traces their first rays together), tallying them in path order.
+using PathRangeFunction = std::function<void(uint64_t firstPath, uint64_t count, int group, PathChunk& out)>;
+TileResult runPaths(const PathTallyPlan& plan, const PathRangeFunction& trace,
                     const std::function<void(uint64_t)>& progress);
 
 // A path's incidence: cosine-distributed in its bin from the sampler's first block (two numbers,

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/direction_grid.h"
+#include "core/rng.h"
 #include "geometry/embree_scene.h"
 #include "optics/fresnel_table.h"
 #include "optics/material.h"
@@ -68,8 +69,35 @@ class PathTracer : public GeometricEstimator {
                     std::optional<Vec3> exactDirection = std::nullopt) const;
 
  private:
+  // A path's state between rays: its random numbers, incidence, next ray, medium, depth, weights
+  // (one per wavelength of its group, in a buffer the caller owns) and, once it has ended, how.
+  struct PathState {
+    Sampler s;
+    DirectionSample wi;
+    Vec3 o, d;
+    bool inUpper = true;
+    int depth = 0;
+    int lastPrim = -1;  // the triangle the next ray leaves
+    double* w = nullptr;
+    double* wGeoMasked = nullptr;  // the weights when the geo_masked direction was tallied
+    int geoMaskedBin = -1;
+    enum class End { Exited, Truncated, Leaked, Missed } end = End::Exited;
+    int exitBin = -1;
+  };
+  PathState startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, double* w,
+                      double* wGeoMasked) const;
+  // The path meets the result of its ray: true when it goes on (its next ray set), false when it
+  // has ended (how, recorded in the state).
+  bool step(PathState& st, const TraceResult& tr, int group, PathRecord* rec) const;
+  // The ended path's tallies.
+  void commit(const PathState& st, int group, PathChunk& out) const;
+  // One path, its first ray traced alone (replay).
   void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, PathChunk& out,
                  PathRecord* rec) const;
+  // Paths firstPath … firstPath + count − 1 advanced together, one ray each per round
+  // (PeriodicScene::traceMany): the same results as tracePath one by one.
+  void traceRange(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath, uint64_t count,
+                  int group, PathChunk& out) const;
 
   const PeriodicScene& scene_;
   const Material& material_;

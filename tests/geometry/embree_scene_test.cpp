@@ -7,6 +7,8 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "core/rng.h"
 #include "geometry/generators.h"
@@ -112,6 +114,75 @@ TEST(PeriodicScene, NearHorizonRaysAboveTheTopPlateau) {
       EXPECT_NEAR(hit.p.z, zTopPlateau, 1e-9) << "phi " << phi << " elevation " << elevation;
       EXPECT_EQ(hit.n.z, 1.0);
     }
+}
+
+// traceMany, by single rays and by packets, against trace ray by ray, to the last bit (kind,
+// triangle, distance, point, normal): first rays from above and below the slab at elevations swept
+// from the normal down to 1e-7 rad (wrapping many times), rays from inside the slab, and the
+// secondary rays that leave the triangles those met (the triangle to skip given), on periodic
+// patches (a binary grating, a dome lattice) and a finite one.
+TEST(PeriodicScene, TraceManyEqualsTraceRayByRay) {
+  std::vector<std::pair<const char*, Microgeometry>> cases;
+  cases.emplace_back("grating", grating());
+  cases.emplace_back(
+      "domes",
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3}));
+  Microgeometry finite = makeGaussian(6, 6, 0.3, 1.0, 32, 32, 4);
+  finite.periodic = false;
+  cases.emplace_back("finite", std::move(finite));
+  for (auto& [name, g] : cases) {
+    const PeriodicScene scene(g);
+    Sampler s(5, 0, 0);
+    std::vector<Vec3> o, d;
+    for (double elevation = kPi / 2; elevation > 1e-7; elevation /= 2.5)
+      for (int side = 0; side < 2; ++side)
+        for (int k = 0; k < 24; ++k) {
+          const double phi = 2 * kPi * s.get1D(), z = std::sin(elevation), r = std::cos(elevation);
+          o.push_back(
+              {(s.get1D() - 0.5) * g.sizeX, (s.get1D() - 0.5) * g.sizeY, side ? scene.zBottom() : scene.zTop()});
+          d.push_back({r * std::cos(phi), r * std::sin(phi), side ? z : -z});
+        }
+    for (int k = 0; k < 1000; ++k) {
+      o.push_back(
+          {(s.get1D() - 0.5) * g.sizeX, (s.get1D() - 0.5) * g.sizeY, g.zMin() + s.get1D() * (g.zMax() - g.zMin())});
+      const double z = 2 * s.get1D() - 1, phi = 2 * kPi * s.get1D(), r = std::sqrt(1 - z * z);
+      d.push_back({r * std::cos(phi), r * std::sin(phi), z});
+    }
+    std::vector<TraceResult> one(o.size());
+    for (size_t i = 0; i < o.size(); ++i) one[i] = scene.trace(o[i], d[i]);
+    // Secondary rays: reflected off each hit, lifted off it, leaving its triangle.
+    std::vector<Vec3> o2, d2;
+    std::vector<int> leaving;
+    for (size_t i = 0; i < o.size(); ++i) {
+      if (one[i].kind != TraceResult::Kind::Hit) continue;
+      const Vec3 n = dot(d[i], one[i].n) < 0 ? one[i].n : -one[i].n;
+      const Vec3 r = normalize(d[i] - n * (2 * dot(d[i], n)));
+      o2.push_back(one[i].p + n * scene.rayEpsilon());
+      d2.push_back(r);
+      leaving.push_back(int(one[i].prim));
+    }
+    ASSERT_GT(o2.size(), 300u) << name;
+    auto same = [&](const TraceResult& a, const TraceResult& b, const std::string& what) {
+      ASSERT_EQ(a.kind, b.kind) << what;
+      if (a.kind != TraceResult::Kind::Hit) return;
+      ASSERT_EQ(a.prim, b.prim) << what;
+      ASSERT_EQ(a.t, b.t) << what;
+      ASSERT_EQ(a.p.x, b.p.x) << what;
+      ASSERT_EQ(a.p.y, b.p.y) << what;
+      ASSERT_EQ(a.p.z, b.p.z) << what;
+      ASSERT_EQ(a.n.z, b.n.z) << what;
+    };
+    for (TraceMode mode : {TraceMode::Single, TraceMode::Packets}) {
+      const std::string m = std::string(name) + (mode == TraceMode::Single ? " single" : " packets");
+      std::vector<TraceResult> many(o.size());
+      scene.traceMany(o, d, {}, mode, many);
+      for (size_t i = 0; i < o.size(); ++i) same(many[i], one[i], m + " ray " + std::to_string(i));
+      std::vector<TraceResult> many2(o2.size());
+      scene.traceMany(o2, d2, leaving, mode, many2);
+      for (size_t i = 0; i < o2.size(); ++i)
+        same(many2[i], scene.trace(o2[i], d2[i], leaving[i]), m + " secondary " + std::to_string(i));
+    }
+  }
 }
 
 }  // namespace
