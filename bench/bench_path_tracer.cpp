@@ -142,7 +142,7 @@ BENCHMARK(BM_FirstRays)->Arg(1 << 20)->Unit(benchmark::kMillisecond)->UseRealTim
 // PeriodicScene::trace (wrapping, double-precision hit records). Secondaries start on the surface
 // and cost Embree more than primaries from above it, so this is the baseline that separates
 // Embree's own cost from the tracer's.
-double gRawSameRays = 0, gSceneSameRays = 0;
+double gRawSameRays = 0, gSceneSameRays = 0, gManySameRays = 0;
 void BM_TracerRaysAgain(benchmark::State& state) {
   Fixture& f = fixture();
   PathTracerSettings s;
@@ -154,7 +154,7 @@ void BM_TracerRaysAgain(benchmark::State& state) {
     rays.insert(rays.end(), rec.rays.begin(), rec.rays.end());
   }
   const uint64_t n = rays.size(), nChunks = (n + 1023) / 1024;
-  double rawSeconds = 0, sceneSeconds = 0;
+  double rawSeconds = 0, sceneSeconds = 0, manySeconds = 0;
   std::atomic<uint64_t> sink{0};
   for (auto _ : state) {
     auto t0 = std::chrono::steady_clock::now();
@@ -174,9 +174,28 @@ void BM_TracerRaysAgain(benchmark::State& state) {
       sink += local;
     });
     auto t2 = std::chrono::steady_clock::now();
+    tbb::parallel_for(uint64_t(0), nChunks, [&](uint64_t c) {
+      const uint64_t j0 = c * 1024, m = std::min(n, j0 + 1024) - j0;
+      std::vector<Vec3> o(m), d(m);
+      std::vector<int> leaving(m);
+      std::vector<TraceResult> out(m);
+      for (uint64_t j = 0; j < m; ++j) {
+        o[j] = rays[j0 + j].o;
+        d[j] = rays[j0 + j].d;
+        leaving[j] = rays[j0 + j].ignorePrim;
+      }
+      f.scene.traceMany(o, d, leaving, TraceMode::Single, out);
+      uint64_t local = 0;
+      for (const TraceResult& r : out) local += r.kind == TraceResult::Kind::Hit;
+      sink += local;
+    });
+    auto t3 = std::chrono::steady_clock::now();
     rawSeconds += std::chrono::duration<double>(t1 - t0).count();
     sceneSeconds += std::chrono::duration<double>(t2 - t1).count();
+    manySeconds += std::chrono::duration<double>(t3 - t2).count();
   }
+  gManySameRays = double(n) * double(state.iterations()) / manySeconds;
+  state.counters["trace_many_rays_per_s"] = gManySameRays;
   gRawSameRays = double(n) * double(state.iterations()) / rawSeconds;
   gSceneSameRays = double(n) * double(state.iterations()) / sceneSeconds;
   state.counters["raw_rays_per_s"] = gRawSameRays;
@@ -424,9 +443,9 @@ int main(int argc, char** argv) {
         gOurs, gRaw, gRatio, gRatioLo, gRatioHi);
   if (gOurs > 0 && gRawSameRays > 0)
     std::printf(
-        "the tracer's own rays again: raw rtcIntersect1 %.3g rays/s, PeriodicScene::trace %.3g rays/s; path tracer / "
-        "raw on the same rays: %.2f\n",
-        gRawSameRays, gSceneSameRays, gOurs / gRawSameRays);
+        "the tracer's own rays again: raw rtcIntersect1 %.3g rays/s, PeriodicScene::trace %.3g rays/s, "
+        "PeriodicScene::traceMany %.3g rays/s; path tracer / raw on the same rays: %.2f\n",
+        gRawSameRays, gSceneSameRays, gManySameRays, gOurs / gRawSameRays);
   if (gFirstSingle > 0)
     std::printf(
         "first rays: one by one (PeriodicScene::trace) %.3g rays/s, as packets (traceMany) %.3g rays/s: %.2fx\n",

@@ -1,5 +1,7 @@
 #include "cmd/command.h"
 
+#include "io/output_target.h"
+
 #include <spdlog/fmt/fmt.h>
 
 #include <cmath>
@@ -55,10 +57,7 @@ void warnIfIncomplete(const BsdfFileReader& f, const std::string& how) {
 }
 
 void writeJsonFile(const std::string& path, const nlohmann::json& j, int indent) {
-  std::ofstream f(path);
-  f << j.dump(indent) << "\n";
-  f.close();
-  if (!f) throw WriteError("cannot write " + path);
+  writeFileAtomically(path, j.dump(indent) + "\n");
 }
 
 std::string modelOrFullest(const BsdfFileReader& f, const std::string& model, const std::string& path) {

@@ -126,6 +126,7 @@ Command addExportCommand(CLI::App& app) {
   cmd->add_option("--lambda-nm", o->lambda_nm, "wavelengths to write, each one of the table's (default: all)");
   cmd->add_option("-o,--output", o->outPath, "the file to write (x.bsdf)")->required();
   c.run = [o] {
+    checkOutputPath(o->outPath);  // before reading: an unusable location is named at once
     BsdfFileReader f(o->h5Path);
     const std::string model = modelOrFullest(f, o->model, o->h5Path);
     const BsdfLookup lookup(f, model);

@@ -6,6 +6,7 @@
 #include "core/error.h"
 #include "io/bsdf_file.h"
 #include "io/contact_sheet.h"
+#include "io/output_target.h"
 #include "io/png_image.h"
 
 namespace mbsdf {
@@ -38,6 +39,7 @@ Command addSheetCommand(CLI::App& app) {
     o->req.models = parseModels(o->models);
     o->req.theta_deg = parseAngles(o->thetas, "--theta-i", 180, true);
     if (!(o->req.cell.size >= 16 && o->req.cell.size <= 4096)) throw InputError("--size must be in [16, 4096]");
+    checkOutputPath(o->outPath);  // before reading: an unusable location is named at once
     BsdfFileReader f(o->h5Path);
     warnIfIncomplete(f, "missing slices are hatched red cells");
     RgbImage img = renderContactSheet(f, o->req);

@@ -4,6 +4,7 @@
 
 #include "cmd/command.h"
 #include "io/bsdf_file.h"
+#include "io/output_target.h"
 #include "io/slice_export.h"
 
 namespace mbsdf {
@@ -32,6 +33,7 @@ Command addSliceCommand(CLI::App& app) {
   slice->add_option("--log2-max", req.log2Max, "false colour: upper end of the log2 scale")->capture_default_str();
   slice->add_option("-o,--output", o->outPath, "x.exr, x.png or x.csv")->required();
   c.run = [o] {
+    checkOutputPath(o->outPath);  // before reading: an unusable location is named at once
     BsdfFileReader f(o->h5Path);
     const int inc = exportSlice(f, o->req, o->outPath);
     std::cerr << "wrote " << o->outPath << " (incidence theta " << f.incidenceTheta(inc) << ", phi "

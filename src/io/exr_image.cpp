@@ -8,6 +8,8 @@
 
 #include <stdexcept>
 
+#include "io/output_target.h"
+
 namespace mbsdf {
 
 void writeExr(const std::string& path, int width, int height, const std::vector<ExrChannel>& channels) {
@@ -16,12 +18,17 @@ void writeExr(const std::string& path, int width, int height, const std::vector<
     if (c.pixels.size() != size_t(width) * height) throw std::invalid_argument("EXR channel size mismatch: " + c.name);
     header.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
   }
-  Imf::OutputFile file(path.c_str(), header);
-  Imf::FrameBuffer fb;
-  for (const auto& c : channels)
-    fb.insert(c.name, Imf::Slice(Imf::FLOAT, (char*)c.pixels.data(), sizeof(float), sizeof(float) * width));
-  file.setFrameBuffer(fb);
-  file.writePixels(height);
+  // An unusable location is the user's to fix (InputError, naming it); a failed write leaves an
+  // existing image as it was.
+  checkOutputPath(path);
+  writeViaPartial(path, [&](const std::string& partial) {
+    Imf::OutputFile file(partial.c_str(), header);
+    Imf::FrameBuffer fb;
+    for (const auto& c : channels)
+      fb.insert(c.name, Imf::Slice(Imf::FLOAT, (char*)c.pixels.data(), sizeof(float), sizeof(float) * width));
+    file.setFrameBuffer(fb);
+    file.writePixels(height);
+  });
 }
 
 std::vector<ExrChannel> readExr(const std::string& path, int* width, int* height) {

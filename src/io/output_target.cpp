@@ -85,32 +85,42 @@ void syncPath(const std::string& path) {
   ::close(fd);
 }
 
-void writeFileAtomically(const std::string& path, const std::string& text) {
+void writeViaPartial(const std::string& path, const std::function<void(const std::string& partial)>& write) {
   const std::string partial = path + ".partial";
-  {
-    std::ofstream f(partial, std::ios::binary | std::ios::trunc);
-    f.write(text.data(), std::streamsize(text.size()));
-    f.close();
-    if (!f) {
-      std::error_code ignored;
-      std::filesystem::remove(partial, ignored);
-      throw WriteError("cannot write " + path + " (writing " + partial + " failed: " + std::strerror(errno) + ")");
-    }
-  }
-  try {
-    syncPath(partial);
-  } catch (...) {
+  auto removePartial = [&] {
     std::error_code ignored;
     std::filesystem::remove(partial, ignored);
+  };
+  try {
+    write(partial);
+    syncPath(partial);
+  } catch (const WriteError&) {
+    removePartial();
     throw;
+  } catch (const std::exception& e) {
+    // The writer's own report (an ofstream's errno, OpenEXR's or libpng's message).
+    const int err = errno;
+    removePartial();
+    throw WriteError("cannot write " + path + " (writing " + partial + " failed: " + e.what() +
+                     (err ? std::string("; ") + std::strerror(err) : std::string()) + ")");
   }
   std::error_code ec;
   std::filesystem::rename(partial, path, ec);
   if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(partial, ignored);
+    removePartial();
     throw WriteError("cannot write " + path + ": " + ec.message());
   }
+}
+
+void writeFileAtomically(const std::string& path, const std::string& text) {
+  writeViaPartial(path, [&](const std::string& partial) {
+    errno = 0;
+    std::ofstream f(partial, std::ios::binary | std::ios::trunc);
+    f.write(text.data(), std::streamsize(text.size()));
+    f.close();
+    if (!f)
+      throw WriteError("cannot write " + path + " (writing " + partial + " failed: " + std::strerror(errno) + ")");
+  });
 }
 
 OutputLock::OutputLock(const std::string& outPath) : path_(outPath + ".lock") {

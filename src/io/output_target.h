@@ -7,6 +7,7 @@
 // the pilots to the final rename. flock locks die with their process, so the lock of a killed run is
 // free at once; the next run notes whose it was and takes it.
 #pragma once
+#include <functional>
 #include <string>
 
 namespace mbsdf {
@@ -25,6 +26,10 @@ void syncPath(const std::string& path);
 // Writes `text` to `<path>.partial`, syncs it and renames it over `path`: an existing file at `path`
 // is replaced whole or left as it was. Throws WriteError naming the path (the partial file removed).
 void writeFileAtomically(const std::string& path, const std::string& text);
+// The same for a writer that makes the file itself (OpenEXR): `write(partial)` writes `<path>.partial`,
+// which is then synced and renamed over `path`. Whatever `write` throws becomes a WriteError
+// naming `path`, and the partial file is removed.
+void writeViaPartial(const std::string& path, const std::function<void(const std::string& partial)>& write);
 
 class OutputLock {
  public:

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "core/error.h"
+#include "io/output_target.h"
 
 namespace mbsdf {
 namespace {
@@ -43,10 +44,10 @@ std::vector<uint8_t> encodePng(const RgbImage& img) {
 
 void writePng(const std::string& path, const RgbImage& img) {
   const std::vector<uint8_t> bytes = encodePng(img);
-  std::unique_ptr<FILE, FileCloser> f(std::fopen(path.c_str(), "wb"));
-  if (!f) throw std::runtime_error("cannot write " + path);
-  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), f.get()) == bytes.size();
-  if (!written || std::fclose(f.release()) != 0) throw WriteError("cannot write " + path + " (disk full?)");
+  // An unusable location is the user's to fix (InputError, naming it); a failed write leaves an
+  // existing image as it was.
+  checkOutputPath(path);
+  writeFileAtomically(path, std::string(bytes.begin(), bytes.end()));
 }
 
 RgbImage readPng(const std::string& path) {

@@ -1,5 +1,7 @@
 #include "io/slice_export.h"
 
+#include "io/output_target.h"
+
 #include <spdlog/fmt/fmt.h>
 
 #include <optional>
@@ -9,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <sstream>
 #include <fstream>
 #include <stdexcept>
 
@@ -210,8 +213,7 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
     }
     writeExr(outPath, W, S, ch);
   } else if (ext == ".csv") {
-    std::ofstream o(outPath);
-    if (!o) throw std::runtime_error("cannot write " + outPath);
+    std::ostringstream o;
     o << "# microbsdf slice: model " << req.model << ", incidence theta " << file.incidenceTheta(inc) << " deg, phi "
       << file.incidencePhi(inc) << " deg; f in 1/sr (bin average), "
       << (err.empty() ? "no per-bin standard errors (the file keeps them per slice: microbsdf info)"
@@ -260,6 +262,8 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
       }
       o << "\n";
     }
+    checkOutputPath(outPath);
+    writeFileAtomically(outPath, o.str());  // an existing file is replaced whole or left as it was
   } else {
     throw std::invalid_argument("unknown slice format '" + ext + "' (use .exr, .png or .csv)");
   }

@@ -8,6 +8,7 @@ state (a journal line, a log line, a process gone), with a timeout only as a bou
 """
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -416,6 +417,58 @@ def test_small_inputs():
                        text=True, timeout=120, env=ENV, cwd=TMP)
     assert r.returncode == EXIT_BAD_INPUT and "GB per rank" in r.stderr, (r.returncode, r.stderr)
     print("repeated wavelength, texel limit, negative --threads/--max-hours, memory: exit 2 naming each")
+
+
+def test_derived_outputs():
+    """What is made from a finished file (slices as PNG, EXR and CSV, a contact sheet, a preview as PNG
+    and EXR, a report, an export, a diff image): onto a full disk each exits 4 naming the path,
+    leaves an old file of that name byte-identical and no partial file behind; into a read-only
+    folder or onto a folder, exit 2 naming it."""
+    job = small_job(os.path.join(TMP, "job.toml"))
+    with open(job) as f:  # angles x azimuths, as the Zemax format needs
+        text = f.read().replace("incidence = [[0.0, 0.0], [20.0, 10.0], [45.0, 90.0], [70.0, 200.0], [85.0, 300.0]]",
+                                "incidence = [[0.0, 0.0], [30.0, 0.0], [60.0, 0.0]]")
+    with open(job, "w") as f:
+        f.write(text)
+    run(["run", job, "-o", "t.h5"])
+    small = ["--size", "16"]
+    makers = {
+        "slice.png": ["slice", "t.h5"] + small,
+        "slice.exr": ["slice", "t.h5"] + small,
+        "slice.csv": ["slice", "t.h5"],
+        "sheet.png": ["sheet", "t.h5"] + small,
+        "preview.png": ["render", "t.h5", "--spp", "1"] + small,
+        "preview.exr": ["render", "t.h5", "--spp", "1"] + small,
+        "report.html": ["report", "t.h5"],
+        "table.bsdf": ["export", "t.h5", "--lambda-nm", "450"],
+        "diff.png": ["diff", "t.h5", "t.h5"],
+    }
+    # Each made once where there is room: the old file the full disk must not damage.
+    for name, args in makers.items():
+        run(args + ["-o", name])
+    disk, ro = os.path.join(TMP, "disk"), os.path.join(TMP, "ro")
+    if not mount_tmpfs(disk, "8m"):
+        sys.exit("FAIL: cannot mount a tmpfs (the test needs root, as CI has)")
+    if not mount_tmpfs(ro, "1m") or subprocess.run(["mount", "-o", "remount,ro", ro]).returncode != 0:
+        subprocess.run(["umount", disk], capture_output=True)
+        sys.exit("FAIL: cannot mount a read-only tmpfs (the test needs root, as CI has)")
+    try:
+        for name in makers:
+            shutil.copy(os.path.join(TMP, name), os.path.join(disk, name))
+        subprocess.run(["dd", "if=/dev/zero", f"of={disk}/filler", "bs=4k"], capture_output=True)
+        os.makedirs(os.path.join(TMP, "folder.png"))
+        for name, args in makers.items():
+            old = sha(os.path.join(disk, name))
+            expect(args + ["-o", "disk/" + name], EXIT_WRITE_FAILED, "disk/" + name)
+            assert sha(os.path.join(disk, name)) == old, f"{name}: the old file was damaged"
+            assert not os.path.exists(os.path.join(disk, name + ".partial")), f"{name}: partial file left"
+            expect(args + ["-o", "ro/" + name], EXIT_BAD_INPUT, "ro")
+            expect(args + ["-o", "folder.png"], EXIT_BAD_INPUT, "folder.png")
+    finally:
+        subprocess.run(["umount", disk], capture_output=True)
+        subprocess.run(["umount", ro], capture_output=True)
+    print(f"{len(makers)} derived outputs: a full disk exits 4 with the old file byte-identical and no partial "
+          "file; a read-only folder or a folder as output exits 2")
 
 
 def test_exit_codes_documented():
