@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "io/bsdf_file.h"
 #include "io/slice_export.h"
+#include "job/job.h"
 #include "scattering/components.h"
 
 namespace mbsdf {
@@ -54,6 +55,11 @@ std::vector<double> parseAngles(const std::string& s, const std::string& option,
 void warnIfIncomplete(const BsdfFileReader& f, const std::string& how) {
   if (f.doneCount() < f.incidenceCount())
     std::cerr << "warning: incomplete: " << f.doneCount() << " of " << f.incidenceCount() << " slices; " << how << "\n";
+}
+
+std::optional<Material> tableMaterial(const BsdfFileReader& f, const std::string& path) {
+  if (!f.hasAttribute("job_text")) return std::nullopt;
+  return loadMaterialFromString(f.attribute("job_text"), path + " (job_text)");
 }
 
 void writeJsonFile(const std::string& path, const nlohmann::json& j, int indent) {

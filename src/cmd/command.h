@@ -9,8 +9,11 @@
 #include <nlohmann/json.hpp>
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "optics/material.h"
 
 namespace mbsdf {
 
@@ -50,6 +53,9 @@ void warnIfIncomplete(const BsdfFileReader& f, const std::string& how);
 // `model` when given, else the fullest model the file holds (WM, else WS, GM, GS); InputError naming
 // `path` when there is none.
 std::string modelOrFullest(const BsdfFileReader& f, const std::string& model, const std::string& path);
+// The material of the job the table was computed with (its `job_text`): nothing when the file holds
+// no job text, InputError naming `path` when that text's material cannot be read.
+std::optional<Material> tableMaterial(const BsdfFileReader& f, const std::string& path);
 // Writes j (indented by `indent`) to path; a failed write is a WriteError (exit code 4).
 void writeJsonFile(const std::string& path, const nlohmann::json& j, int indent);
 // "--threads N" shared by the subcommands that compute (0: all cores).

@@ -17,7 +17,6 @@
 #include "io/bsdf_file.h"
 #include "io/bsdf_lookup.h"
 #include "io/output_target.h"
-#include "job/job.h"
 
 namespace mbsdf {
 namespace {
@@ -57,8 +56,9 @@ double relativeIndex(const BsdfFileReader& f, int k, const std::string& h5Path) 
     for (size_t i = 0; i < nm.size(); ++i)
       if (std::abs(nm[i] - 555) < std::abs(nm[size_t(k)] - 555)) k = int(i);
   }
-  if (!f.hasAttribute("job_text")) throw InputError(h5Path + ": the file holds no job text to take the material from");
-  const Material m = loadMaterialFromString(f.attribute("job_text"), h5Path + " (job_text)");
+  const std::optional<Material> material = tableMaterial(f, h5Path);
+  if (!material) throw InputError(h5Path + ": the file holds no job text to take the material from");
+  const Material& m = *material;
   if (m.isConductor()) throw InputError(h5Path + ": a conductor transmits nothing: no BTDF to write");
   return m.ior(nm[size_t(k)] * 1e-3).real() / m.outsideIor;
 }

@@ -15,7 +15,6 @@
 #include "io/exr_image.h"
 #include "io/output_target.h"
 #include "io/png_image.h"
-#include "job/job.h"
 #include "render/preview.h"
 
 namespace mbsdf {
@@ -55,10 +54,10 @@ void writeOutput(const std::string& path, const std::vector<PreviewPanel>& panel
 // material of the job the file was computed with; 0 when the job text holds none (a conductor: no
 // light passes) or cannot be read.
 double insideIorOf(const BsdfFileReader& f, const std::string& path) {
-  if (!f.hasAttribute("job_text")) return 0;
   try {
-    const Material m = loadMaterialFromString(f.attribute("job_text"), path + " (job_text)");
-    if (m.isConductor()) return 0;
+    const std::optional<Material> material = tableMaterial(f, path);
+    if (!material || material->isConductor()) return 0;
+    const Material& m = *material;
     std::vector<double> lambda_um;
     for (double nm : f.wavelengths_nm()) lambda_um.push_back(nm / 1000);
     double sum = 0;
