@@ -29,7 +29,10 @@ namespace mbsdf {
 
 double memoryBytesPerRank(const Job& job, double waveBytes) {
   const double nL = double(job.lambda_nm.size()), nB = double(DirectionGrid(job.gridLayout).binCount());
-  const double sceneBytes = double(job.geometry.triangles.size()) * 150.0 + double(job.geometry.vertices.size()) * 60.0;
+  // Per triangle: Embree's tree and float copy, the job's mesh (indices) and the scene's 96-byte
+  // double record (corners and normal, PeriodicScene::HitTriangle); per vertex: the job's and
+  // Embree's copies.
+  const double sceneBytes = double(job.geometry.triangles.size()) * 210.0 + double(job.geometry.vertices.size()) * 36.0;
   const double tileBytes = nL * nB * 8.0 * 2.0 * 5.0 * 2.0;
   const double batchBytes = 256.0 * 1024.0 * (32.0 + 8.0 * nL);
   const double gridBytes = nB * 8.0 * 6.0;  // the direction grid's tables
