@@ -32,7 +32,6 @@ int diffFiles(const DiffOptions& o) {
     const int inc = a.nearestIncidence(o.theta_deg, o.phi_deg);
     if (!a.done(inc) || !b.done(inc))
       throw InputError("the slice nearest to --theta-i/--phi-i is not finished in both files");
-    checkOutputPath(o.out);
     writePng(o.out, diffImage(a, b, inc, o.model, o.size));
   } else {
     throw InputError("-o " + o.out + ": the report is .json, .csv or .png");

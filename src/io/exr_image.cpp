@@ -18,9 +18,7 @@ void writeExr(const std::string& path, int width, int height, const std::vector<
     if (c.pixels.size() != size_t(width) * height) throw std::invalid_argument("EXR channel size mismatch: " + c.name);
     header.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
   }
-  // An unusable location is the user's to fix (InputError, naming it); a failed write leaves an
-  // existing image as it was.
-  checkOutputPath(path);
+  // A failed write leaves an existing image as it was.
   writeViaPartial(path, [&](const std::string& partial) {
     Imf::OutputFile file(partial.c_str(), header);
     Imf::FrameBuffer fb;

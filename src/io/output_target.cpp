@@ -86,12 +86,16 @@ void syncPath(const std::string& path) {
 }
 
 void writeViaPartial(const std::string& path, const std::function<void(const std::string& partial)>& write) {
+  // Every atomic write refuses a folder or an unwritable location the same way, before any work
+  // (InputError, naming it: the user's to fix).
+  checkOutputPath(path);
   const std::string partial = path + ".partial";
   auto removePartial = [&] {
     std::error_code ignored;
     std::filesystem::remove(partial, ignored);
   };
   try {
+    errno = 0;  // so that a writer which reports no OS error is not blamed for a stale one
     write(partial);
     syncPath(partial);
   } catch (const WriteError&) {

@@ -24,11 +24,13 @@ double freeBytesAt(const std::string& path);
 void syncPath(const std::string& path);
 
 // Writes `text` to `<path>.partial`, syncs it and renames it over `path`: an existing file at `path`
-// is replaced whole or left as it was. Throws WriteError naming the path (the partial file removed).
+// is replaced whole or left as it was. An unusable location (a folder, a read-only folder) is refused
+// first by checkOutputPath (InputError); a failed write throws WriteError naming the path (the
+// partial file removed).
 void writeFileAtomically(const std::string& path, const std::string& text);
 // The same for a writer that makes the file itself (OpenEXR): `write(partial)` writes `<path>.partial`,
 // which is then synced and renamed over `path`. Whatever `write` throws becomes a WriteError
-// naming `path`, and the partial file is removed.
+// naming `path`, and the partial file is removed. The location is checked first, as above.
 void writeViaPartial(const std::string& path, const std::function<void(const std::string& partial)>& write);
 
 class OutputLock {

@@ -262,7 +262,6 @@ int exportSlice(const BsdfFileReader& file, const SliceRequest& req, const std::
       }
       o << "\n";
     }
-    checkOutputPath(outPath);
     writeFileAtomically(outPath, o.str());  // an existing file is replaced whole or left as it was
   } else {
     throw std::invalid_argument("unknown slice format '" + ext + "' (use .exr, .png or .csv)");
