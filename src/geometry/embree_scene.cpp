@@ -54,6 +54,8 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
   const double margin = std::ldexp(std::max(std::abs(zmin), std::abs(zmax)), -22);
   zGeoLo_ = std::max(zLo_, zmin - margin);
   zGeoHi_ = std::min(zHi_, zmax + margin);
+  slabLo_ = {-sizeX_ / 2, -sizeY_ / 2, zGeoLo_};
+  slabHi_ = {sizeX_ / 2, sizeY_ / 2, zGeoHi_};
   scene_.reset(rtcNewScene(device_.get()));
   rtcSetSceneFlags(scene_.get(), RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(scene_.get(), RTC_BUILD_QUALITY_HIGH);
@@ -112,13 +114,12 @@ bool PeriodicScene::slabExit(const Vec3& o, const Vec3& d, double* tExit, int* f
     r->kind = TraceResult::Kind::EscapedDown;
     return true;
   }
-  const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zGeoLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zGeoHi_};
   for (int a = 0; a < 3; ++a) {
     double t = std::numeric_limits<double>::infinity();
     if (d[a] > 0)
-      t = (hi[a] - o[a]) / d[a];
+      t = (slabHi_[a] - o[a]) / d[a];
     else if (d[a] < 0)
-      t = (lo[a] - o[a]) / d[a];
+      t = (slabLo_[a] - o[a]) / d[a];
     if (t < *tExit) {
       *tExit = t;
       *face = a;
@@ -154,13 +155,12 @@ bool PeriodicScene::wrapOrEscape(Vec3* o, const Vec3& d, double tExit, int face,
     return true;
   }
   // Re-enter from the opposite side at the same height with the same direction.
-  const double lo[3] = {-sizeX_ / 2, -sizeY_ / 2, zGeoLo_}, hi[3] = {sizeX_ / 2, sizeY_ / 2, zGeoHi_};
   const double size[2] = {sizeX_, sizeY_};
   *o = *o + d * tExit;
-  (*o)[face] = d[face] > 0 ? lo[face] : hi[face];
+  (*o)[face] = d[face] > 0 ? slabLo_[face] : slabHi_[face];
   const int other = 1 - face;
-  if ((*o)[other] < lo[other]) (*o)[other] += size[other];
-  if ((*o)[other] > hi[other]) (*o)[other] -= size[other];
+  if ((*o)[other] < slabLo_[other]) (*o)[other] += size[other];
+  if ((*o)[other] > slabHi_[other]) (*o)[other] -= size[other];
   return false;
 }
 

@@ -96,6 +96,7 @@ class PeriodicScene {
   EmbreeScenePtr scene_;
   double sizeX_, sizeY_, zLo_, zHi_, eps_, zMean_ = 0;
   double zGeoLo_ = 0, zGeoHi_ = 0;  // the triangles' z range with a margin for float rounding
+  Vec3 slabLo_, slabHi_;            // the periodic cell: (-size/2, -size/2, zGeoLo_) to (size/2, size/2, zGeoHi_)
   bool periodic_;
   int maxWraps_;
   // Double copies of each triangle's corners and its unit normal (from the mesh, not Embree's float
