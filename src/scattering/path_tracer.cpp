@@ -9,7 +9,13 @@ namespace mbsdf {
 
 PathTracer::PathTracer(const PeriodicScene& scene, const Material& material, std::vector<double> lambda_um,
                        const DirectionGrid& grid, PathTracerSettings settings)
-    : scene_(scene), material_(material), lambda_um_(std::move(lambda_um)), grid_(grid), settings_(settings) {
+    : scene_(scene),
+      material_(material),
+      conductor_(material.isConductor()),
+      perfectConductor_(material.isPerfectConductor()),
+      lambda_um_(std::move(lambda_um)),
+      grid_(grid),
+      settings_(settings) {
   ior_ = material_.iorAt(lambda_um_);
   fresnel_ = conductorFresnelTables(material_, ior_);  // optics/fresnel_table.h
   groups_ = wavelengthGroups(int(lambda_um_.size()), material_.directionsIndependentOfLambda());
@@ -61,7 +67,7 @@ bool PathTracer::step(PathState& st, const TraceResult& tr, int group, PathRecor
     const bool hitFromOutside = cosi > 0;
     if (hitFromOutside != st.inUpper) {
       // The ray met the back of a surface: holes or inconsistent winding. Follow the geometry.
-      if (material_.isConductor()) {
+      if (conductor_) {
         st.end = PathState::End::Leaked;
         return false;
       }
@@ -71,8 +77,8 @@ bool PathTracer::step(PathState& st, const TraceResult& tr, int group, PathRecor
     const Vec3 wo = -st.d;
     const double absCos = std::min(1.0, std::abs(cosi));
     Vec3 d;
-    if (material_.isConductor()) {
-      if (!material_.isPerfectConductor())
+    if (conductor_) {
+      if (!perfectConductor_)
         for (size_t k = 0; k < nl; ++k) wp[k] *= fresnel_[size_t(lambdas[k])](absCos);
       d = reflect(wo, nl_);
     } else {

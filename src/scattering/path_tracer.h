@@ -101,6 +101,7 @@ class PathTracer : public GeometricEstimator {
 
   const PeriodicScene& scene_;
   const Material& material_;
+  bool conductor_, perfectConductor_;  // material_'s kind, asked once rather than at every hit
   std::vector<double> lambda_um_;
   std::vector<Complex> ior_;                    // lower-medium index per wavelength
   std::vector<ConductorFresnelTable> fresnel_;  // conductor: per wavelength
