@@ -182,7 +182,8 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
 struct WavePilotCost {
   double seconds = 0, bytes = 0, setupSeconds = 0;
   std::vector<double> relErrors;
-  double rate = 0.5;  // the wave term's error ∝ samples^−rate
+  std::vector<SliceL1> wsL1;  // per pilot, f_ws's L1 parts with the deviation at the job's budget
+  double rate = 0.5;          // the wave term's error ∝ samples^−rate
   bool deterministic = true;
 };
 WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const GeometricTransport& transport,
@@ -216,12 +217,20 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
     spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
     const WaveTileResult w = est->run(tileRequestOf(job, t), heartbeat("plan: wave pilot"));
     const double e1 = waveRelativeError(w, grid);
+    // The f_ws table's L1 parts at the job's budget: the pass's deviation scaled as its error is.
+    auto keepL1 = [&](const WaveTileResult& pass, double toJob) {
+      SliceL1 l1 = sliceL1(pass.fws, pass.fwsErr, pass.nLambda, grid, waveDeterministic ? 1.0 : kMeanAbsPerSigma);
+      for (double& d : l1.deviation) d *= toJob;
+      out.wsL1.push_back(std::move(l1));
+    };
     if (waveDeterministic) {
       waveRelErrors.push_back(e1);
       waveSeconds += w.seconds;
+      keepL1(w, 1.0);
     } else if (!twoPasses) {
       waveRelErrors.push_back(e1 * std::sqrt(double(ws.samplesPerBin) / N));
       waveSeconds += w.seconds;
+      keepL1(w, std::sqrt(double(ws.samplesPerBin) / N));
     } else {
       const WaveTileResult w2 = est2->run(tileRequestOf(job, t), heartbeat("plan: wave pilot"));
       const double e2 = waveRelativeError(w2, grid);
@@ -232,6 +241,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
       waveRate = std::min(waveRate, rate);
       waveRelErrors.push_back(e2 * std::pow(N / double(ws2.samplesPerBin), -rate));
       waveSeconds += w2.seconds;
+      keepL1(w2, std::pow(N / double(ws2.samplesPerBin), -rate));
     }
     if (pilotTiles[k].has(Component::Coherent))
       addWaveComponents(pilotTiles[k], w, job.components.has(Component::Incoherent),
@@ -268,6 +278,9 @@ struct PathPilotCost {
   int facetTiles = 0;
   std::vector<TileResult> tiles;
   std::vector<double> relErrors;
+  // Per pilot, the L1 parts of the path-traced components at the pilot's budget (empty where the
+  // job has no such component).
+  std::vector<SliceL1> coherentL1, multipleL1;
 };
 PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid& grid, const TileComputer& computer,
                          const std::vector<int>& pilots, uint64_t pilotPaths) {
@@ -283,12 +296,106 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
     const TileResult& r = out.tiles.back();
     const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
     out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
+    for (auto [c, parts] : {std::pair{Component::Coherent, &out.coherentL1}, {Component::Multiple, &out.multipleL1}})
+      parts->push_back(r.has(c) ? sliceL1(r.value[int(c)], r.stdError[int(c)], r.nLambda, grid, kMeanAbsPerSigma)
+                                : SliceL1{});
     out.pilotSeconds += r.seconds / double(pilots.size());
     out.seconds +=
         r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
     out.facetTiles += r.samples == 0;
   }
   return out;
+}
+
+// The accuracy study's measure, the relative L1 distance of each table's slice from its
+// expectation (sliceL1), at the job's budget, and what 10 %, 3 % and 1 % in every table cost: the
+// path-traced components `coherent` and `multiple`, and the wave term's table f_ws (= coherent +
+// incoherent, the paper's WS). Per pilot and wavelength a table's L1 is P/√fp + W·fw^−rate at fp
+// times the paths and fw times the wave samples: P the path-traced part, W the wave term's (its
+// rules' error for a deterministic estimator, which no budget lowers). `incoherent` alone is not
+// measured against its own mass: a signed difference of two larger tables, its mass is mostly its
+// noise where the tables agree; its error is f_ws's and coherent's.
+nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, const PathPilotCost& paths,
+                               const WavePilotCost& wave, const DirectionGrid& grid, uint64_t pilotPaths,
+                               double pathSeconds, double waveSeconds, int computedTiles, int cores) {
+  struct Part {
+    double p = 0, w = 0;
+  };
+  const double toJob = std::sqrt(double(pilotPaths) / double(job.pathsPerSlice));
+  auto ratio = [](double d, double m) { return m > 0 ? d / m : 0.0; };
+  std::vector<std::pair<std::string, std::vector<std::vector<Part>>>> comps;  // table → pilot → λ
+  for (auto [c, l1] : {std::pair{Component::Coherent, &paths.coherentL1}, {Component::Multiple, &paths.multipleL1}}) {
+    if (!job.components.has(c)) continue;
+    std::vector<std::vector<Part>> perPilot;
+    for (size_t k = 0; k < pilots.size() && k < l1->size(); ++k) {
+      const SliceL1& own = (*l1)[k];
+      std::vector<Part> perLambda(own.mass.size());
+      for (size_t l = 0; l < own.mass.size(); ++l) perLambda[l].p = ratio(own.deviation[l] * toJob, own.mass[l]);
+      perPilot.push_back(std::move(perLambda));
+    }
+    comps.emplace_back(componentName(c), std::move(perPilot));
+  }
+  // The wave term's own table, f_ws = coherent + incoherent, against its mass.
+  if (!wave.wsL1.empty()) {
+    std::vector<std::vector<Part>> perPilot;
+    for (const SliceL1& ws : wave.wsL1) {
+      std::vector<Part> perLambda(ws.mass.size());
+      for (size_t l = 0; l < ws.mass.size(); ++l) perLambda[l].w = ratio(ws.deviation[l], ws.mass[l]);
+      perPilot.push_back(std::move(perLambda));
+    }
+    comps.emplace_back("f_ws", std::move(perPilot));
+  }
+  nlohmann::json a, byComponent = nlohmann::json::object();
+  for (const auto& [name, perPilot] : comps) {
+    nlohmann::json list = nlohmann::json::array();
+    double worst = 0;
+    for (size_t k = 0; k < perPilot.size(); ++k) {
+      double e = 0;
+      for (const Part& part : perPilot[k]) e = std::max(e, part.p + part.w);
+      list.push_back(
+          {{"incidence", pilots[k]}, {"theta_deg", job.incidence[size_t(pilots[k])].theta_deg}, {"rel_l1", e}});
+      worst = std::max(worst, e);
+    }
+    byComponent[name] = {{"rel_l1", worst}, {"per_pilot", list}};
+  }
+  a["components"] = byComponent;
+  a["paths_per_slice"] = job.pathsPerSlice;
+  const bool waveByBudget = job.needsWave() && !wave.deterministic && wave.rate > 0.05;
+  const double rate = waveByBudget ? wave.rate : 0.0;
+  nlohmann::json targets = nlohmann::json::array();
+  for (double target : {0.1, 0.03, 0.01}) {
+    // The wave samples first (from the wave parts alone), then the paths that bring every
+    // component's path part within what the wave part leaves of the target.
+    double worstW = 0;
+    for (const auto& [name, perPilot] : comps)
+      for (const auto& perLambda : perPilot)
+        for (const Part& part : perLambda) worstW = std::max(worstW, part.w);
+    const double fw = waveByBudget && worstW > 0
+                          ? std::max(16.0 / double(job.waveSamplesPerBin), std::pow(worstW / target, 1 / rate))
+                          : 1.0;
+    double fp = 0;
+    bool reached = true;
+    for (const auto& [name, perPilot] : comps)
+      for (const auto& perLambda : perPilot)
+        for (const Part& part : perLambda) {
+          const double w = part.w * std::pow(fw, -rate);
+          if (w > 0.99 * target) {
+            reached = false;
+            continue;
+          }
+          if (part.p > 0) fp = std::max(fp, std::pow(part.p / (target - w), 2));
+        }
+    fp = fp > 0 ? std::max(fp, 1000.0 / double(job.pathsPerSlice)) : 1.0;
+    nlohmann::json t = {{"rel_l1", target},
+                        {"paths_per_slice", uint64_t(std::min(9e18, std::ceil(double(job.pathsPerSlice) * fp)))},
+                        {"core_hours", (pathSeconds * fp + waveSeconds * fw) * computedTiles * cores / 3600.0},
+                        {"reached", reached}};
+    if (waveByBudget)
+      t["wave_samples_per_bin"] = uint64_t(std::ceil(std::min(double(job.waveSamplesPerBin) * fw, 9e18)));
+    targets.push_back(t);
+  }
+  a["targets"] = targets;
+  return a;
 }
 
 // What the job is, for the plan: geometry, material, wavelengths, grid, tiles and symmetry.
@@ -451,6 +558,8 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   }
   p["accuracy"] = accuracyTable(job, pilots, pathRelErrors, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
                                 waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
+  p["accuracy"]["l1"] =
+      l1AccuracyTable(job, pilots, paths, wave, grid, pilotPaths, pathSeconds, waveSeconds, computedTiles, cores);
   // The effects pilots' paths that the run keeps as its tiles' first paths (effects_planner.h) are
   // not traced again, where the run traces paths on every tile.
   double keptPilotSeconds = 0;
@@ -483,6 +592,28 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
 }
 
 namespace {
+// "L1 per slice: coherent 1.5 %, multiple 5.8 % at 5000000 paths", then the budget and core-hours
+// that bring every component to 10 %, 3 % and 1 %.
+std::string fmtL1(const nlohmann::json& l1) {
+  if (l1["components"].empty()) return {};
+  auto pct = [](double e) { return fmt::format("{:.2g} %", 100 * e); };
+  std::string o = "L1 per slice:  ";
+  for (const auto& [name, c] : l1["components"].items())
+    o += (o.back() == ' ' ? " " : ", ") + name + " " + pct(c["rel_l1"].get<double>());
+  o += " at " + l1["paths_per_slice"].dump() +
+       " paths\n                (Σ|f − E f| Ω⊥ / Σ|f| Ω⊥ of each component's slice, the accuracy study's measure, "
+       "expected from its bins' errors; the worst pilot and wavelength)\n";
+  for (const auto& t : l1["targets"]) {
+    o += fmt::format("  for {:>4} in every component: paths_per_slice = {}, ", pct(t["rel_l1"].get<double>()),
+                     t["paths_per_slice"].dump());
+    if (t.contains("wave_samples_per_bin")) o += "wave_samples_per_bin = " + t["wave_samples_per_bin"].dump() + ", ";
+    o += fmt::format("{:.3g} core-hours", t["core_hours"].get<double>());
+    if (!t["reached"].get<bool>()) o += " (not reached: the wave term's own error stays above it)";
+    o += "\n";
+  }
+  return o;
+}
+
 // "accuracy: paths 2.1 % per slice ..., wave term ...", then budget → error → core-hours.
 std::string fmtAccuracy(const nlohmann::json& a) {
   auto pct = [](double e) { return fmt::format("{:.2g} %", 100 * e); };
@@ -518,6 +649,7 @@ std::string fmtAccuracy(const nlohmann::json& a) {
            "stays above it)";
     o += "\n";
   }
+  if (a.contains("l1")) o += fmtL1(a["l1"]);
   return o;
 }
 

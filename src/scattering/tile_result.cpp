@@ -176,4 +176,21 @@ std::vector<double> relativeError(const TileResult& r, const std::vector<Compone
   return out;
 }
 
+SliceL1 sliceL1(const std::vector<double>& f, const std::vector<double>& err, int nLambda, const DirectionGrid& grid,
+                double errorFactor) {
+  const int nB = grid.binCount();
+  SliceL1 out{std::vector<double>(size_t(nLambda), 0.0), std::vector<double>(size_t(nLambda), 0.0)};
+  if (f.size() != size_t(nLambda) * size_t(nB) || err.size() != f.size())
+    throw std::logic_error("sliceL1: table size mismatch");
+  for (int l = 0; l < nLambda; ++l)
+    for (int b = 0; b < nB; ++b) {
+      const size_t i = size_t(l) * size_t(nB) + size_t(b);
+      if (!std::isfinite(f[i]) || !std::isfinite(err[i])) continue;
+      const double op = grid.projectedSolidAngle(b);
+      out.deviation[size_t(l)] += errorFactor * std::abs(err[i]) * op;
+      out.mass[size_t(l)] += std::abs(f[i]) * op;
+    }
+  return out;
+}
+
 }  // namespace mbsdf

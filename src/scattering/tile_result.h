@@ -85,4 +85,19 @@ std::vector<double> energyBalance(const TileResult& r, const DirectionGrid& grid
 // the error of the hemispherical integral from above (its bins are negatively correlated).
 std::vector<double> relativeError(const TileResult& r, const std::vector<Component>& comps, const DirectionGrid& grid);
 
+// The parts of a slice's expected relative L1 distance from its expectation, per wavelength:
+// `deviation` = Σ_b E|f̂_b − f_b| Ω⊥_b and `mass` = Σ_b |f_b| Ω⊥_b, so deviation / mass is the
+// measure the accuracy study holds tables to against a reference (Σ|f − f_ref| Ω⊥ / Σ|f_ref| Ω⊥).
+// `errorFactor` turns a bin's error into E|f̂ − f|: √(2/π) for a Monte Carlo standard error (the
+// mean absolute deviation of a normal error), 1 for a deterministic rule's error estimate. Bins
+// not computed (NaN) are skipped. Unlike relativeError's quadrature sum, which shrinks as 1/√bins
+// for spread-out tables, this grows with the per-bin noise: with B equally filled bins of relative
+// error r it is about 0.8 r, where relativeError gives r/√B.
+inline constexpr double kMeanAbsPerSigma = 0.79788456080286536;  // √(2/π)
+struct SliceL1 {
+  std::vector<double> deviation, mass;
+};
+SliceL1 sliceL1(const std::vector<double>& f, const std::vector<double>& err, int nLambda, const DirectionGrid& grid,
+                double errorFactor);
+
 }  // namespace mbsdf

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <string>
 
 #include "core/direction_grid.h"
@@ -116,38 +117,92 @@ Job withSeed(Job job, uint64_t seed, uint64_t paths, int64_t samples) {
   return job;
 }
 
+// The accuracy study's measure: Σ_b |Δf_b| Ω⊥_b / Σ_b |f_ref,b| Ω⊥_b against the reference, largest
+// over wavelengths; E|Δf| is √(2/π) √(σ² + σ_ref²) for normal errors, so the reference's share,
+// √(1 + 1/16), is divided out. `sd` is that distance's own standard deviation from the run's errors
+// σ_b (Var|Δf| = (1 − 2/π)(σ² + σ_ref²)): where few bins carry the component, one slice's L1 is
+// itself a rough number.
+struct L1Distance {
+  double value = 0, sd = 0;
+};
+L1Distance l1DistanceToReference(const std::vector<double>& f, const std::vector<double>& ref,
+                                 const std::vector<double>& err, int nL, const DirectionGrid& grid) {
+  const int nB = grid.binCount();
+  L1Distance worst;
+  for (int l = 0; l < nL; ++l) {
+    double d = 0, mass = 0, var = 0;
+    for (int b = 0; b < nB; ++b) {
+      const size_t i = size_t(l) * size_t(nB) + size_t(b);
+      const double op = grid.projectedSolidAngle(b);
+      d += std::abs(f[i] - ref[i]) * op;
+      mass += std::abs(ref[i]) * op;
+      var += (1 - 2 / M_PI) * std::pow(err[i] * op, 2);
+    }
+    if (mass > 0 && d / mass > worst.value) worst = {d / mass, std::sqrt(var) / mass};
+  }
+  worst.value /= std::sqrt(1 + 1 / 16.0);
+  return worst;
+}
+
+// Over the pilot slices: √(Σ measured² / Σ predicted²), one slice's distance being itself a random
+// number; and for the L1 measures Σ measured − Σ predicted against the sum's own standard deviation.
+struct Agreement {
+  double measured2 = 0, predicted2 = 0, measured = 0, predicted = 0, var = 0;
+  void add(double m, double p, double sd) {
+    measured2 += m * m;
+    predicted2 += p * p;
+    measured += m;
+    predicted += p;
+    var += sd * sd;
+  }
+  double ratio() const { return predicted2 > 0 ? std::sqrt(measured2 / predicted2) : 0.0; }
+  double z() const { return var > 0 ? (measured - predicted) / std::sqrt(var) : 0.0; }
+};
+
 // Per pilot incidence: the predicted error (plan --json's per_pilot) and the measured distance of
-// the job's tile from the reference; the ratio √(Σ measured² / Σ predicted²) over the pilots.
-double checkScene(const char* name, const Job& job, bool wave) {
+// the job's tile from the reference, for the L2 measure of the path-traced (or wave) table and the
+// L1 measure of each component (accuracy.l1: coherent, and multiple or the wave table f_ws).
+std::map<std::string, Agreement> checkScene(const char* name, const Job& job, bool wave) {
   PlanOptions options;
   options.pilotPaths = 20000;
   const nlohmann::json p = planJob(job, options);
   const nlohmann::json& perPilot = p["accuracy"][wave ? "wave" : "paths"]["per_pilot"];
+  const nlohmann::json& l1 = p["accuracy"]["l1"]["components"];
   const DirectionGrid grid(job.gridLayout);
   const Job run = job, ref = withSeed(job, job.seed + 101, 16 * job.pathsPerSlice, 16 * job.waveSamplesPerBin);
   GeometricTransport runPaths(run, grid, run.pathsPerSlice), refPaths(ref, grid, ref.pathsPerSlice);
-  double measured2 = 0, predicted2 = 0;
-  for (const auto& pilot : perPilot) {
-    const int t = pilot["incidence"].get<int>();
+  std::map<std::string, Agreement> agreement;
+  for (size_t k = 0; k < perPilot.size(); ++k) {
+    const int t = perPilot[k]["incidence"].get<int>();
     const int bin = job.incidence[size_t(t)].bin;
-    double measured;
+    const TileResult a = runPaths.run(t, t, bin, std::nullopt), b = refPaths.run(t, t, bin, std::nullopt);
+    // Measured distances by measure: L2 of the table plan's paths/wave error is about, L1 per component.
+    std::map<std::string, L1Distance> measured;
+    const auto& coh = [](const TileResult& r) { return r.value[int(Component::Coherent)]; };
+    const auto& cohErr = [](const TileResult& r) { return r.stdError[int(Component::Coherent)]; };
+    measured["coherent"] = l1DistanceToReference(coh(a), coh(b), cohErr(a), a.nLambda, grid);
     if (wave) {
       auto est = makeJobWaveEstimator(run, grid, *runPaths.scene(), waveSettingsOf(run));
       auto estRef = makeJobWaveEstimator(ref, grid, *refPaths.scene(), waveSettingsOf(ref));
-      const WaveTileResult a = est->run(t, bin, std::nullopt, {}), b = estRef->run(t, bin, std::nullopt, {});
-      measured = distanceToReference(a.fws, b.fws, a.nLambda, grid);
+      const WaveTileResult wa = est->run(t, bin, std::nullopt, {}), wb = estRef->run(t, bin, std::nullopt, {});
+      measured["l2"] = {distanceToReference(wa.fws, wb.fws, wa.nLambda, grid), 0};
+      measured["f_ws"] = l1DistanceToReference(wa.fws, wb.fws, wa.fwsErr, wa.nLambda, grid);
     } else {
-      const TileResult a = runPaths.run(t, t, bin, std::nullopt), b = refPaths.run(t, t, bin, std::nullopt);
-      measured = distanceToReference(pathTable(a), pathTable(b), a.nLambda, grid);
+      measured["l2"] = {distanceToReference(pathTable(a), pathTable(b), a.nLambda, grid), 0};
+      measured["multiple"] = l1DistanceToReference(a.value[int(Component::Multiple)], b.value[int(Component::Multiple)],
+                                                   a.stdError[int(Component::Multiple)], a.nLambda, grid);
     }
-    const double predicted = pilot["rel_error"].get<double>();
-    std::printf("%-28s theta_i %5.1f: predicted %.4f, measured %.4f\n", name, pilot["theta_deg"].get<double>(),
-                predicted, measured);
-    measured2 += measured * measured;
-    predicted2 += predicted * predicted;
+    for (const auto& [measure, m] : measured) {
+      const double predicted = measure == "l2" ? perPilot[k]["rel_error"].get<double>()
+                                               : l1[measure]["per_pilot"][k]["rel_l1"].get<double>();
+      EXPECT_EQ(measure == "l2" ? t : l1[measure]["per_pilot"][k]["incidence"].get<int>(), t);
+      std::printf("%-28s theta_i %5.1f %-10s: predicted %.4f, measured %.4f ± %.4f\n", name,
+                  perPilot[k]["theta_deg"].get<double>(), measure.c_str(), predicted, m.value, m.sd);
+      agreement[measure].add(m.value, predicted, m.sd);
+    }
   }
-  EXPECT_GT(predicted2, 0) << name;
-  return std::sqrt(measured2 / predicted2);
+  for (const auto& [measure, ag] : agreement) EXPECT_GT(ag.predicted2, 0) << name << " " << measure;
+  return agreement;
 }
 
 Job waveJob(const std::string& geometry, const std::string& estimator, int samples) {
@@ -183,16 +238,19 @@ TEST(Plan, PredictedErrorMatchesALongReference) {
       {"gold V-grooves", sceneJob("kind = \"ridged\"\nsize_um = [2.0, 0.3]\nperiod_um = 2.0\napex_angle_deg = 90.0",
                                   "name = \"Au\"", 80000)},
   };
-  for (const auto& [name, job] : pathScenes) {
-    const double ratio = checkScene(name, job, false);
-    std::printf("%-28s measured / predicted %.2f\n", name, ratio);
-    EXPECT_LT(ratio, 1.5) << name;
-    EXPECT_GT(ratio, 1 / 1.5) << name;
-  }
+  // Within a factor of 1.5, or (L1, where few bins carry a component) within 4 standard deviations
+  // of the measured distances' sum.
+  auto expectAgreement = [](const char* name, const std::map<std::string, Agreement>& agreement) {
+    for (const auto& [measure, ag] : agreement) {
+      const double ratio = ag.ratio();
+      std::printf("%-28s %-10s measured / predicted %.2f (sums differ by %.1f sd)\n", name, measure.c_str(), ratio,
+                  ag.z());
+      const bool withinFactor = ratio < 1.5 && ratio > 1 / 1.5;
+      EXPECT_TRUE(withinFactor || (measure != "l2" && std::abs(ag.z()) < 4)) << name << " " << measure;
+    }
+  };
+  for (const auto& [name, job] : pathScenes) expectAgreement(name, checkScene(name, job, false));
   const Job wave =
       waveJob("kind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0", "orders", 256);
-  const double ratio = checkScene("rough Al, orders wave term", wave, true);
-  std::printf("%-28s measured / predicted %.2f\n", "rough Al, orders wave term", ratio);
-  EXPECT_LT(ratio, 1.5);
-  EXPECT_GT(ratio, 1 / 1.5);
+  expectAgreement("rough Al, orders wave term", checkScene("rough Al, orders wave term", wave, true));
 }
