@@ -1,6 +1,7 @@
 #include "geometry/embree_scene.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -252,16 +253,24 @@ void PeriodicScene::traceMany(std::span<const Vec3> o, std::span<const Vec3> d, 
     }
   } else {
     // Packets of neighbours along a Morton curve of the origins (periodic patch: of the origins
-    // within a period), which traverse the same part of the tree.
-    thread_local std::vector<uint64_t> order;  // Morton code << 32 | ray
+    // within a period), which traverse the same part of the tree. A counting sort into 32 x 32
+    // cells of the period in Morton order: the grouping changes no result (each ray's answer is
+    // its own), only which rays share a packet, so cells as coarse as the rays are sparse serve.
+    constexpr uint32_t kBits = 5, kCells = 1u << (2 * kBits);
+    thread_local std::vector<uint32_t> order, cellOf;
     order.resize(n);
+    cellOf.resize(n);
     auto cell = [](double x, double size) {
       const double f = x / size + 0.5;
-      return uint32_t(std::clamp(f - std::floor(f), 0.0, 1.0) * 65535.0);
+      return std::min(uint32_t((f - std::floor(f)) * (1u << kBits)), (1u << kBits) - 1);
     };
-    for (size_t i = 0; i < n; ++i)
-      order[i] = uint64_t(mortonCode(cell(o[i].x, sizeX_), cell(o[i].y, sizeY_))) << 32 | uint64_t(i);
-    std::sort(order.begin(), order.end());
+    std::array<uint32_t, kCells + 1> start{};
+    for (size_t i = 0; i < n; ++i) {
+      cellOf[i] = mortonCode(cell(o[i].x, sizeX_), cell(o[i].y, sizeY_));
+      ++start[cellOf[i] + 1];
+    }
+    for (uint32_t c = 0; c < kCells; ++c) start[c + 1] += start[c];
+    for (size_t i = 0; i < n; ++i) order[start[cellOf[i]]++] = uint32_t(i);
     constexpr size_t K = 16;
     for (size_t p0 = 0; p0 < n; p0 += K) {
       alignas(64) RTCRayHit16 rh;
@@ -271,7 +280,7 @@ void PeriodicScene::traceMany(std::span<const Vec3> o, std::span<const Vec3> d, 
         rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
         rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
         if (p0 + k >= n) continue;
-        const uint32_t i = uint32_t(order[p0 + k]);
+        const uint32_t i = order[p0 + k];
         Segment& sg = segments[i];
         if (slabExit(o[i], d[i], &sg.tExit, &sg.face, &out[i])) continue;
         sg.asked = true;
@@ -292,7 +301,7 @@ void PeriodicScene::traceMany(std::span<const Vec3> o, std::span<const Vec3> d, 
       rtcIntersect16(valid, scene_.get(), &ctx, &rh);
       for (size_t k = 0; k < K && p0 + k < n; ++k)
         if (valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID)
-          met(uint32_t(order[p0 + k]), rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k], rh.ray.tfar[k]);
+          met(order[p0 + k], rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k], rh.ray.tfar[k]);
     }
   }
   for (size_t i = 0; i < n; ++i) {
