@@ -106,6 +106,7 @@ struct Job {
   int64_t waveSamplesPerBin = 256;
   int64_t wavePointsPerDirection = 64;
   int64_t waveIncidenceDirections = 4;
+  int64_t waveSubdirections = 32;  // exact, fft: sub-directions per axis of an incidence bin
   // [sampling] visibility_table: the `exact` estimator's shared visibility table
   // (scattering/visibility_table.h); see visibilityTableResolution().
   enum class VisibilityTableMode { Auto, On, Off };

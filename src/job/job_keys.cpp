@@ -144,6 +144,8 @@ const std::vector<JobKey>& jobKeys() {
        "how single scattering is computed without deeper paths"},
       {"sampling.wave_incidence_directions", Integer, "4", "[1, 1e6]",
        "orders, bin-averaged: incidence directions per bin"},
+      {"sampling.wave_subdirections", Integer, "32", "16, 32, …, 512",
+       "exact, fft, bin-averaged: sub-directions per axis of the incidence bin"},
 
       {"output", Table, "", "", "the output file"},
       {"output.path", String, "\"out.h5\"", "", "output HDF5 file (-o overrides it)"},

@@ -608,7 +608,9 @@ std::string fmtL1(const nlohmann::json& l1) {
                      t["paths_per_slice"].dump());
     if (t.contains("wave_samples_per_bin")) o += "wave_samples_per_bin = " + t["wave_samples_per_bin"].dump() + ", ";
     o += fmt::format("{:.3g} core-hours", t["core_hours"].get<double>());
-    if (!t["reached"].get<bool>()) o += " (not reached: the wave term's own error stays above it)";
+    if (!t["reached"].get<bool>())
+      o += " (not reached: the wave term's own error stays above it; exact and fft bin through "
+           "[sampling] wave_subdirections)";
     o += "\n";
   }
   return o;

@@ -79,6 +79,7 @@ WaveSettings waveSettingsOf(const Job& job) {
   ws.samplesPerBin = int(job.waveSamplesPerBin);
   ws.pointsPerDirection = int(job.wavePointsPerDirection);
   ws.incidenceDirections = int(job.waveIncidenceDirections);
+  ws.subdirections = int(job.waveSubdirections);
   ws.seed = job.seed;
   ws.computeMasked = job.components.has(Component::Lost);
   ws.visibilityTable = job.visibilityTableResolution();

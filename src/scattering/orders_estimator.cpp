@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -51,7 +52,8 @@ struct NodePowers {
   std::vector<uint8_t> present;  // [node]
 };
 
-// The K-point stratified pattern of a unit normal: Φ⁻¹((i + ½)/K) (K = 16 or 32).
+// The K-point stratified pattern of a unit normal: Φ⁻¹((i + ½)/K), K a power of two from 8 to
+// 1024 (covering kMinSubdirections / 2 to kMaxSubdirections), each made once.
 const std::vector<double>& lobeNodes(int K) {
   auto make = [](int k) {
     std::vector<double> v(static_cast<size_t>(k));
@@ -64,8 +66,15 @@ const std::vector<double>& lobeNodes(int K) {
     }
     return v;
   };
-  static const std::vector<double> n16 = make(16), n32 = make(32);
-  return K == 16 ? n16 : n32;
+  static const std::array<std::vector<double>, 8> patterns = [&] {
+    std::array<std::vector<double>, 8> p;
+    for (int e = 0; e < 8; ++e) p[size_t(e)] = make(8 << e);
+    return p;
+  }();
+  const int e = std::countr_zero(unsigned(K)) - 3;
+  if (K <= 0 || (K & (K - 1)) != 0 || e < 0 || e >= int(patterns.size()))
+    throw std::logic_error("lobeNodes: " + std::to_string(K) + " is not a power of two from 8 to 1024");
+  return patterns[size_t(e)];
 }
 
 // Half the spacing of node i of the K-point pattern around it (units of sd): the cell a node stands for.
@@ -523,15 +532,19 @@ std::string OrdersWaveEstimator::name() const {
 // a Gauss–Legendre rule over the bin converges slowly there and not monotonically (Al grating,
 // Λ = 2 µm, 39.4°: rule orders 2…6 gave L1 errors of 0.17, 0.060, 0.073, 0.062, 0.047 per slice).
 // So the powers computed at the n × n nodes (the costly facet sums) are interpolated (Lagrange in
-// the bin's cosine-weighted (u, v) square) to M × M = 32 × 32 sub-directions, each paired with one
-// point of the lobe's 32 × 32 stratified pattern by a fixed scrambled permutation (both marginals
-// exact; a linear pairing, (i + 2j, i + 3j) mod M, was twice as far off beside the pole, where the
-// bins are narrower than the lobe), and the exit directions are binned there: the jumps cost only
-// binOf calls. Error per bin: the interpolation's, |B(P_n) − B(P_{n−1})| from the (n − 1) × (n − 1)
-// companion nodes, plus the binning's, |B_32 − B_16| with 16 × 16 sub-directions (both estimates
-// of the coarser, on the safe side). WaveExact.IncidenceBinAverageMatchesDenseCollimatedMean: that
-// grating at 5°, 39.4°, 65° within 0.013–0.019 (L1 per slice) of the mean of 24 × 24 collimated
-// tables over the bin, reported 0.051–0.059; n = 2 and n = 8 differ by 0.0002–0.019.
+// the bin's cosine-weighted (u, v) square) to M × M sub-directions ([sampling] wave_subdirections,
+// 32 by default), each paired with one point of the lobe's M × M stratified pattern by a fixed
+// scrambled permutation (both marginals exact; a linear pairing, (i + 2j, i + 3j) mod M, was twice
+// as far off beside the pole, where the bins are narrower than the lobe), and the exit directions
+// are binned there: the jumps cost only binOf calls. Error per bin: the interpolation's,
+// |B(P_n) − B(P_{n−1})| from the (n − 1) × (n − 1) companion nodes, plus the binning's,
+// |B_M − B_{M/2}| with M/2 × M/2 sub-directions (both estimates of the coarser, on the safe side).
+// WaveExact.IncidenceBinAverageMatchesDenseCollimatedMean: that grating at 5°, 39.4°, 65° within
+// 0.013–0.019 (L1 per slice) of the mean of 24 × 24 collimated tables over the bin, reported
+// 0.051–0.059; n = 2 and n = 8 differ by 0.0002–0.019. The binning's error falls as 1/M: the
+// paper's HEMISPHERES at 75 × 300 bins, θi = 30°, is 6–8 % (L1) from its M = 256 table at M = 32,
+// 3–5 % at 64, 1.7–2.5 % at 128, while the estimate above, summed over the bins, is several times
+// that (safe, not sharp: `plan` reports it as the wave term's L1).
 namespace {
 
 // Lagrange interpolation weights of the nodes x at t.
@@ -593,8 +606,9 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
   const int n = incidenceRuleOrder(ctx.settings.incidenceDirections);
   const QuadratureRule qh = gaussLegendre(n, 0.0, 1.0), ql = gaussLegendre(n - 1, 0.0, 1.0);
   using Sub = SubDirection;
-  const std::vector<Sub> fine = subDirections(grid, incidenceBin, qh, ql, 32),
-                         coarse = subDirections(grid, incidenceBin, qh, ql, 16);
+  const int M = ctx.settings.subdirections;
+  const std::vector<Sub> fine = subDirections(grid, incidenceBin, qh, ql, M),
+                         coarse = subDirections(grid, incidenceBin, qh, ql, M / 2);
   const double Lx = ctx.scene.sizeX(), Ly = ctx.scene.sizeY();
   const int nMsk = masked ? 2 : 1;
   // Per order: (table, msk, λ·nB + bin, value) contributions, accumulated below in order.
@@ -605,7 +619,7 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
   };
   std::vector<std::vector<Part>> parts(nodePower.size());
   // Orders whose power stays below 1e-13 of the strongest order's at every node are left out (a flat
-  // patch's orders G != 0 carry rounding noise of 1e-30: binning each of them over 32 x 32
+  // patch's orders G != 0 carry rounding noise of 1e-30: binning each of them over M x M
   // sub-directions was the whole cost of a flat mirror's tile); they change no bin by more than
   // 1e-13 of its value.
   double strongest = 0;
@@ -683,8 +697,8 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     for (const Sub& sub : fine) bin(sub, {0, 1}, fine);
     for (const Sub& sub : coarse) bin(sub, {2}, coarse);
   });
-  // table 0: the n-node interpolation on 32 × 32 sub-directions; 1: the (n − 1)-node one; 2: the
-  // n-node one on 16 × 16.
+  // table 0: the n-node interpolation on M × M sub-directions; 1: the (n − 1)-node one; 2: the
+  // n-node one on M/2 × M/2.
   std::vector<std::vector<double>> acc(size_t(3 * nMsk), std::vector<double>(r->fws.size(), 0.0));
   for (const auto& list : parts)
     for (const Part& p : list) acc[size_t(p.table * nMsk + p.msk)][p.at] += p.value;

@@ -24,11 +24,17 @@
 
 namespace mbsdf {
 
+// The range of WaveSettings::subdirections (powers of two).
+inline constexpr int kMinSubdirections = 16, kMaxSubdirections = 512;
+
 struct WaveSettings {
   WaveEstimatorKind estimator = WaveEstimatorKind::Area;
   int samplesPerBin = 256;      // area: points x directions per exit bin; paper: passes
   int pointsPerDirection = 64;  // area: points per exit direction; directions = samples / points (>= 2)
   int incidenceDirections = 4;  // orders: incidence directions per slice (bin-averaged incidence)
+  // exact and fft with bin-averaged incidence: sub-directions per axis of the incidence bin through
+  // which each order's power is binned (a power of two, kMinSubdirections to kMaxSubdirections).
+  int subdirections = 32;
   uint64_t seed = 1;
   bool computeMasked = false;  // also estimate P_msk for the lost component
   // exact: directions per axis of the shared visibility table (visibility_table.h); 0 casts every
