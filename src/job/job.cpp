@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -389,7 +390,7 @@ void parseSampling(const ParamDict& samp, Job& job) {
   if (job.wavePointsPerDirection < 2) samp.fail("wave_points_per_direction", "must be >= 2 (pairwise estimator)");
   job.waveIncidenceDirections = bounded("wave_incidence_directions", 4, 1000000);
   job.waveSubdirections = bounded("wave_subdirections", 32, kMaxSubdirections);
-  if (job.waveSubdirections < kMinSubdirections || (job.waveSubdirections & (job.waveSubdirections - 1)) != 0)
+  if (job.waveSubdirections < kMinSubdirections || !std::has_single_bit(uint64_t(job.waveSubdirections)))
     samp.fail("wave_subdirections", "must be a power of two from " + std::to_string(kMinSubdirections) + " to " +
                                         std::to_string(kMaxSubdirections));
   const std::string single = samp.getString("single_scattering", "auto");

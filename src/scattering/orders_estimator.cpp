@@ -52,8 +52,8 @@ struct NodePowers {
   std::vector<uint8_t> present;  // [node]
 };
 
-// The K-point stratified pattern of a unit normal: Φ⁻¹((i + ½)/K), K a power of two from 8 to
-// 1024 (covering kMinSubdirections / 2 to kMaxSubdirections), each made once.
+// The K-point stratified pattern of a unit normal: Φ⁻¹((i + ½)/K), K a power of two from
+// kMinSubdirections / 2 (the coarse binning's) to kMaxSubdirections, each made once.
 const std::vector<double>& lobeNodes(int K) {
   auto make = [](int k) {
     std::vector<double> v(static_cast<size_t>(k));
@@ -66,15 +66,16 @@ const std::vector<double>& lobeNodes(int K) {
     }
     return v;
   };
-  static const std::array<std::vector<double>, 8> patterns = [&] {
-    std::array<std::vector<double>, 8> p;
-    for (int e = 0; e < 8; ++e) p[size_t(e)] = make(8 << e);
+  constexpr int kSmallest = kMinSubdirections / 2;
+  static const std::vector<std::vector<double>> patterns = [&] {
+    std::vector<std::vector<double>> p;
+    for (int k = kSmallest; k <= kMaxSubdirections; k *= 2) p.push_back(make(k));
     return p;
   }();
-  const int e = std::countr_zero(unsigned(K)) - 3;
-  if (K <= 0 || (K & (K - 1)) != 0 || e < 0 || e >= int(patterns.size()))
-    throw std::logic_error("lobeNodes: " + std::to_string(K) + " is not a power of two from 8 to 1024");
-  return patterns[size_t(e)];
+  if (K < kSmallest || K > kMaxSubdirections || !std::has_single_bit(unsigned(K)))
+    throw std::logic_error("lobeNodes: " + std::to_string(K) + " is not a power of two from " +
+                           std::to_string(kSmallest) + " to " + std::to_string(kMaxSubdirections));
+  return patterns[size_t(std::countr_zero(unsigned(K / kSmallest)))];
 }
 
 // Half the spacing of node i of the K-point pattern around it (units of sd): the cell a node stands for.
