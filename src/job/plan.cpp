@@ -362,14 +362,14 @@ nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, c
   a["paths_per_slice"] = job.pathsPerSlice;
   const bool waveByBudget = job.needsWave() && !wave.deterministic && wave.rate > 0.05;
   const double rate = waveByBudget ? wave.rate : 0.0;
+  double worstW = 0;
+  for (const auto& [name, perPilot] : comps)
+    for (const auto& perLambda : perPilot)
+      for (const Part& part : perLambda) worstW = std::max(worstW, part.w);
   nlohmann::json targets = nlohmann::json::array();
   for (double target : {0.1, 0.03, 0.01}) {
     // The wave samples first (from the wave parts alone), then the paths that bring every
     // component's path part within what the wave part leaves of the target.
-    double worstW = 0;
-    for (const auto& [name, perPilot] : comps)
-      for (const auto& perLambda : perPilot)
-        for (const Part& part : perLambda) worstW = std::max(worstW, part.w);
     const double fw = waveByBudget && worstW > 0
                           ? std::max(16.0 / double(job.waveSamplesPerBin), std::pow(worstW / target, 1 / rate))
                           : 1.0;
