@@ -118,7 +118,6 @@ void writeViaPartial(const std::string& path, const std::function<void(const std
 
 void writeFileAtomically(const std::string& path, const std::string& text) {
   writeViaPartial(path, [&](const std::string& partial) {
-    errno = 0;
     std::ofstream f(partial, std::ios::binary | std::ios::trunc);
     f.write(text.data(), std::streamsize(text.size()));
     f.close();
