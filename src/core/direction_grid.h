@@ -65,6 +65,9 @@ class DirectionGrid {
   void xyBounds(int bin, double* xmin, double* xmax, double* ymin, double* ymax) const;
   // Bin for an incidence direction given in degrees (theta in [0, 180], phi any).
   int binOfAngles(double theta_deg, double phi_deg) const;
+  // Theta-phi layout: sin θ of ring edge t (t = 0 … n_theta), the radius of that edge's circle in
+  // the xy plane of directions.
+  double ringEdgeSin(int t) const { return ringSin_[size_t(t)]; }
 
  private:
   Layout layout_;

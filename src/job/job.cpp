@@ -389,7 +389,7 @@ void parseSampling(const ParamDict& samp, Job& job) {
   job.wavePointsPerDirection = bounded("wave_points_per_direction", 64, 1000000000);
   if (job.wavePointsPerDirection < 2) samp.fail("wave_points_per_direction", "must be >= 2 (pairwise estimator)");
   job.waveIncidenceDirections = bounded("wave_incidence_directions", 4, 1000000);
-  job.waveSubdirections = bounded("wave_subdirections", 32, kMaxSubdirections);
+  job.waveSubdirections = bounded("wave_subdirections", kDefaultSubdirections, kMaxSubdirections);
   if (job.waveSubdirections < kMinSubdirections || !std::has_single_bit(uint64_t(job.waveSubdirections)))
     samp.fail("wave_subdirections", "must be a power of two from " + std::to_string(kMinSubdirections) + " to " +
                                         std::to_string(kMaxSubdirections));

@@ -13,6 +13,7 @@
 #include "geometry/microgeometry.h"
 #include "job/geometry_factory.h"
 #include "microflake/microflake_walk.h"
+#include "scattering/wave_estimator.h"
 #include "optics/material.h"
 #include "scattering/components.h"
 #include "scattering/wave_estimator_kind.h"
@@ -106,7 +107,7 @@ struct Job {
   int64_t waveSamplesPerBin = 256;
   int64_t wavePointsPerDirection = 64;
   int64_t waveIncidenceDirections = 4;
-  int64_t waveSubdirections = 32;  // exact, fft: sub-directions per axis of an incidence bin
+  int64_t waveSubdirections = kDefaultSubdirections;  // exact, fft: sub-directions per axis of an incidence bin
   // [sampling] visibility_table: the `exact` estimator's shared visibility table
   // (scattering/visibility_table.h); see visibilityTableResolution().
   enum class VisibilityTableMode { Auto, On, Off };

@@ -144,7 +144,7 @@ const std::vector<JobKey>& jobKeys() {
        "how single scattering is computed without deeper paths"},
       {"sampling.wave_incidence_directions", Integer, "4", "[1, 1e6]",
        "orders, bin-averaged: incidence directions per bin"},
-      {"sampling.wave_subdirections", Integer, "32", "16, 32, …, 512",
+      {"sampling.wave_subdirections", Integer, "16", "16, 32, …, 512",
        "exact, fft, bin-averaged: sub-directions per axis of the incidence bin"},
 
       {"output", Table, "", "", "the output file"},

@@ -609,8 +609,8 @@ std::string fmtL1(const nlohmann::json& l1) {
     if (t.contains("wave_samples_per_bin")) o += "wave_samples_per_bin = " + t["wave_samples_per_bin"].dump() + ", ";
     o += fmt::format("{:.3g} core-hours", t["core_hours"].get<double>());
     if (!t["reached"].get<bool>())
-      o += " (not reached: the wave term's own error stays above it; exact and fft bin through "
-           "[sampling] wave_subdirections)";
+      o += " (not reached: the wave term's own error estimate stays above it; for exact and fft it is set by "
+           "[sampling] wave_incidence_directions and wave_subdirections, not by the budget)";
     o += "\n";
   }
   return o;

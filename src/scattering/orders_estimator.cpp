@@ -20,6 +20,7 @@
 #include "core/rng.h"
 #include "scattering/exact_amplitude.h"
 #include "scattering/heightfield_spectrum.h"
+#include "scattering/lobe_shares.h"
 #include "scattering/triangle_fourier.h"
 #include "scattering/visibility_table.h"
 #include "scattering/wave_common.h"
@@ -98,7 +99,10 @@ double meanSecant(double rho, double h) {
   if (h <= 0) return rho < 1 ? 1.0 / std::sqrt(1.0 - rho * rho) : 0.0;
   const double lo = std::max(0.0, rho - h), hi = std::min(1.0, rho + h);
   if (hi <= lo) return 0.0;
-  return (std::asin(hi) - std::asin(lo)) / (2 * h);
+  // asin at the clamped ends is known (asin(1) is π/2 to the last bit): half of a lobe's cells
+  // near the horizon reach it, and asin is most of this function's cost.
+  const double asinHi = hi == 1.0 ? kPi / 2 : std::asin(hi), asinLo = lo == 0.0 ? 0.0 : std::asin(lo);
+  return (asinHi - asinLo) / (2 * h);
 }
 
 // The power an order sends into a bin is Q_G = P_G cos θ_G times the lobe's share of that bin times a
@@ -112,15 +116,30 @@ double meanSecant(double rho, double h) {
 // points inside it; the cells of meanSecant).
 double lobeMeanSecant(double cx, double cy, double sd) {
   constexpr int K = 16;
-  const std::vector<double>& nodes = lobeNodes(K);
+  // The pattern's nodes and each (i, j) cell's half width in units of sd, made once.
+  struct Pattern {
+    std::array<double, K> node;
+    std::array<std::array<double, K>, K> halfWidth;
+  };
+  static const Pattern pattern = [] {
+    Pattern p;
+    const std::vector<double>& nodes = lobeNodes(K);
+    for (int i = 0; i < K; ++i) p.node[size_t(i)] = nodes[size_t(i)];
+    for (int i = 0; i < K; ++i)
+      for (int j = 0; j < K; ++j)
+        p.halfWidth[size_t(i)][size_t(j)] = std::max(lobeCellHalfWidth(K, i), lobeCellHalfWidth(K, j));
+    return p;
+  }();
   double sum = 0;
   int inside = 0;
-  for (int i = 0; i < K; ++i)
+  for (int i = 0; i < K; ++i) {
+    const double x = cx + sd * pattern.node[size_t(i)];
     for (int j = 0; j < K; ++j) {
-      const double rho = std::hypot(cx + sd * nodes[size_t(i)], cy + sd * nodes[size_t(j)]);
+      const double rho = std::hypot(x, cy + sd * pattern.node[size_t(j)]);
       inside += rho < 1;
-      sum += meanSecant(rho, sd * std::max(lobeCellHalfWidth(K, i), lobeCellHalfWidth(K, j)));
+      sum += meanSecant(rho, sd * pattern.halfWidth[size_t(i)][size_t(j)]);
     }
+  }
   return inside ? sum / inside : 0.0;
 }
 // The factor of the lobe's fractions inside the disk: 1/cos θ_G, or the finite mean near the horizon.
@@ -132,8 +151,9 @@ double lobeSecant(double cx, double cy, double sd) {
 
 // The share of a Gaussian lobe (centre (cx, cy), standard deviation sd in the xy plane of the
 // hemisphere `zs`) in each bin, times its 1/cos θ (lobeSecant): an order's power per bin is
-// Q_G · share. A fixed 16 x 16 stratified pattern through the inverse normal CDF, deterministic.
-// Directions outside the unit disk are evanescent and dropped.
+// Q_G · share. Integrated over the bins (lobe_shares.h); where that does not apply (a disk grid's
+// rim), a fixed 16 x 16 stratified pattern through the inverse normal CDF. Directions outside the
+// unit disk are evanescent and dropped.
 void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double zs,
               std::vector<std::pair<int, double>>* out) {
   out->clear();
@@ -152,6 +172,11 @@ void lobeBins(const DirectionGrid& grid, double cx, double cy, double sd, double
     out->push_back({c, secant});
     return;
   }
+  if (gaussianLobeShares(grid, cx, cy, sd, zs > 0, out)) {
+    for (auto& [b, share] : *out) share *= secant;
+    return;
+  }
+  // At a disk grid's rim (lobe_shares.h): the lobe sampled by the pattern.
   constexpr int K = 16;
   const std::vector<double>& nodes = lobeNodes(K);
   const double w = secant / (K * K);
@@ -534,18 +559,18 @@ std::string OrdersWaveEstimator::name() const {
 // Λ = 2 µm, 39.4°: rule orders 2…6 gave L1 errors of 0.17, 0.060, 0.073, 0.062, 0.047 per slice).
 // So the powers computed at the n × n nodes (the costly facet sums) are interpolated (Lagrange in
 // the bin's cosine-weighted (u, v) square) to M × M sub-directions ([sampling] wave_subdirections,
-// 32 by default), each paired with one point of the lobe's M × M stratified pattern by a fixed
-// scrambled permutation (both marginals exact; a linear pairing, (i + 2j, i + 3j) mod M, was twice
-// as far off beside the pole, where the bins are narrower than the lobe), and the exit directions
-// are binned there: the jumps cost only binOf calls. Error per bin: the interpolation's,
-// |B(P_n) − B(P_{n−1})| from the (n − 1) × (n − 1) companion nodes, plus the binning's,
-// |B_M − B_{M/2}| with M/2 × M/2 sub-directions (both estimates of the coarser, on the safe side).
+// 16 by default), and at each the lobe's share of every bin is integrated (lobe_shares.h): the
+// jumps are smoothed by the lobe itself, so a midpoint rule over the sub-directions converges fast.
+// Where the shares cannot be integrated (a disk grid's rim), the sub-direction takes one point of
+// the lobe's M × M stratified pattern, paired by a fixed scrambled permutation (both marginals
+// exact). Error per bin: the interpolation's, |B(P_n) − B(P_{n−1})| from the (n − 1) × (n − 1)
+// companion nodes, plus the binning's, |B_M − B_{M/2}| with M/2 × M/2 sub-directions (both
+// estimates of the coarser, on the safe side).
 // WaveExact.IncidenceBinAverageMatchesDenseCollimatedMean: that grating at 5°, 39.4°, 65° within
-// 0.013–0.019 (L1 per slice) of the mean of 24 × 24 collimated tables over the bin, reported
-// 0.051–0.059; n = 2 and n = 8 differ by 0.0002–0.019. The binning's error falls as 1/M: the
-// paper's HEMISPHERES at 75 × 300 bins, θi = 30°, is 6–8 % (L1) from its M = 256 table at M = 32,
-// 3–5 % at 64, 1.7–2.5 % at 128, while the estimate above, summed over the bins, is several times
-// that (safe, not sharp: `plan` reports it as the wave term's L1).
+// 0.002–0.007 (L1 per slice) of the mean of 24 × 24 collimated tables over the bin, reported
+// 0.010–0.044. The paper's HEMISPHERES at 75 × 300 bins, θi = 30°, 8 wavelengths: M = 16 is
+// 0.04–0.08 % (L1) from M = 64 and M = 32 0.01 %; sampling the lobe at one point per sub-direction
+// instead, as before, left 6–8 % at M = 32 and about 1 % at M = 256 (docs/accuracy.md).
 namespace {
 
 // Lagrange interpolation weights of the nodes x at t.
@@ -660,15 +685,21 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     const double zs = fromAbove != (ord.transmission || ord.below) ? 1.0 : -1.0;
     // One sub-direction of `set`: its exit direction and bin once, then the power of each table
     // in `tables` (0 and 1 share the fine sub-directions).
+    // The lobe's share of each bin at one sub-direction, integrated (lobe_shares.h); at a disk
+    // grid's rim, the bin of the lobe point paired with the sub-direction.
+    std::vector<std::pair<int, double>> spread;
     auto bin = [&](const Sub& sub, std::initializer_list<int> tables, const std::vector<Sub>& set) {
       const double x = -(2 * kPi * double(ord.a) / Lx + nI * k0 * sub.wi.x) / (nO * k0);
       const double y = -(2 * kPi * double(ord.b) / Ly + nI * k0 * sub.wi.y) / (nO * k0);
       if (x * x + y * y >= 1) return;                  // evanescent here
       const double secant = lobeSecant(x, y, ord.sd);  // 1/cos θ_G, finite at the horizon
-      const double bx = x + ord.sd * sub.lx, by = y + ord.sd * sub.ly, r2 = bx * bx + by * by;
-      if (r2 >= 1) return;
-      const int b = grid.binOf({bx, by, zs * std::sqrt(1 - r2)});
-      if (b < 0) return;
+      if (!gaussianLobeShares(grid, x, y, ord.sd, zs > 0, &spread)) {
+        const double bx = x + ord.sd * sub.lx, by = y + ord.sd * sub.ly, r2 = bx * bx + by * by;
+        if (r2 >= 1) return;
+        const int b = grid.binOf({bx, by, zs * std::sqrt(1 - r2)});
+        if (b < 0) return;
+        spread.assign(1, {b, 1.0});
+      }
       for (const int table : tables) {
         const bool high = table != 1;
         const size_t near = (high ? allHi : allLo) ? SIZE_MAX : nearest(sub, high);
@@ -682,16 +713,19 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
           else
             for (size_t m = 0; m < sub.wl.size(); ++m) v += sub.wl[m] * Q[(size_t(n * n) + m) * 2 + size_t(msk)];
           if (v <= 0) continue;
-          // Merged per (table, bin): an order's image covers a few bins, so the list stays short.
-          const size_t at = size_t(l) * nB + size_t(b);
-          const double add = v * secant / double(set.size());
-          auto& list = parts[o];
-          auto hit = std::find_if(list.rbegin(), list.rend(),
-                                  [&](const Part& q) { return q.at == at && q.table == table && q.msk == msk; });
-          if (hit != list.rend())
-            hit->value += add;
-          else
-            list.push_back({table, msk, at, add});
+          const double perSub = v * secant / double(set.size());
+          for (const auto& [b, share] : spread) {
+            // Merged per (table, bin): an order's image covers a few bins, so the list stays short.
+            const size_t at = size_t(l) * nB + size_t(b);
+            const double add = perSub * share;
+            auto& list = parts[o];
+            auto hit = std::find_if(list.rbegin(), list.rend(),
+                                    [&](const Part& q) { return q.at == at && q.table == table && q.msk == msk; });
+            if (hit != list.rend())
+              hit->value += add;
+            else
+              list.push_back({table, msk, at, add});
+          }
         }
       }
     };
