@@ -683,11 +683,11 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
     const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
     const double zs = fromAbove != (ord.transmission || ord.below) ? 1.0 : -1.0;
-    // One sub-direction of `set`: its exit direction and bin once, then the power of each table
-    // in `tables` (0 and 1 share the fine sub-directions).
     // The lobe's share of each bin at one sub-direction, integrated (lobe_shares.h); at a disk
     // grid's rim, the bin of the lobe point paired with the sub-direction.
     std::vector<std::pair<int, double>> spread;
+    // One sub-direction of `set`: its exit direction and the lobe's bins once, then the power of
+    // each table in `tables` (0 and 1 share the fine sub-directions).
     auto bin = [&](const Sub& sub, std::initializer_list<int> tables, const std::vector<Sub>& set) {
       const double x = -(2 * kPi * double(ord.a) / Lx + nI * k0 * sub.wi.x) / (nO * k0);
       const double y = -(2 * kPi * double(ord.b) / Ly + nI * k0 * sub.wi.y) / (nO * k0);

@@ -1,4 +1,4 @@
-// The closed-form shares of a Gaussian lobe among a grid's bins (lobe_shares.h), against the
+// The integrated shares of a Gaussian lobe among a grid's bins (lobe_shares.h), against the
 // spot's density integrated over each bin by composite Gauss–Legendre rules whose cells follow the
 // bins' own edges (polar cells for a theta-phi grid, so that every cell lies inside one bin and the
 // integrand is smooth there: an independent route with no edge approximated).
