@@ -809,7 +809,11 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
       if (folded)
         setStringAttr(d, "pairs",
                       "stored once: entry (i, o) with o the bin of incidence j on i's side holds the mean of f(i -> o) "
-                      "and f(j -> bin of i) where j >= i and NaN where j < i (read (j, bin of i) there)");
+                      "and f(j -> bin of i) where j >= i (" +
+                          std::string(t.c == Component::Incoherent
+                                          ? "equal weights"
+                                          : "weighted by the projected solid angles of o and of the bin of i") +
+                          ") and NaN where j < i (read (j, bin of i) there)");
       const std::string what = t.error ? "standard error of BSDF component " : "bin-averaged BSDF component ";
       describe(d, "1/sr", what + name + (half ? ", divided by " + scalePathOf(t.path) + " (float16)" : ""));
       h5check(H5DSattach_scale(d, ib, 0), "attach scale");
@@ -1618,6 +1622,17 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
       return schema.sourceTile[size_t(i)] != schema.sourceTile[size_t(j)] &&
              !(c == Component::Incoherent && schema.halvesWaveByReciprocity);
     };
+    // The weight of f(i -> o) in the pair's mean, f(o -> i) having the rest. A path-traced table
+    // (coherent, multiple) tallies the paths of its tile into the exit bin: a bin's variance is
+    // about f / (N Ω⊥) of that bin, with f the same both ways, so the estimates are weighted by the
+    // projected solid angles of the bins they were tallied in (the mean of least variance, and
+    // never worse than the better estimate; equal weights made a pole or horizon slice, whose own
+    // bin is small, up to 3 times noisier than unfolded). The wave term's are weighted equally.
+    const bool tallied = c == Component::Coherent || c == Component::Multiple;
+    auto ownWeight = [&](size_t o, size_t binOfI) {
+      const double a = grid_.projectedSolidAngle(int(o)), b = grid_.projectedSolidAngle(int(binOfI));
+      return tallied && a + b > 0 ? a / (a + b) : 0.5;
+    };
     // Phase 1: the pair matrix P[i][row][j] = f(i -> bin of j) in square blocks (a scratch file), so
     // that phase 2 reads f(j -> bin of i) for a block of i as one column of blocks.
     {
@@ -1640,7 +1655,7 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
       }
       scratch.close("close " + scratchPath);
     }
-    // Phase 2: per block of incidences, the mean of f(i -> o) and f(j -> bin of i) where j >= i.
+    // Phase 2: per block of incidences, the (weighted) mean of f(i -> o) and f(j -> bin of i) where j >= i.
     H5File scratch(H5Fopen(scratchPath.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), "open " + scratchPath);
     H5Dataset sv(H5Dopen2(scratch, "v", H5P_DEFAULT), "open scratch"), se;
     if (errors) se = H5Dataset(H5Dopen2(scratch, "e", H5P_DEFAULT), "open scratch");
@@ -1668,14 +1683,15 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
               continue;
             }
             const double f1 = row[x], f2 = colV[y];
-            row[x] = 0.5 * (f1 + f2);
+            const double w1 = ownWeight(o, size_t(schema.incidence[size_t(i)].bin)), w2 = 1 - w1;
+            row[x] = w1 * f1 + w2 * f2;
             ++check.pairs;
             check.diffL1 += std::abs(f1 - f2);
             check.sumL1 += std::abs(f1) + std::abs(f2);
             if (!errors) continue;
             const double s1 = err[x], s2 = colE[y];
             if (independent(i, j)) {
-              err[x] = 0.5 * std::sqrt(s1 * s1 + s2 * s2);
+              err[x] = std::sqrt(w1 * w1 * s1 * s1 + w2 * w2 * s2 * s2);
               if (s1 * s1 + s2 * s2 > 0) {
                 const double z = (f1 - f2) / std::sqrt(s1 * s1 + s2 * s2);
                 ++check.tested;
@@ -1683,7 +1699,7 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
                 check.maxZ = std::max(check.maxZ, std::abs(z));
               }
             } else {
-              err[x] = 0.5 * (s1 + s2);
+              err[x] = w1 * s1 + w2 * s2;
             }
             if (schema.storage.rounding == TableRounding::Noise) roundEstimate(row[x], err[x]);  // to its own noise
           }
@@ -1719,8 +1735,9 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
   std::filesystem::remove(scratchPath);
   setStringAttr(out, "pairs",
                 "stored once for " + std::string(report.empty() ? "no component" : "the components below") +
-                    ": same-side pairs of incidence bins hold the mean of f(i -> o) and f(o -> i) (the reciprocity "
-                    "check of each: " +
+                    ": same-side pairs of incidence bins hold the mean of f(i -> o) and f(o -> i), coherent and "
+                    "multiple weighted by the projected solid angles of the bins each was tallied in (the "
+                    "reciprocity check of each: " +
                     report.dump() + ")");
   out.close("close " + target);
   return report;

@@ -40,11 +40,9 @@ struct OutputSchema {
   // under the job's symmetry): two slices from one tile are not independent estimates.
   std::vector<int> sourceTile;
   // The components whose same-side pairs the file stores once (storage.pairs = once): the
-  // reciprocal ones, f(i -> o) = f(o -> i) in reflection (docs/physics.md §8): coherent, incoherent,
-  // multiple. Not lost (the masked power is not reciprocal) nor geo_masked.
+  // reciprocal ones (isReciprocal).
   bool foldsPairs(Component c) const {
-    return storage.pairs == TablePairs::Once && components.has(c) &&
-           (c == Component::Coherent || c == Component::Incoherent || c == Component::Multiple);
+    return storage.pairs == TablePairs::Once && components.has(c) && isReciprocal(c);
   }
 
   // Whether component c has a table of per-bin standard errors: always in the per-bin profile, and

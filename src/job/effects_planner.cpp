@@ -765,10 +765,7 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, DiffractionPilot
     // the distance to the job's own rule (at the default 2 x 2 nodes the job's estimate, against
     // 1 x 1, is several times its error: a flat Al mirror's 67-79 deg bin reports 0.045 for a
     // table within 0.002 of the facet sum).
-    WaveSettings finer = ws;
-    const int n = incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1;
-    finer.incidenceDirections = std::max(finer.incidenceDirections, n * n);
-    est = makeJobWaveEstimator(job, grid, *transport.scene(), finer);
+    est = makeJobWaveEstimator(job, grid, *transport.scene(), withFinerIncidenceRule(job, ws));
   }
   // Per pilot and wavelength: the L1 difference and its noise at the renderer's angular
   // resolution (bins pooled into cells of that size, resolutionCells()); the decision uses the
@@ -784,10 +781,8 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, DiffractionPilot
   int& replicas = out.replicas;
   // A wave pilot's work against one of the job's wave terms: its samples per bin against the job's
   // for Monte Carlo, its incidence nodes against the job's for the deterministic ones.
-  const double ruleRatio = binAveraged ? std::pow((incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1.0) /
-                                                      incidenceRuleOrder(int(job.waveIncidenceDirections)),
-                                                  2)
-                                       : 1.0;
+  const int n = incidenceRuleOrder(int(job.waveIncidenceDirections));
+  const double ruleRatio = binAveraged ? double(incidenceRuleNodes(n + 1)) / incidenceRuleNodes(n) : 1.0;
   const double wavePilotCost = out.wavePilotCost =
       est->deterministic() ? ruleRatio : double(ws.samplesPerBin) / double(std::max<int64_t>(1, job.waveSamplesPerBin));
   const size_t waveAffordable = out.waveAffordable =

@@ -185,6 +185,7 @@ struct WavePilotCost {
   std::vector<SliceL1> wsL1;  // per pilot, f_ws's L1 parts with the deviation at the job's budget
   double rate = 0.5;          // the wave term's error ∝ samples^−rate
   bool deterministic = true;
+  bool finerIncidenceRule = false;  // the pilots ran one incidence node order more than the job
 };
 WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const GeometricTransport& transport,
                              const PlanOptions& options, const std::vector<int>& pilots,
@@ -199,6 +200,15 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
                                    ws.estimator == WaveEstimatorKind::Area ? 2 * int(job.wavePointsPerDirection) : 16);
   auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
   waveDeterministic = est->deterministic();
+  // A deterministic estimator over the incidence bin estimates its rule's error against the next
+  // coarser rule, which at the default n = 2 is a single node: safe but far from sharp (the paper's
+  // HEMISPHERES: 18 % as an L1 sum for a table 0.3–0.7 % from n = 4's). The pilots run one node
+  // order more, whose estimate is the job's table's distance from the finer rule's (as the effects
+  // planner's pilots do), and their time is scaled to the job's rule by the facet sums each makes.
+  const int ruleOrder = incidenceRuleOrder(int(job.waveIncidenceDirections));
+  const bool finerRule = waveDeterministic && !job.exactIncidence;
+  if (finerRule) est = makeJobWaveEstimator(job, grid, *transport.scene(), withFinerIncidenceRule(job, ws));
+  out.finerIncidenceRule = finerRule;
   // A Monte Carlo wave term's error falls as 1/√N only once its samples resolve the lobes (with a
   // few samples per bin the per-bin errors are themselves rough: `orders` on a rough patch went
   // 0.13, 0.11, 0.072, 0.030 at 16, 64, 256, 1024 samples per bin). A second pass at 4× the pilot's
@@ -209,8 +219,11 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   const bool twoPasses = !waveDeterministic && ws2.samplesPerBin > ws.samplesPerBin;
   std::unique_ptr<WaveEstimator> est2 = twoPasses ? makeJobWaveEstimator(job, grid, *transport.scene(), ws2) : nullptr;
   const int timedSamples = twoPasses ? ws2.samplesPerBin : ws.samplesPerBin;
-  // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost.
-  const double scale = waveDeterministic ? 1.0 : double(job.waveSamplesPerBin) / double(timedSamples);
+  // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost,
+  // at the job's rule.
+  const double scale = !waveDeterministic ? double(job.waveSamplesPerBin) / double(timedSamples)
+                       : finerRule        ? double(incidenceRuleNodes(ruleOrder)) / incidenceRuleNodes(ruleOrder + 1)
+                                          : 1.0;
   const double N = double(job.waveSamplesPerBin);
   for (size_t k = 0; k < pilots.size(); ++k) {
     const int t = pilots[k];
@@ -282,6 +295,31 @@ struct PathPilotCost {
   // job has no such component).
   std::vector<SliceL1> coherentL1, multipleL1;
 };
+// Per exit bin of incidence `inc`'s slice of component c, what storing each same-side pair once
+// ([output] pairs = "once", BsdfFileWriter's fold) does to the bin's error. The stored value is
+// the mean of f(i → o) and f(o → i), the second from the tile of the incidence whose bin o is,
+// weighted by the projected solid angles of the bins each was tallied in (w = Ω⊥_o / (Ω⊥_o + Ω⊥_i)
+// for the first). Where the two come from different computed tiles they are independent, and the
+// second's error follows from the first's by reciprocity: a tally's variance is about f / (N Ω⊥)
+// of its bin, so σ(o → i)² = σ² Ω⊥_o / Ω⊥_i and the mean's error is σ √(Ω⊥_o / (Ω⊥_o + Ω⊥_i))
+// (1/√2 for bins of equal size). 1 elsewhere (the other hemisphere, a pair from one tile under the
+// job's symmetry, a job storing both, a component the fold weights equally).
+std::vector<double> pairFoldFactors(const Job& job, const DirectionGrid& grid, int inc, Component c) {
+  std::vector<double> factor(size_t(grid.binCount()), 1.0);
+  if (job.storage.pairs != TablePairs::Once || (c != Component::Coherent && c != Component::Multiple)) return factor;
+  std::optional<AzimuthalSymmetry> symmetry;
+  if (job.symmetryReduced()) symmetry.emplace(job, grid);
+  auto tileOf = [&](int i) { return symmetry ? symmetry->representative(i) : i; };
+  const int binI = job.incidence[size_t(inc)].bin;
+  const double opI = grid.projectedSolidAngle(binI);
+  for (size_t j = 0; j < job.incidence.size(); ++j) {
+    const int o = job.incidence[j].bin;
+    if (o < 0 || grid.isUpper(o) != grid.isUpper(binI) || tileOf(int(j)) == tileOf(inc) || opI <= 0) continue;
+    factor[size_t(o)] = std::sqrt(grid.projectedSolidAngle(o) / (grid.projectedSolidAngle(o) + opI));
+  }
+  return factor;
+}
+
 PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid& grid, const TileComputer& computer,
                          const std::vector<int>& pilots, uint64_t pilotPaths) {
   PathPilotCost out;
@@ -296,9 +334,18 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
     const TileResult& r = out.tiles.back();
     const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
     out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
-    for (auto [c, parts] : {std::pair{Component::Coherent, &out.coherentL1}, {Component::Multiple, &out.multipleL1}})
-      parts->push_back(r.has(c) ? sliceL1(r.value[int(c)], r.stdError[int(c)], r.nLambda, grid, kMeanAbsPerSigma)
-                                : SliceL1{});
+    // The stored table's errors: the tile's, or those of the mean of both estimates where pairs are
+    // stored once.
+    for (auto [c, parts] : {std::pair{Component::Coherent, &out.coherentL1}, {Component::Multiple, &out.multipleL1}}) {
+      if (!r.has(c)) {
+        parts->push_back(SliceL1{});
+        continue;
+      }
+      std::vector<double> err = r.stdError[int(c)];
+      const std::vector<double> fold = pairFoldFactors(job, grid, t, c);
+      for (size_t i = 0; i < err.size(); ++i) err[i] *= fold[i % fold.size()];
+      parts->push_back(sliceL1(r.value[int(c)], err, r.nLambda, grid, kMeanAbsPerSigma));
+    }
     out.pilotSeconds += r.seconds / double(pilots.size());
     out.seconds +=
         r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
@@ -558,6 +605,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   }
   p["accuracy"] = accuracyTable(job, pilots, pathRelErrors, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
                                 waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
+  if (p["accuracy"].contains("wave")) p["accuracy"]["wave"]["finer_incidence_rule"] = wave.finerIncidenceRule;
   p["accuracy"]["l1"] =
       l1AccuracyTable(job, pilots, paths, wave, grid, pilotPaths, pathSeconds, waveSeconds, computedTiles, cores);
   // The effects pilots' paths that the run keeps as its tiles' first paths (effects_planner.h) are
@@ -633,7 +681,10 @@ std::string fmtAccuracy(const nlohmann::json& a) {
                          ? fmt::format(" (falling as samples^-{:.2g} between the pilots' two budgets, not yet 1/√N)",
                                        a["wave"]["rate"].get<double>())
                          : std::string())
-              : std::string(" (its rules' error, whatever the budget)"));
+              : std::string(a["wave"].value("finer_incidence_rule", false)
+                                ? " (its rules' error, whatever the budget: the job's table's distance from one "
+                                  "incidence node order more, at the pilots)"
+                                : " (its rules' error, whatever the budget)"));
   o += "\n                (largest relative error of a slice of that table, √Σ(σ Ω⊥)² / Σ|f| Ω⊥, from the pilots; "
        "Monte Carlo errors fall as 1/√budget)\n";
   for (const auto& t : a["targets"]) {

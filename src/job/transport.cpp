@@ -73,6 +73,12 @@ TileRequest tileRequestOf(const Job& job, int t) {
   return q;
 }
 
+WaveSettings withFinerIncidenceRule(const Job& job, WaveSettings ws) {
+  const int n = incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1;
+  ws.incidenceDirections = std::max(ws.incidenceDirections, n * n);
+  return ws;
+}
+
 WaveSettings waveSettingsOf(const Job& job) {
   WaveSettings ws;
   ws.estimator = job.resolvedWaveEstimator();

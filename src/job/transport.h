@@ -62,6 +62,11 @@ TileRequest tileRequestOf(const Job& job, int t);
 // The job's wave-optics settings ([sampling] estimator, samples, points, incidence directions,
 // seed; masked sums when `lost` is a component), for the run and, adjusted, for the pilots.
 WaveSettings waveSettingsOf(const Job& job);
+// `ws` with one Gauss–Legendre node order more over the incidence bin than the job's rule. A
+// deterministic estimator's error estimate over an incidence bin is |Q_n − Q_{n−1}| per bin against
+// the next coarser rule; at this finer rule it is |Q_{n+1} − Q_n|, the distance of the job's own
+// table from the finer rule's: the pilots' measure of what the job's rule leaves.
+WaveSettings withFinerIncidenceRule(const Job& job, WaveSettings ws);
 // The job's wave estimator on `scene` with `settings` and the coherence window of [scene].
 std::unique_ptr<WaveEstimator> makeJobWaveEstimator(const Job& job, const DirectionGrid& grid,
                                                     const PeriodicScene& scene, const WaveSettings& settings);

@@ -17,6 +17,11 @@ inline constexpr std::array<const char*, kComponentCount> kComponentNames = {"co
 inline const char* componentName(Component c) {
   return kComponentNames[int(c)];
 }
+// Whether the component is reciprocal in reflection, f(i → o) = f(o → i) (docs/physics.md §8):
+// coherent, incoherent and multiple. Not lost (the masked power is not reciprocal) nor geo_masked.
+inline bool isReciprocal(Component c) {
+  return c == Component::Coherent || c == Component::Incoherent || c == Component::Multiple;
+}
 std::optional<Component> componentFromName(const std::string& name);
 
 // Which components a model sums ("GS", "GM", "WS", "WM", or a single component name).

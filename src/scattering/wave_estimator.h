@@ -109,6 +109,11 @@ class WaveEstimator {
 // The order n of the deterministic estimators' n x n Gauss–Legendre rule over an incidence bin
 // (with its (n − 1) x (n − 1) companion for the error estimate): n² >= directions, n >= 2.
 int incidenceRuleOrder(int directions);
+// The incidence directions a deterministic estimator evaluates per tile over an incidence bin with
+// the n × n rule: its own nodes and the (n − 1) × (n − 1) companion's (wave::incidenceRule).
+inline int incidenceRuleNodes(int n) {
+  return n * n + (n - 1) * (n - 1);
+}
 
 // "area", "orders", "exact", "fft" or "paper"; throws std::invalid_argument.
 std::unique_ptr<WaveEstimator> makeWaveEstimator(const WaveContext& ctx);

@@ -364,11 +364,13 @@ def test_storage_profiles():
 def test_pairs_stored_once():
     """[output] pairs = "once" on a full-sphere job (rough gold, coherent + multiple, 2 ranks): every
     slice read back whole (C++ `slice`, and python/microbsdf_h5.py) equals the mean of both estimates
-    of the same job stored both ways, f(i -> o) and f(o -> i); against a reference run with 16 times
-    the paths (another seed) the stored table's z-scores have mean square 1 within the estimator's
-    own spread, and its measured deviation from the reference falls by about sqrt(2) against a
-    single estimate's; the reciprocity check recorded in the file has mean z² about 1; the file is
-    about half the size of the one storing both."""
+    of the same job stored both ways, f(i -> o) and f(o -> i), weighted by the projected solid angles
+    of the bins each was tallied in; against a reference run with 16 times the paths (another seed)
+    the stored table's z-scores have mean square 1 within the estimator's own spread, and its
+    measured deviation from the reference falls by about sqrt(2) against a single estimate's; `plan`
+    predicts each pilot slice's L1 within 5 % of what the stored errors give; the reciprocity check
+    recorded in the file has mean z² about 1; the file is about half the size of the one storing
+    both."""
     sys.path.insert(0, os.path.join(SRC, "python"))
     import microbsdf_h5 as mh  # noqa: E402
 
@@ -390,10 +392,13 @@ def test_pairs_stored_once():
             assert np.all(np.isfinite(fo)) and np.all(np.isfinite(so))
             raw = o[f"/bsdf/{comp}"][:]
             assert np.isnan(raw).sum() == n * (n - 1) // 2 * raw.shape[1], "the mirrored half is not stored"
-            # The mean of both estimates, bin by bin.
+            # The mean of both estimates, bin by bin, each weighted by the projected solid angle of the
+            # bin it was tallied in.
             mean = fb.copy()
             pair = fb[:, :, bins]  # (i, row, j) = f(i -> bin j)
-            mean[:, :, bins] = 0.5 * (pair + np.transpose(pair, (2, 1, 0)))
+            op = b["/grid/projected_solid_angle"][:][bins]
+            w = op[None, None, :] / (op[None, None, :] + op[:, None, None])  # of f(i -> bin j)
+            mean[:, :, bins] = w * pair + (1 - w) * np.transpose(pair, (2, 1, 0))
             # (each rounded to its noise: the mean to σ/32 of the error stored with it)
             assert np.all(np.abs(fo - mean) <= so / 32 * (1 + 2.0 ** -7) + 1e-6 * np.abs(mean) + 1e-12), comp
             for i in (0, n // 2, n - 1):
@@ -417,10 +422,30 @@ def test_pairs_stored_once():
             assert 0.6 < ratio < 0.82 and 0.6 < err_ratio < 0.82, (comp, ratio, err_ratio)
             check = report[comp]
             assert check["tested_pairs"] > 100 and abs(check["mean_z2"] - 1) < 5 * np.sqrt(2.0 / check["tested_pairs"]) + 0.1, check
-            print(f"{comp}: stored = mean of both estimates; mean z² {np.mean(z_once ** 2):.3f} (once) "
+            print(f"{comp}: stored = weighted mean of both estimates; mean z² {np.mean(z_once ** 2):.3f} (once) "
                   f"{np.mean(z_both ** 2):.3f} (both) over {sel.sum()} bins; deviation from the reference "
                   f"{ratio:.3f} x, stored error {err_ratio:.3f} x a single estimate's; reciprocity check mean z² "
                   f"{check['mean_z2']:.3f} over {check['tested_pairs']} pairs")
+    # plan's prediction of each stored slice's L1 (its pilots' own errors, the fold's factor where the
+    # pairs are stored once) against the same measure of the tables as written, at the pilots' slices.
+    # The pilot tiles are the run's (the same seeds and paths), so what is tested is the fold's
+    # factor: the mean's error predicted from one estimate and reciprocity.
+    for name in ("once", "both"):
+        run(["plan", name + ".toml", "--json", f"plan-{name}.json"])
+        with open(os.path.join(TMP, f"plan-{name}.json")) as f:
+            predicted = json.load(f)["accuracy"]["l1"]["components"]
+        with h5py.File(os.path.join(TMP, name + ".h5"), "r") as h:
+            op = h["/grid/projected_solid_angle"][:]
+            for comp in ("coherent", "multiple"):
+                fs, ss = mh.table(h, comp), mh.table(h, comp, error=True)
+                for pilot in predicted[comp]["per_pilot"]:
+                    i = pilot["incidence"]
+                    stored = max(np.sqrt(2 / np.pi) * np.sum(ss[i, l] * op) / np.sum(np.abs(fs[i, l]) * op)
+                                 for l in range(fs.shape[1]))
+                    ratio = pilot["rel_l1"] / stored
+                    print(f"plan, pairs {name}: {comp} at incidence {i} ({pilot['theta_deg']:.1f} deg) predicts "
+                          f"L1 {pilot['rel_l1']:.4f}, the stored table's errors give {stored:.4f} ({ratio:.3f} x)")
+                    assert abs(ratio - 1) < 0.05, (name, comp, i, ratio)
     sizes = [os.path.getsize(os.path.join(TMP, f)) for f in ("once.h5", "both.h5")]
     print("file sizes (once, both):", sizes)
     # A SIGKILL while rank 0 folds (1024 slices of 16 x 64 bins: a fold of seconds): the partial file

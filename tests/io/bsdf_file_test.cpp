@@ -437,19 +437,21 @@ TEST(BsdfFile, ColourTablesAreTheSpectrumsColour) {
 }
 
 // Pairs stored once: from the same tiles, a file with pairs = "once" reads back (every slice whole)
-// as the mean of both estimates of a file that keeps both, f(i -> o) and f(j -> bin of i), with the
-// error of a mean of independent estimates, sqrt(σ1² + σ2²)/2 — or, for two slices of one tile
-// (symmetry), at most the mean of their errors; the table itself holds each pair once (NaN in the
-// mirrored half); the transmitted bins and the diagonal are kept as computed.
+// as the mean of both estimates of a file that keeps both, f(i -> o) and f(j -> bin of i), weighted
+// by the projected solid angles of the bins each was tallied in (o, and the bin of i: the rings of
+// a 3 x 4 grid differ), with the error of a weighted mean of independent estimates,
+// sqrt(w1² σ1² + w2² σ2²) — or, for two slices of one tile (symmetry), at most w1 σ1 + w2 σ2; the
+// table itself holds each pair once (NaN in the mirrored half); the transmitted bins and the
+// diagonal are kept as computed.
 TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
   Job job = loadJobFromString(
-      "[directions]\nn_theta = 2\nn_phi = 4\nincidence = \"all\"\nsymmetry = \"none\"\n"
+      "[directions]\nn_theta = 3\nn_phi = 4\nincidence = \"all\"\nsymmetry = \"none\"\n"
       "[spectrum]\nwavelengths_nm = [450.0, 650.0]\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n"
       "[output]\npairs = \"once\"\nrounding = \"none\"\n",  // the fold's arithmetic, to the bit
       "t.toml", "");
   DirectionGrid g(job.gridLayout);
   const int nI = int(job.incidence.size()), nB = g.binCount();
-  ASSERT_EQ(nI, 8);
+  ASSERT_EQ(nI, 12);
   OutputSchema once = outputSchemaOf(job);
   once.sourceTile[5] = 3;  // slice 5 a copy of tile 3's estimate (as symmetry makes them)
   OutputSchema both = once;
@@ -491,9 +493,11 @@ TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
             const int j = o;  // incidence index = bin on this grid
             const double f2 = y.slice(name, j)[size_t(l) * nB + job.incidence[size_t(i)].bin];
             const double s2 = y.sliceStdError(name, j)[size_t(l) * nB + job.incidence[size_t(i)].bin];
-            want = 0.5 * (vi[k] + f2);
+            const double opO = g.projectedSolidAngle(o), opI = g.projectedSolidAngle(job.incidence[size_t(i)].bin);
+            const double w1 = opO / (opO + opI), w2 = opI / (opO + opI);
+            want = w1 * vi[k] + w2 * f2;
             const bool shared = once.sourceTile[size_t(i)] == once.sourceTile[size_t(j)];
-            wantE = shared ? 0.5 * (ei[k] + s2) : 0.5 * std::sqrt(ei[k] * ei[k] + s2 * s2);
+            wantE = shared ? w1 * ei[k] + w2 * s2 : std::sqrt(w1 * w1 * ei[k] * ei[k] + w2 * w2 * s2 * s2);
           }
           EXPECT_NEAR(v[k], want, 1e-6 * std::abs(want)) << name << " i " << i << " o " << o;
           EXPECT_NEAR(e[k], wantE, 1e-6 * wantE) << name << " i " << i << " o " << o;
@@ -507,6 +511,7 @@ TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
     EXPECT_TRUE(std::isnan(all[(size_t(5) * 2 + 0) * nB + 2]));    // (5, bin 2): stored at (2, bin 5)
     EXPECT_FALSE(std::isnan(all[(size_t(2) * 2 + 0) * nB + 5]));   // (2, bin 5)
     EXPECT_FALSE(std::isnan(all[(size_t(5) * 2 + 0) * nB + 12]));  // a transmitted bin
+    EXPECT_FALSE(g.isUpper(12));
   }
   {  // the same in float16, each folded row and its scales written per block of incidences: the run
      // stores both estimates rounded to half, the fold rounds their mean again (twice half's rounding)

@@ -254,3 +254,49 @@ TEST(Plan, PredictedErrorMatchesALongReference) {
       waveJob("kind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0", "orders", 256);
   expectAgreement("rough Al, orders wave term", checkScene("rough Al, orders wave term", wave, true));
 }
+
+// A deterministic wave term over incidence bins (`exact` on a lattice of hemisphere cells, Al, 12 ×
+// 24 bins, four incidences from the pole to 80°): `plan`'s f_ws L1 per pilot, the job's table's
+// distance from the rule one node order finer, against the distance of the job's table from a much
+// finer rule (5 × 5 nodes). Safe: never below it (the distance to the finer rule includes that
+// rule's own error, and the binning's estimate is the coarser sub-directions'); and sharp enough to
+// plan with: within 3 times it (the job's own estimate, against the coarser single node, is
+// several times more).
+TEST(Plan, WaveRuleErrorFromTheFinerRuleBoundsTheTrueOne) {
+  const Job job = loadJobFromString(
+      "[geometry]\nkind = \"hemispheres\"\nsize_um = [10.0, 10.0]\nradius_um = 2.0\nspacing_um = 5.0\n"
+      "resolution_um = 0.5\n[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [650.0]\n[directions]\n"
+      "n_theta = 12\nn_phi = 24\nincidence = [[2.0, 0.0], [35.0, 20.0], [60.0, 200.0], [80.0, 100.0]]\n"
+      "[scene]\ncoherence_length_um = 50.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]\n"
+      "[sampling]\npaths_per_slice = 2000\nwave_estimator = \"exact\"\nseed = 3\n",
+      "t.toml", "");
+  PlanOptions options;
+  options.pilotPaths = 2000;
+  const nlohmann::json p = planJob(job, options);
+  ASSERT_TRUE(p["accuracy"]["wave"]["finer_incidence_rule"].get<bool>());
+  const nlohmann::json& perPilot = p["accuracy"]["l1"]["components"]["f_ws"]["per_pilot"];
+  const DirectionGrid grid(job.gridLayout);
+  GeometricTransport transport(job, grid, job.pathsPerSlice);
+  WaveSettings fine = waveSettingsOf(job);
+  fine.incidenceDirections = 25;
+  auto est = makeJobWaveEstimator(job, grid, *transport.scene(), waveSettingsOf(job));
+  auto estRef = makeJobWaveEstimator(job, grid, *transport.scene(), fine);
+  ASSERT_EQ(perPilot.size(), job.incidence.size());
+  for (const auto& pilot : perPilot) {
+    const int t = pilot["incidence"].get<int>();
+    const TileRequest request = tileRequestOf(job, t);
+    const WaveTileResult a = est->run(request, {}), ref = estRef->run(request, {});
+    double d = 0, mass = 0, ownEstimate = 0;
+    for (int b = 0; b < grid.binCount(); ++b) {
+      const double op = grid.projectedSolidAngle(b);
+      d += std::abs(a.fws[size_t(b)] - ref.fws[size_t(b)]) * op;
+      mass += std::abs(ref.fws[size_t(b)]) * op;
+      ownEstimate += a.fwsErr[size_t(b)] * op;
+    }
+    const double predicted = pilot["rel_l1"].get<double>();
+    std::printf("theta_i %4.1f: f_ws L1 from 5 x 5 nodes %.5f, plan predicts %.5f (the tile's own estimate %.5f)\n",
+                pilot["theta_deg"].get<double>(), d / mass, predicted, ownEstimate / mass);
+    EXPECT_GE(predicted, d / mass) << "theta_i " << pilot["theta_deg"].get<double>();
+    EXPECT_LE(predicted, 3 * d / mass) << "theta_i " << pilot["theta_deg"].get<double>();
+  }
+}
