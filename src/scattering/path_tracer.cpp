@@ -35,7 +35,7 @@ static Vec3 pathOrigin(const PeriodicScene& scene, const Vec3& wi, double px, do
 
 PathTracer::PathState PathTracer::startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path,
                                             int group, double* w, double* wGeoMasked) const {
-  PathState st{Sampler(settings_.seed, uint32_t(tile), path, uint32_t(group))};
+  PathState st(Sampler(settings_.seed, uint32_t(tile), path, uint32_t(group)));
   st.wi = pathIncidence(grid_, incidenceBin, exact, st.s);
   const double px = (st.s.get1D() - 0.5) * scene_.sizeX(), py = (st.s.get1D() - 0.5) * scene_.sizeY();
   st.o = pathOrigin(scene_, st.wi.w, px, py);

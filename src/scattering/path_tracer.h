@@ -72,6 +72,7 @@ class PathTracer : public GeometricEstimator {
   // A path's state between rays: its random numbers, incidence, next ray, medium, depth, weights
   // (one per wavelength of its group, in a buffer the caller owns) and, once it has ended, how.
   struct PathState {
+    explicit PathState(const Sampler& sampler) : s(sampler) {}
     Sampler s;
     DirectionSample wi;
     Vec3 o, d;
