@@ -204,7 +204,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   // coarser rule, which at the default n = 2 is a single node: safe but far from sharp (the paper's
   // HEMISPHERES: 18 % as an L1 sum for a table 0.3–0.7 % from n = 4's). The pilots run one node
   // order more, whose estimate is the job's table's distance from the finer rule's (as the effects
-  // planner's pilots do), and their time is scaled to the job's rule by the facet sums each makes.
+  // planner's pilots do), and their facet sums' time is scaled to the job's rule.
   const int ruleOrder = incidenceRuleOrder(int(job.waveIncidenceDirections));
   const bool finerRule = waveDeterministic && !job.exactIncidence;
   if (finerRule) est = makeJobWaveEstimator(job, grid, *transport.scene(), withFinerIncidenceRule(job, ws));
@@ -220,10 +220,11 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   std::unique_ptr<WaveEstimator> est2 = twoPasses ? makeJobWaveEstimator(job, grid, *transport.scene(), ws2) : nullptr;
   const int timedSamples = twoPasses ? ws2.samplesPerBin : ws.samplesPerBin;
   // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost,
-  // at the job's rule.
-  const double scale = !waveDeterministic ? double(job.waveSamplesPerBin) / double(timedSamples)
-                       : finerRule        ? double(incidenceRuleNodes(ruleOrder)) / incidenceRuleNodes(ruleOrder + 1)
-                                          : 1.0;
+  // at the job's rule, which makes fewer facet sums than the finer one the pilots ran (their
+  // binning over the sub-directions costs the same at any rule).
+  const double scale = waveDeterministic ? 1.0 : double(job.waveSamplesPerBin) / double(timedSamples);
+  const double ruleScale = finerRule ? double(incidenceRuleNodes(ruleOrder)) / incidenceRuleNodes(ruleOrder + 1) : 1.0;
+  double binningSeconds = 0;
   const double N = double(job.waveSamplesPerBin);
   for (size_t k = 0; k < pilots.size(); ++k) {
     const int t = pilots[k];
@@ -238,7 +239,8 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
     };
     if (waveDeterministic) {
       waveRelErrors.push_back(e1);
-      waveSeconds += w.seconds;
+      waveSeconds += w.seconds - w.binningSeconds;
+      binningSeconds += w.binningSeconds;
       keepL1(w, 1.0);
     } else if (!twoPasses) {
       waveRelErrors.push_back(e1 * std::sqrt(double(ws.samplesPerBin) / N));
@@ -263,7 +265,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   // What the first pilot built for every later tile (exact's visibility table) is paid once per
   // rank, not per tile.
   out.setupSeconds = est->setupSeconds();
-  waveSeconds = (waveSeconds - out.setupSeconds) * scale / double(pilots.size());
+  waveSeconds = ((waveSeconds - out.setupSeconds) * ruleScale + binningSeconds) * scale / double(pilots.size());
   out.bytes = est->memoryBytes();
   return out;
 }

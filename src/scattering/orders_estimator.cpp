@@ -867,7 +867,9 @@ WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::f
     if (progress) progress(uint64_t(k + 1) * uint64_t(N));
   }
   if (quadrature) {
+    const auto tb = std::chrono::steady_clock::now();
     binOverIncidenceBin(ctx_, grid, incidenceBin, fromAbove, media, nodePower, masked, &r);
+    r.binningSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tb).count();
   } else {
     averageOverIncidences(grid, K, pv, vv, r.fws, r.fwsErr);
     if (masked) averageOverIncidences(grid, K, pm, vm, r.pmsk, r.pmskErr);

@@ -64,6 +64,10 @@ struct WaveTileResult {
   uint64_t samples = 0;  // Kirchhoff samples (point x direction) per wavelength
   uint64_t rays = 0;
   double seconds = 0;
+  // Of `seconds`, what did not depend on the number of incidence nodes: the binning of an incidence
+  // bin's interpolated orders over its sub-directions (exact, fft; 0 otherwise). `plan` scales the
+  // rest when it times a finer incidence rule than the job's.
+  double binningSeconds = 0;
 };
 
 struct WaveContext {
