@@ -809,11 +809,8 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
       if (folded)
         setStringAttr(d, "pairs",
                       "stored once: entry (i, o) with o the bin of incidence j on i's side holds the mean of f(i -> o) "
-                      "and f(j -> bin of i) where j >= i (" +
-                          std::string(t.c == Component::Incoherent
-                                          ? "equal weights"
-                                          : "weighted by the projected solid angles of o and of the bin of i") +
-                          ") and NaN where j < i (read (j, bin of i) there)");
+                      "and f(j -> bin of i) where j >= i (weighted by the projected solid angles of o and of the "
+                      "bin of i) and NaN where j < i (read (j, bin of i) there)");
       const std::string what = t.error ? "standard error of BSDF component " : "bin-averaged BSDF component ";
       describe(d, "1/sr", what + name + (half ? ", divided by " + scalePathOf(t.path) + " (float16)" : ""));
       h5check(H5DSattach_scale(d, ib, 0), "attach scale");
@@ -1627,11 +1624,12 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
     // about f / (N Ω⊥) of that bin, with f the same both ways, so the estimates are weighted by the
     // projected solid angles of the bins they were tallied in (the mean of least variance, and
     // never worse than the better estimate; equal weights made a pole or horizon slice, whose own
-    // bin is small, up to 3 times noisier than unfolded). The wave term's are weighted equally.
-    const bool tallied = c == Component::Coherent || c == Component::Multiple;
+    // bin is small, up to 3 times noisier than unfolded). `incoherent` (the wave term less
+    // `coherent`) takes the same weights, so that the models' sums fold as their parts do: WS =
+    // coherent + incoherent stays the weighted mean of the wave term's two values, with no path noise.
     auto ownWeight = [&](size_t o, size_t binOfI) {
       const double a = grid_.projectedSolidAngle(int(o)), b = grid_.projectedSolidAngle(int(binOfI));
-      return tallied && a + b > 0 ? a / (a + b) : 0.5;
+      return a + b > 0 ? a / (a + b) : 0.5;
     };
     // Phase 1: the pair matrix P[i][row][j] = f(i -> bin of j) in square blocks (a scratch file), so
     // that phase 2 reads f(j -> bin of i) for a block of i as one column of blocks.
@@ -1735,9 +1733,8 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
   std::filesystem::remove(scratchPath);
   setStringAttr(out, "pairs",
                 "stored once for " + std::string(report.empty() ? "no component" : "the components below") +
-                    ": same-side pairs of incidence bins hold the mean of f(i -> o) and f(o -> i), coherent and "
-                    "multiple weighted by the projected solid angles of the bins each was tallied in (the "
-                    "reciprocity check of each: " +
+                    ": same-side pairs of incidence bins hold the mean of f(i -> o) and f(o -> i), weighted by "
+                    "the projected solid angles of the bins each was tallied in (the reciprocity check of each: " +
                     report.dump() + ")");
   out.close("close " + target);
   return report;

@@ -439,7 +439,8 @@ TEST(BsdfFile, ColourTablesAreTheSpectrumsColour) {
 // Pairs stored once: from the same tiles, a file with pairs = "once" reads back (every slice whole)
 // as the mean of both estimates of a file that keeps both, f(i -> o) and f(j -> bin of i), weighted
 // by the projected solid angles of the bins each was tallied in (o, and the bin of i: the rings of
-// a 3 x 4 grid differ), with the error of a weighted mean of independent estimates,
+// a 3 x 4 grid differ; `incoherent` with the same weights as `coherent`, so that their sum, WS,
+// folds as they do), with the error of a weighted mean of independent estimates,
 // sqrt(w1² σ1² + w2² σ2²) — or, for two slices of one tile (symmetry), at most w1 σ1 + w2 σ2; the
 // table itself holds each pair once (NaN in the mirrored half); the transmitted bins and the
 // diagonal are kept as computed.
@@ -453,16 +454,20 @@ TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
   const int nI = int(job.incidence.size()), nB = g.binCount();
   ASSERT_EQ(nI, 12);
   OutputSchema once = outputSchemaOf(job);
-  once.sourceTile[5] = 3;  // slice 5 a copy of tile 3's estimate (as symmetry makes them)
+  once.sourceTile[5] = 3;                      // slice 5 a copy of tile 3's estimate (as symmetry makes them)
+  once.components.add(Component::Incoherent);  // a wave term's table, without the wave term's run
   OutputSchema both = once;
   both.storage.pairs = TablePairs::Both;
   std::vector<TileResult> tiles;
   for (int i = 0; i < nI; ++i) {
     TileResult r = tile(job, g, i, 0.0);
-    for (Component c : {Component::Coherent, Component::Multiple})
+    r.value[int(Component::Incoherent)].assign(size_t(2) * nB, 0.0);
+    r.stdError[int(Component::Incoherent)].assign(size_t(2) * nB, 0.0);
+    for (Component c : {Component::Coherent, Component::Incoherent, Component::Multiple})
       for (int l = 0; l < 2; ++l)
         for (int b = 0; b < nB; ++b) {
-          r.at(c, l, b) = 1.0 + 0.1 * i + 0.01 * b + 0.5 * l + (c == Component::Multiple ? 3.0 : 0.0);
+          r.at(c, l, b) = 1.0 + 0.1 * i + 0.01 * b + 0.5 * l + (c == Component::Multiple ? 3.0 : 0.0) +
+                          (c == Component::Incoherent ? 7.0 : 0.0);
           r.stdError[int(c)][size_t(l) * nB + b] = 0.01 * (1 + (i + b) % 3);
         }
     tiles.push_back(r);
@@ -481,7 +486,7 @@ TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
   }
   EXPECT_FALSE(std::filesystem::exists(a + ".partial"));
   BsdfFileReader x(a), y(b);
-  for (const char* name : {"coherent", "multiple"})
+  for (const char* name : {"coherent", "incoherent", "multiple"})
     for (int i = 0; i < nI; ++i) {
       const std::vector<double> v = x.slice(name, i), e = x.sliceStdError(name, i);
       const std::vector<double> vi = y.slice(name, i), ei = y.sliceStdError(name, i);
