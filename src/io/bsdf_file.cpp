@@ -31,6 +31,7 @@
 #include "core/error.h"
 #include "core/vecmath.h"
 #include "io/output_target.h"
+#include "scattering/reciprocity.h"
 
 namespace mbsdf {
 namespace {
@@ -1619,18 +1620,6 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
       return schema.sourceTile[size_t(i)] != schema.sourceTile[size_t(j)] &&
              !(c == Component::Incoherent && schema.halvesWaveByReciprocity);
     };
-    // The weight of f(i -> o) in the pair's mean, f(o -> i) having the rest. A path-traced table
-    // (coherent, multiple) tallies the paths of its tile into the exit bin: a bin's variance is
-    // about f / (N Ω⊥) of that bin, with f the same both ways, so the estimates are weighted by the
-    // projected solid angles of the bins they were tallied in (the mean of least variance, and
-    // never worse than the better estimate; equal weights made a pole or horizon slice, whose own
-    // bin is small, up to 3 times noisier than unfolded). `incoherent` (the wave term less
-    // `coherent`) takes the same weights, so that the models' sums fold as their parts do: WS =
-    // coherent + incoherent stays the weighted mean of the wave term's two values, with no path noise.
-    auto ownWeight = [&](size_t o, size_t binOfI) {
-      const double a = grid_.projectedSolidAngle(int(o)), b = grid_.projectedSolidAngle(int(binOfI));
-      return a + b > 0 ? a / (a + b) : 0.5;
-    };
     // Phase 1: the pair matrix P[i][row][j] = f(i -> bin of j) in square blocks (a scratch file), so
     // that phase 2 reads f(j -> bin of i) for a block of i as one column of blocks.
     {
@@ -1681,7 +1670,13 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
               continue;
             }
             const double f1 = row[x], f2 = colV[y];
-            const double w1 = ownWeight(o, size_t(schema.incidence[size_t(i)].bin)), w2 = 1 - w1;
+            // Weighted by the projected solid angles of the bins each estimate was tallied in
+            // (reciprocalPairWeight: the mean of least variance of the path-traced tables; equal
+            // weights made a pole or horizon slice, whose own bin is small, up to 3 times noisier
+            // than unfolded). `incoherent` (the wave term less `coherent`) takes the same weights,
+            // so that WS = coherent + incoherent stays the weighted mean of the wave term's two
+            // values, with no path noise.
+            const double w1 = reciprocalPairWeight(grid_, int(o), schema.incidence[size_t(i)].bin), w2 = 1 - w1;
             row[x] = w1 * f1 + w2 * f2;
             ++check.pairs;
             check.diffL1 += std::abs(f1 - f2);

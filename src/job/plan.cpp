@@ -198,17 +198,15 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   WaveSettings ws = waveSettingsOf(job);
   ws.samplesPerBin = std::max<int>(int(job.waveSamplesPerBin) / options.pilotWaveDivisor,
                                    ws.estimator == WaveEstimatorKind::Area ? 2 * int(job.wavePointsPerDirection) : 16);
-  auto est = makeJobWaveEstimator(job, grid, *transport.scene(), ws);
-  waveDeterministic = est->deterministic();
   // A deterministic estimator over the incidence bin estimates its rule's error against the next
   // coarser rule, which at the default n = 2 is a single node: safe but far from sharp (the paper's
   // HEMISPHERES: 18 % as an L1 sum for a table 0.3–0.7 % from n = 4's). The pilots run one node
   // order more, whose estimate is the job's table's distance from the finer rule's (as the effects
   // planner's pilots do), and their facet sums' time is scaled to the job's rule.
   const int ruleOrder = incidenceRuleOrder(int(job.waveIncidenceDirections));
-  const bool finerRule = waveDeterministic && !job.exactIncidence;
-  if (finerRule) est = makeJobWaveEstimator(job, grid, *transport.scene(), withFinerIncidenceRule(job, ws));
-  out.finerIncidenceRule = finerRule;
+  const bool finerRule = out.finerIncidenceRule = deterministicEstimator(ws.estimator) && !job.exactIncidence;
+  auto est = makeJobWaveEstimator(job, grid, *transport.scene(), finerRule ? withFinerIncidenceRule(job, ws) : ws);
+  waveDeterministic = est->deterministic();
   // A Monte Carlo wave term's error falls as 1/√N only once its samples resolve the lobes (with a
   // few samples per bin the per-bin errors are themselves rough: `orders` on a rough patch went
   // 0.13, 0.11, 0.072, 0.030 at 16, 64, 256, 1024 samples per bin). A second pass at 4× the pilot's
@@ -297,27 +295,24 @@ struct PathPilotCost {
   // job has no such component).
   std::vector<SliceL1> coherentL1, multipleL1;
 };
-// Per exit bin of incidence `inc`'s slice of component c, what storing each same-side pair once
+// Per exit bin of incidence `inc`'s slice of a path-traced component, what storing each same-side pair once
 // ([output] pairs = "once", BsdfFileWriter's fold) does to the bin's error. The stored value is
 // the mean of f(i → o) and f(o → i), the second from the tile of the incidence whose bin o is,
-// weighted by the projected solid angles of the bins each was tallied in (w = Ω⊥_o / (Ω⊥_o + Ω⊥_i)
-// for the first). Where the two come from different computed tiles they are independent, and the
-// second's error follows from the first's by reciprocity: a tally's variance is about f / (N Ω⊥)
-// of its bin, so σ(o → i)² = σ² Ω⊥_o / Ω⊥_i and the mean's error is σ √(Ω⊥_o / (Ω⊥_o + Ω⊥_i))
-// (1/√2 for bins of equal size). 1 elsewhere (the other hemisphere, a pair from one tile under the
-// job's symmetry, a job storing both, a component the fold weights equally).
-std::vector<double> pairFoldFactors(const Job& job, const DirectionGrid& grid, int inc, Component c) {
+// weighted by the projected solid angles of the bins each was tallied in (reciprocalPairWeight). Where the two come
+// from different computed tiles they are independent, and the second's error follows from the first's by reciprocity: a
+// tally's variance is about f / (N Ω⊥) of its bin, so σ(o → i)² = σ² Ω⊥_o / Ω⊥_i and the mean's error is σ √(Ω⊥_o /
+// (Ω⊥_o + Ω⊥_i)) (1/√2 for bins of equal size). 1 elsewhere (the other hemisphere, a pair from one tile under the job's
+// symmetry, `symmetry` when the job has one; a job storing both).
+std::vector<double> pairFoldFactors(const Job& job, const DirectionGrid& grid, const AzimuthalSymmetry* symmetry,
+                                    int inc) {
   std::vector<double> factor(size_t(grid.binCount()), 1.0);
-  if (job.storage.pairs != TablePairs::Once || (c != Component::Coherent && c != Component::Multiple)) return factor;
-  std::optional<AzimuthalSymmetry> symmetry;
-  if (job.symmetryReduced()) symmetry.emplace(job, grid);
+  if (job.storage.pairs != TablePairs::Once) return factor;
   auto tileOf = [&](int i) { return symmetry ? symmetry->representative(i) : i; };
   const int binI = job.incidence[size_t(inc)].bin;
-  const double opI = grid.projectedSolidAngle(binI);
   for (size_t j = 0; j < job.incidence.size(); ++j) {
     const int o = job.incidence[j].bin;
-    if (o < 0 || grid.isUpper(o) != grid.isUpper(binI) || tileOf(int(j)) == tileOf(inc) || opI <= 0) continue;
-    factor[size_t(o)] = std::sqrt(grid.projectedSolidAngle(o) / (grid.projectedSolidAngle(o) + opI));
+    if (o < 0 || grid.isUpper(o) != grid.isUpper(binI) || tileOf(int(j)) == tileOf(inc)) continue;
+    factor[size_t(o)] = std::sqrt(reciprocalPairWeight(grid, o, binI));
   }
   return factor;
 }
@@ -328,6 +323,8 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
   std::vector<Component> traced;
   for (Component c : {Component::Coherent, Component::Multiple})
     if (planned.components.has(c)) traced.push_back(c);
+  std::optional<AzimuthalSymmetry> symmetry;
+  if (job.symmetryReduced() && job.storage.pairs == TablePairs::Once) symmetry.emplace(job, grid);
   for (int t : pilots) {
     spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
     double pathSeconds = 0, waveSeconds = 0;
@@ -338,13 +335,13 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
     out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
     // The stored table's errors: the tile's, or those of the mean of both estimates where pairs are
     // stored once.
+    const std::vector<double> fold = pairFoldFactors(job, grid, symmetry ? &*symmetry : nullptr, t);
     for (auto [c, parts] : {std::pair{Component::Coherent, &out.coherentL1}, {Component::Multiple, &out.multipleL1}}) {
       if (!r.has(c)) {
         parts->push_back(SliceL1{});
         continue;
       }
       std::vector<double> err = r.stdError[int(c)];
-      const std::vector<double> fold = pairFoldFactors(job, grid, t, c);
       for (size_t i = 0; i < err.size(); ++i) err[i] *= fold[i % fold.size()];
       parts->push_back(sliceL1(r.value[int(c)], err, r.nLambda, grid, kMeanAbsPerSigma));
     }
