@@ -28,6 +28,7 @@ OutputSchema outputSchemaOf(const Job& job) {
   s.material = job.material.describe();
   s.seed = job.seed;
   s.pathsPerSlice = job.pathsPerSlice;
+  s.slicePaths = job.slicePaths;
   s.maxDepth = job.maxDepth;
   s.exactIncidence = job.exactIncidence;
   s.effectsPlan = job.effectsPlan;

@@ -175,14 +175,14 @@ void logJobHeader(const Job& job, const DirectionGrid& grid, const TileComputer&
                                           : "not used (" + job.reciprocityOffReason() + ")");
   }
   const GeometricTransport& transport = tiles.transport();
-  spdlog::info("job {}: {} ({}), {}, {} wavelengths, grid {} ({} bins), {} slices on {} ranks, {} paths per slice",
-               job.file, job.geometryKind,
-               job.statistical ? transport.describe()
-                               : fmt::format("{} triangles, {:.3g} x {:.3g} µm{}, {}", job.geometry.triangles.size(),
-                                             job.geometry.sizeX, job.geometry.sizeY,
-                                             job.geometry.periodic ? ", periodic" : "", job.closure.describe()),
-               job.material.describe(), job.lambda_nm.size(), grid.kind(), grid.binCount(), job.incidence.size(), ranks,
-               job.pathsPerSlice);
+  spdlog::info(
+      "job {}: {} ({}), {}, {} wavelengths, grid {} ({} bins), {} slices on {} ranks, {}", job.file, job.geometryKind,
+      job.statistical
+          ? transport.describe()
+          : fmt::format("{} triangles, {:.3g} x {:.3g} µm{}, {}", job.geometry.triangles.size(), job.geometry.sizeX,
+                        job.geometry.sizeY, job.geometry.periodic ? ", periodic" : "", job.closure.describe()),
+      job.material.describe(), job.lambda_nm.size(), grid.kind(), grid.binCount(), job.incidence.size(), ranks,
+      job.describePaths());
   if (transport.mayUseFacetSum()) spdlog::info("geometric optics: {}", transport.describe());
 }
 
@@ -195,7 +195,7 @@ struct TimedTiles {
   int done = 0;
 
   TileResult compute(int t, const std::function<void()>& between) {
-    ProgressReporter pathProgress("tile " + std::to_string(t), job.pathsPerSlice, 30.0, false);
+    ProgressReporter pathProgress("tile " + std::to_string(t), job.pathsFor(t), 30.0, false);
     auto cb = [&](uint64_t n) {
       pathProgress.update(n);
       throwIfStopped();

@@ -670,6 +670,11 @@ static void writeProvenance(hid_t f, const OutputSchema& schema) {
   setStringAttr(f, "geometry_kind", schema.geometryKind);
   setStringAttr(f, "material", schema.material);
   setScalarAttr<uint64_t>(f, "paths_per_slice", H5T_NATIVE_UINT64, schema.pathsPerSlice);
+  if (!schema.slicePaths.empty())
+    setStringAttr(f, "path_allocation",
+                  "equal-error: paths_per_slice is the largest slice's; each slice's paths are in /stats/samples, "
+                  "chosen so that with its pairs stored once every slice has about the error of the one the fold "
+                  "helps least");
   setScalarAttr<int64_t>(f, "max_depth", H5T_NATIVE_INT64, schema.maxDepth);
   setStringAttr(f, "title", "Tabulated BSDF of a surface microgeometry (microbsdf)");
   setStringAttr(f, "incidence_sampling", schema.exactIncidence ? "exact" : "bin");
@@ -811,7 +816,9 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
         setStringAttr(d, "pairs",
                       "stored once: entry (i, o) with o the bin of incidence j on i's side holds the mean of f(i -> o) "
                       "and f(j -> bin of i) where j >= i (weighted by the projected solid angles of o and of the "
-                      "bin of i) and NaN where j < i (read (j, bin of i) there)");
+                      "bin of i" +
+                          std::string(schema.slicePaths.empty() ? "" : ", each times its slice's paths") +
+                          ") and NaN where j < i (read (j, bin of i) there)");
       const std::string what = t.error ? "standard error of BSDF component " : "bin-averaged BSDF component ";
       describe(d, "1/sr", what + name + (half ? ", divided by " + scalePathOf(t.path) + " (float16)" : ""));
       h5check(H5DSattach_scale(d, ib, 0), "attach scale");
@@ -1379,7 +1386,7 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
       std::optional<ResidualRows> residual;
       if (over && schema.components.has(*over))
         residual.emplace(ResidualRows{r.value[int(*over)], r.stdError[int(*over)]});
-      fillExpectedBins(r, c, grid, double(schema.pathsPerSlice), residual);
+      fillExpectedBins(r, c, grid, double(schema.pathsFor(r.incidenceIndex)), residual);
     }
     // Pairs stored once: a slice keeps half of its entries at the other incidence bins of its side
     // (the mirrored half is NaN, which compresses to next to nothing).
@@ -1398,7 +1405,7 @@ double storedBytesPerSlice(const OutputSchema& schema, const DirectionGrid& grid
             }
       kept[t.path] = all > 0 ? 1 - 0.5 * paired / all : 1;
     }
-    if (schema.storage.rounding == TableRounding::Noise) toJobErrors(r, double(schema.pathsPerSlice));
+    if (schema.storage.rounding == TableRounding::Noise) toJobErrors(r, double(schema.pathsFor(r.incidenceIndex)));
     const PreparedSlice p = prepareSlice(r, schema, grid);
     for (const PackedChunk& c : p.chunks)
       if (kept.count(c.path)) bytes += double(c.bytes.size()) * kept.at(c.path);  // (the run's own errors: not)
@@ -1676,7 +1683,11 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
             // than unfolded). `incoherent` (the wave term less `coherent`) takes the same weights,
             // so that WS = coherent + incoherent stays the weighted mean of the wave term's two
             // values, with no path noise.
-            const double w1 = reciprocalPairWeight(grid_, int(o), schema.incidence[size_t(i)].bin), w2 = 1 - w1;
+            // Slices with paths of their own (path_allocation = "equal-error") weigh by them too.
+            const double pathsRatio =
+                schema.slicePaths.empty() ? 1.0 : double(schema.pathsFor(j)) / double(schema.pathsFor(i));
+            const double w1 = reciprocalPairWeight(grid_, int(o), schema.incidence[size_t(i)].bin, pathsRatio),
+                         w2 = 1 - w1;
             row[x] = w1 * f1 + w2 * f2;
             ++check.pairs;
             check.diffL1 += std::abs(f1 - f2);
@@ -1726,11 +1737,15 @@ nlohmann::json BsdfFileWriter::foldPairs(const std::string& target) {
                     {"max_abs_z", check.maxZ}};
   }
   std::filesystem::remove(scratchPath);
-  setStringAttr(out, "pairs",
-                "stored once for " + std::string(report.empty() ? "no component" : "the components below") +
-                    ": same-side pairs of incidence bins hold the mean of f(i -> o) and f(o -> i), weighted by "
-                    "the projected solid angles of the bins each was tallied in (the reciprocity check of each: " +
-                    report.dump() + ")");
+  setStringAttr(
+      out, "pairs",
+      "stored once for " + std::string(report.empty() ? "no component" : "the components below") +
+          ": same-side pairs of incidence bins hold the mean of f(i -> o) and f(o -> i), weighted by "
+          "the projected solid angles of the bins each was tallied in" +
+          std::string(schema.slicePaths.empty() ? ""
+                                                : " times the paths of the slice that tallied it (path_allocation = "
+                                                  "\"equal-error\": /stats/samples)") +
+          " (the reciprocity check of each: " + report.dump() + ")");
   out.close("close " + target);
   return report;
 }

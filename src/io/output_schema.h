@@ -20,6 +20,10 @@ struct OutputSchema {
   std::string geometryKind, geometryHash;
   std::string material;  // its description
   uint64_t seed = 0, pathsPerSlice = 0;
+  // Per incidence index, its slice's paths where the job allocates them per slice
+  // ([sampling] path_allocation = "equal-error"); empty: pathsPerSlice everywhere.
+  std::vector<uint64_t> slicePaths;
+  uint64_t pathsFor(int incidence) const { return slicePaths.empty() ? pathsPerSlice : slicePaths[size_t(incidence)]; }
   int64_t maxDepth = 0;
   bool exactIncidence = false;  // incidence_sampling = "exact" (else bin-averaged)
   std::string effectsPlan;      // the effects planner's decisions (JSON); empty unless components = "auto"

@@ -2,6 +2,7 @@
 
 #include "core/colour.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -19,6 +20,7 @@
 #include "job/symmetry.h"
 #include "scattering/coherence_window.h"
 #include "scattering/fft_estimator.h"
+#include "scattering/path_allocation.h"
 #include "scattering/visibility_table.h"
 #include "scattering/wave_estimator.h"
 
@@ -363,6 +365,10 @@ void resolveStorageColour(const ParamDict& out, Job& job) {
 // [sampling]: budgets, seeds and estimators.
 void parseSampling(const ParamDict& samp, Job& job) {
   job.pathsPerSlice = uint64_t(samp.positiveInt("paths_per_slice", 1000000));
+  const std::string allocation = samp.getString("path_allocation", "uniform");
+  if (allocation != "uniform" && allocation != "equal-error")
+    samp.fail("path_allocation", "must be \"uniform\" or \"equal-error\"");
+  job.pathAllocation = allocation == "equal-error" ? Job::PathAllocation::EqualError : Job::PathAllocation::Uniform;
   job.targetRelError = samp.nonNegative("target_rel_error", 0.0);
   if (!(job.targetRelError < 1)) samp.fail("target_rel_error", "must be a fraction in (0, 1), or 0 for a fixed budget");
   {
@@ -521,6 +527,20 @@ void decideSymmetry(const ParamDict& dirs, const std::string& symmetry, Job& job
   }
 }
 
+// [sampling] path_allocation = "equal-error": the paths per slice, once the pairs' storage is known.
+void allocateSlicePaths(const ParamDict& samp, Job& job) {
+  if (job.pathAllocation != Job::PathAllocation::EqualError) return;
+  // It trades the paths of the slices the fold helps for an equal error: without the fold there is
+  // nothing to trade, and progressive sampling decides each slice's paths itself.
+  if (job.storage.pairs != TablePairs::Once)
+    samp.fail("path_allocation",
+              "\"equal-error\" needs [output] pairs = \"once\" (it shares the paths by what the fold of each pair "
+              "gives a slice; storing both ways, every slice has the error of its own paths)");
+  if (job.targetRelError > 0)
+    samp.fail("path_allocation", "\"equal-error\" and target_rel_error both decide the paths per slice: set one");
+  job.slicePaths = job.equalErrorSlicePaths();
+}
+
 // The lattice cell a windowed wave term uses, and whether a named wave estimator applies.
 void checkWaveTerm(const ParamDict& samp, Job& job) {
   // The lattice cell, where a windowed wave term could use it (it maps every facet a few times).
@@ -595,6 +615,7 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   decideSymmetry(dirs, symmetry, job);
   checkWaveTerm(samp, job);
   resolveStorageColour(out, job);
+  allocateSlicePaths(samp, job);
 
   root.reportUnused();
   return job;
@@ -657,6 +678,20 @@ std::string Job::reciprocityOffReason() const {
     return "[output] colour: the mirrored half's per-wavelength energies need the spectral tables, which a colour "
            "file does not keep";
   return "";
+}
+
+std::vector<uint64_t> Job::equalErrorSlicePaths() const {
+  return mbsdf::equalErrorSlicePaths(DirectionGrid(gridLayout), incidenceBins(), !material.isConductor(),
+                                     pathsPerSlice);
+}
+
+std::string Job::describePaths() const {
+  if (slicePaths.empty()) return std::to_string(pathsPerSlice) + " paths per slice";
+  const auto [lo, hi] = std::minmax_element(slicePaths.begin(), slicePaths.end());
+  double sum = 0;
+  for (uint64_t n : slicePaths) sum += double(n);
+  return fmt::format("{} to {} paths per slice (mean {:.0f}; path_allocation = \"equal-error\")", *lo, *hi,
+                     sum / double(slicePaths.size()));
 }
 
 Job loadJob(const std::string& path) {

@@ -97,6 +97,18 @@ struct Job {
   bool waveTransmission = true;
   SceneNeeds scene;
   uint64_t pathsPerSlice = 1000000;
+  // [sampling] path_allocation: the same paths for every slice, or (with pairs stored once) the
+  // paths that give every slice's folded tables about the error of the slice that gains least from
+  // the fold, pathsPerSlice being that slice's (scattering/path_allocation.h).
+  enum class PathAllocation { Uniform, EqualError };
+  PathAllocation pathAllocation = PathAllocation::Uniform;
+  // Per incidence index, its slice's paths under EqualError; empty: pathsPerSlice everywhere.
+  std::vector<uint64_t> slicePaths;
+  uint64_t pathsFor(int incidence) const { return slicePaths.empty() ? pathsPerSlice : slicePaths[size_t(incidence)]; }
+  // "N paths per slice", or the allocation's range and mean (for the log and `plan`).
+  std::string describePaths() const;
+  // The paths per slice path_allocation = "equal-error" gives this job's incidences.
+  std::vector<uint64_t> equalErrorSlicePaths() const;
   // Progressive sampling: rounds of pathsPerSlice paths until the slice's estimated relative error
   // (geometric components) is at most targetRelError (0: off) or maxPathsPerSlice is spent.
   double targetRelError = 0;

@@ -130,6 +130,8 @@ const std::vector<JobKey>& jobKeys() {
 
       {"sampling", Table, "", "", "budgets, seeds and estimators"},
       {"sampling.paths_per_slice", Integer, "1000000", "> 0", "paths per incidence slice"},
+      {"sampling.path_allocation", String, "\"uniform\"", "uniform, equal-error",
+       "equal-error (pairs stored once): each slice the paths for the error of the one the fold helps least"},
       {"sampling.target_rel_error", Number, "0", "[0, 1)", "progressive sampling's target (0: a fixed budget)"},
       {"sampling.max_paths_per_slice", Integer, "16 × paths_per_slice", ">= paths_per_slice",
        "progressive sampling's budget"},

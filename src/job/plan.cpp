@@ -100,12 +100,12 @@ double waveRelativeError(const WaveTileResult& w, const DirectionGrid& grid) {
 // 10 %, 3 % and 1 %, follow; a deterministic part (the facet sum, `exact`, `fft`) has the error of
 // its rules whatever the budget.
 nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, const std::vector<double>& pathErrPilot,
-                             uint64_t pilotPaths, double pathSeconds, bool pathsDeterministic,
-                             const std::vector<double>& waveErrAtJob, double waveRate, bool waveDeterministic,
-                             double waveSeconds, int computedTiles, int cores) {
+                             const std::vector<double>& toJob, uint64_t pilotPaths, double pathSeconds,
+                             bool pathsDeterministic, const std::vector<double>& waveErrAtJob, double waveRate,
+                             bool waveDeterministic, double waveSeconds, int computedTiles, int cores) {
   nlohmann::json a;
   // Each pilot's error scaled to the job's budget, listed by incidence, and the largest.
-  auto scaled = [&](const std::vector<double>& atPilot, double factor, double* worst) {
+  auto scaled = [&](const std::vector<double>& atPilot, const std::vector<double>& factor, double* worst) {
     nlohmann::json list = nlohmann::json::array();
     *worst = 0;
     for (size_t k = 0; k < atPilot.size() && k < pilots.size(); ++k) {
@@ -113,14 +113,14 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
       list.push_back({{"incidence", pilots[k]},
                       {"theta_deg", inc.theta_deg},
                       {"phi_deg", inc.phi_deg},
-                      {"rel_error", atPilot[k] * factor}});
-      *worst = std::max(*worst, atPilot[k] * factor);
+                      {"rel_error", atPilot[k] * factor[k]}});
+      *worst = std::max(*worst, atPilot[k] * factor[k]);
     }
     return list;
   };
   double pathErr = 0;
-  const nlohmann::json pathList = scaled(
-      pathErrPilot, pathsDeterministic ? 0.0 : std::sqrt(double(pilotPaths) / double(job.pathsPerSlice)), &pathErr);
+  const nlohmann::json pathList =
+      scaled(pathErrPilot, pathsDeterministic ? std::vector<double>(pilots.size(), 0.0) : toJob, &pathErr);
   a["paths"] = {{"rel_error", pathErr},
                 {"per_pilot", pathList},
                 {"paths_per_slice", job.pathsPerSlice},
@@ -128,7 +128,7 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
   const bool wave = job.needsWave();
   double waveErr = 0;
   if (wave) {
-    const nlohmann::json waveList = scaled(waveErrAtJob, 1.0, &waveErr);
+    const nlohmann::json waveList = scaled(waveErrAtJob, std::vector<double>(pilots.size(), 1.0), &waveErr);
     a["wave"] = {{"rel_error", waveErr},
                  {"per_pilot", waveList},
                  {"estimator", waveEstimatorName(job.resolvedWaveEstimator())},
@@ -149,8 +149,8 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
         !waveByBudget ? 1.0 : std::max(16.0 / double(job.waveSamplesPerBin), std::pow(waveErr / target, 1 / waveRate));
     nlohmann::json t = {{"rel_error", target},
                         {"core_hours", (pathSeconds * fp + waveSeconds * fw) * computedTiles * cores / 3600.0}};
-    if (!pathsDeterministic) {
-      t["paths_per_slice"] = uint64_t(std::ceil(double(job.pathsPerSlice) * fp));
+    if (!pathsDeterministic) t["paths_per_slice"] = uint64_t(std::ceil(double(job.pathsPerSlice) * fp));
+    if (!pathsDeterministic && job.slicePaths.empty()) {
       // The same accuracy bought progressively ([sampling] target_rel_error): rounds of the job's
       // paths_per_slice until each slice reaches it, so a slice pays for its own error, not the
       // worst one's; the budget is the worst pilot's rounds.
@@ -312,30 +312,32 @@ std::vector<double> pairFoldFactors(const Job& job, const DirectionGrid& grid, c
   for (size_t j = 0; j < job.incidence.size(); ++j) {
     const int o = job.incidence[j].bin;
     if (o < 0 || grid.isUpper(o) != grid.isUpper(binI) || tileOf(int(j)) == tileOf(inc)) continue;
-    factor[size_t(o)] = std::sqrt(reciprocalPairWeight(grid, o, binI));
+    // With paths of its own per slice (path_allocation), the partner's tally weighs by its paths
+    // too (σ(o → i)² = σ² N_i Ω⊥_o / (N_o Ω⊥_i)), as the writer weighs it.
+    const double pathsRatio = job.slicePaths.empty() ? 1.0 : double(job.pathsFor(int(j))) / double(job.pathsFor(inc));
+    factor[size_t(o)] = std::sqrt(reciprocalPairWeight(grid, o, binI, pathsRatio));
   }
   return factor;
 }
 
-PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid& grid, const TileComputer& computer,
-                         const std::vector<int>& pilots, uint64_t pilotPaths) {
-  PathPilotCost out;
-  std::vector<Component> traced;
-  for (Component c : {Component::Coherent, Component::Multiple})
-    if (planned.components.has(c)) traced.push_back(c);
+// The mean of the slices' paths (paths_per_slice, or the allocation's mean: path_allocation.h).
+double meanSlicePaths(const Job& job) {
+  if (job.slicePaths.empty()) return double(job.pathsPerSlice);
+  double sum = 0;
+  for (uint64_t n : job.slicePaths) sum += double(n);
+  return sum / double(job.slicePaths.size());
+}
+
+// The L1 parts of the pilot tiles' path-traced tables as `job` stores them: the tile's errors, or
+// those of the mean of both estimates where pairs are stored once (pairFoldFactors).
+void foldedL1(const Job& job, const DirectionGrid& grid, const std::vector<int>& pilots, PathPilotCost& out) {
   std::optional<AzimuthalSymmetry> symmetry;
   if (job.symmetryReduced() && job.storage.pairs == TablePairs::Once) symmetry.emplace(job, grid);
-  for (int t : pilots) {
-    spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
-    double pathSeconds = 0, waveSeconds = 0;
-    out.tiles.push_back(
-        computer.compute(tileRequestOf(job, t), heartbeat("plan: path pilot"), &pathSeconds, &waveSeconds));
-    const TileResult& r = out.tiles.back();
-    const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
-    out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
-    // The stored table's errors: the tile's, or those of the mean of both estimates where pairs are
-    // stored once.
-    const std::vector<double> fold = pairFoldFactors(job, grid, symmetry ? &*symmetry : nullptr, t);
+  out.coherentL1.clear();
+  out.multipleL1.clear();
+  for (size_t k = 0; k < pilots.size() && k < out.tiles.size(); ++k) {
+    const TileResult& r = out.tiles[k];
+    const std::vector<double> fold = pairFoldFactors(job, grid, symmetry ? &*symmetry : nullptr, pilots[k]);
     for (auto [c, parts] : {std::pair{Component::Coherent, &out.coherentL1}, {Component::Multiple, &out.multipleL1}}) {
       if (!r.has(c)) {
         parts->push_back(SliceL1{});
@@ -345,11 +347,28 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
       for (size_t i = 0; i < err.size(); ++i) err[i] *= fold[i % fold.size()];
       parts->push_back(sliceL1(r.value[int(c)], err, r.nLambda, grid, kMeanAbsPerSigma));
     }
+  }
+}
+
+PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid& grid, const TileComputer& computer,
+                         const std::vector<int>& pilots, uint64_t pilotPaths) {
+  PathPilotCost out;
+  std::vector<Component> traced;
+  for (Component c : {Component::Coherent, Component::Multiple})
+    if (planned.components.has(c)) traced.push_back(c);
+  for (int t : pilots) {
+    spdlog::info("plan: path pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
+    double pathSeconds = 0, waveSeconds = 0;
+    out.tiles.push_back(
+        computer.compute(tileRequestOf(job, t), heartbeat("plan: path pilot"), &pathSeconds, &waveSeconds));
+    const TileResult& r = out.tiles.back();
+    const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
+    out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
     out.pilotSeconds += r.seconds / double(pilots.size());
-    out.seconds +=
-        r.seconds * (r.samples > 0 ? double(job.pathsPerSlice) / double(pilotPaths) : 1.0) / double(pilots.size());
+    out.seconds += r.seconds * (r.samples > 0 ? meanSlicePaths(job) / double(pilotPaths) : 1.0) / double(pilots.size());
     out.facetTiles += r.samples == 0;
   }
+  foldedL1(job, grid, pilots, out);
   return out;
 }
 
@@ -362,12 +381,11 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
 // measured against its own mass: a signed difference of two larger tables, its mass is mostly its
 // noise where the tables agree; its error is f_ws's and coherent's.
 nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, const PathPilotCost& paths,
-                               const WavePilotCost& wave, const DirectionGrid& grid, uint64_t pilotPaths,
+                               const WavePilotCost& wave, const DirectionGrid& grid, const std::vector<double>& toJob,
                                double pathSeconds, double waveSeconds, int computedTiles, int cores) {
   struct Part {
     double p = 0, w = 0;
   };
-  const double toJob = std::sqrt(double(pilotPaths) / double(job.pathsPerSlice));
   auto ratio = [](double d, double m) { return m > 0 ? d / m : 0.0; };
   std::vector<std::pair<std::string, std::vector<std::vector<Part>>>> comps;  // table → pilot → λ
   for (auto [c, l1] : {std::pair{Component::Coherent, &paths.coherentL1}, {Component::Multiple, &paths.multipleL1}}) {
@@ -376,7 +394,7 @@ nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, c
     for (size_t k = 0; k < pilots.size() && k < l1->size(); ++k) {
       const SliceL1& own = (*l1)[k];
       std::vector<Part> perLambda(own.mass.size());
-      for (size_t l = 0; l < own.mass.size(); ++l) perLambda[l].p = ratio(own.deviation[l] * toJob, own.mass[l]);
+      for (size_t l = 0; l < own.mass.size(); ++l) perLambda[l].p = ratio(own.deviation[l] * toJob[k], own.mass[l]);
       perPilot.push_back(std::move(perLambda));
     }
     comps.emplace_back(componentName(c), std::move(perPilot));
@@ -406,6 +424,8 @@ nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, c
   }
   a["components"] = byComponent;
   a["paths_per_slice"] = job.pathsPerSlice;
+  if (!job.slicePaths.empty())
+    a["path_allocation"] = {{"kind", "equal-error"}, {"mean_paths_per_slice", meanSlicePaths(job)}};
   const bool waveByBudget = job.needsWave() && !wave.deterministic && wave.rate > 0.05;
   const double rate = waveByBudget ? wave.rate : 0.0;
   double worstW = 0;
@@ -555,6 +575,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   for (Component c : job.guarded.list()) planned.components.remove(c);
   Job pilotJob = job;
   pilotJob.pathsPerSlice = pilotPaths;
+  pilotJob.slicePaths.clear();  // every pilot at the pilots' budget, scaled to its slice's paths below
   pilotJob.targetRelError = 0;
   const TileComputer computer(pilotJob, grid, {}, false);
   const GeometricTransport& transport = computer.transport();
@@ -602,11 +623,30 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
         {"max_paths_per_slice", job.maxPathsPerSlice},
         {"path_seconds_per_tile_max", pathSeconds * double(job.maxPathsPerSlice) / double(job.pathsPerSlice)}};
   }
-  p["accuracy"] = accuracyTable(job, pilots, pathRelErrors, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
-                                waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
+  // A Monte Carlo error per pilot from the pilot's paths to its slice's.
+  std::vector<double> toJob;
+  for (int t : pilots) toJob.push_back(std::sqrt(double(pilotPaths) / double(job.pathsFor(t))));
+  p["accuracy"] =
+      accuracyTable(job, pilots, pathRelErrors, toJob, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
+                    waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
   if (p["accuracy"].contains("wave")) p["accuracy"]["wave"]["finer_incidence_rule"] = wave.finerIncidenceRule;
   p["accuracy"]["l1"] =
-      l1AccuracyTable(job, pilots, paths, wave, grid, pilotPaths, pathSeconds, waveSeconds, computedTiles, cores);
+      l1AccuracyTable(job, pilots, paths, wave, grid, toJob, pathSeconds, waveSeconds, computedTiles, cores);
+  // Pairs stored once with the same paths everywhere: what path_allocation = "equal-error" would
+  // cost for the same targets, from the same pilot tiles.
+  if (job.storage.pairs == TablePairs::Once && job.slicePaths.empty() && job.targetRelError == 0 &&
+      facetTiles < int(pilots.size())) {
+    Job alt = job;
+    alt.pathAllocation = Job::PathAllocation::EqualError;
+    alt.slicePaths = job.equalErrorSlicePaths();
+    PathPilotCost altPaths = paths;
+    foldedL1(alt, grid, pilots, altPaths);
+    std::vector<double> altToJob;
+    for (int t : pilots) altToJob.push_back(std::sqrt(double(pilotPaths) / double(alt.pathsFor(t))));
+    p["accuracy"]["l1"]["with_equal_error"] =
+        l1AccuracyTable(alt, pilots, altPaths, wave, grid, altToJob,
+                        pathSeconds * meanSlicePaths(alt) / meanSlicePaths(job), waveSeconds, computedTiles, cores);
+  }
   // The effects pilots' paths that the run keeps as its tiles' first paths (effects_planner.h) are
   // not traced again, where the run traces paths on every tile.
   double keptPilotSeconds = 0;
@@ -647,8 +687,11 @@ std::string fmtL1(const nlohmann::json& l1) {
   std::string o = "L1 per slice:  ";
   for (const auto& [name, c] : l1["components"].items())
     o += (o.back() == ' ' ? " " : ", ") + name + " " + pct(c["rel_l1"].get<double>());
-  o += " at " + l1["paths_per_slice"].dump() +
-       " paths\n                (Σ|f − E f| Ω⊥ / Σ|f| Ω⊥ of each component's slice, the accuracy study's measure, "
+  o += " at " + l1["paths_per_slice"].dump() + " paths";
+  if (l1.contains("path_allocation"))
+    o += fmt::format(" (the largest slice's; path_allocation = \"equal-error\", {:.3g} on average)",
+                     l1["path_allocation"]["mean_paths_per_slice"].get<double>());
+  o += "\n                (Σ|f − E f| Ω⊥ / Σ|f| Ω⊥ of each component's slice, the accuracy study's measure, "
        "expected from its bins' errors; the worst pilot and wavelength)\n";
   for (const auto& t : l1["targets"]) {
     o += fmt::format("  for {:>4} in every component: paths_per_slice = {}, ", pct(t["rel_l1"].get<double>()),
@@ -660,6 +703,12 @@ std::string fmtL1(const nlohmann::json& l1) {
            "[sampling] wave_incidence_directions and wave_subdirections, not by the budget)";
     o += "\n";
   }
+  if (l1.contains("with_equal_error"))
+    for (const auto& t : l1["with_equal_error"]["targets"])
+      o +=
+          fmt::format("  for {:>4} with path_allocation = \"equal-error\": paths_per_slice = {}, {:.3g} core-hours{}\n",
+                      pct(t["rel_l1"].get<double>()), t["paths_per_slice"].dump(), t["core_hours"].get<double>(),
+                      t["reached"].get<bool>() ? "" : " (not reached)");
   return o;
 }
 

@@ -100,7 +100,10 @@ TileResult TileComputer::compute(const TileRequest& request, const std::function
   const DirectionGrid& grid = grid_;
   const int t = request.tile;
   auto ts = Clock::now();
-  TileResult r = firstRound(request, cb);
+  // A slice's own paths where the job allocates them per slice (Job::slicePaths).
+  TileRequest q = request;
+  if (q.paths == 0 && !job.slicePaths.empty()) q.paths = job.pathsFor(q.incidenceIndex);
+  TileResult r = firstRound(q, cb);
   if (job.targetRelError > 0 && r.samples > 0) {  // a facet-sum tile is deterministic
     // Progressive sampling: more rounds of fresh paths (the next path indices, so the result is
     // the same estimator as one run of all of them) until the path-traced table (coherent +
@@ -127,11 +130,11 @@ TileResult TileComputer::compute(const TileRequest& request, const std::function
       r.poolPaths(transport_.run(more, cb));
     }
   }
-  if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(request, cb, r);
+  if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(q, cb, r);
   *pathSeconds += since(ts);
   if (wave_ && (!job.guarded.has(Component::Incoherent) || verifySkippedDiffraction(t, r))) {
     auto tw = Clock::now();
-    addWaveTerm(request, cb, r);
+    addWaveTerm(q, cb, r);
     if (job.guarded.has(Component::Incoherent)) recordDiffractionCheck(t, r);
     *waveSeconds += since(tw);
   }
@@ -140,15 +143,17 @@ TileResult TileComputer::compute(const TileRequest& request, const std::function
 }
 
 TileResult TileComputer::firstRound(const TileRequest& q, const std::function<void(uint64_t)>& cb) const {
-  if (!pilotIncidences_.count(q.tile) || transport_.estimatorFor(q).deterministic()) return transport_.run(q, cb);
+  const uint64_t paths = q.paths > 0 ? q.paths : job_.pathsPerSlice;
+  if (!pilotIncidences_.count(q.tile) || pilotPaths_ > paths || transport_.estimatorFor(q).deterministic())
+    return transport_.run(q, cb);
   const auto kept = keptPilots_.find(q.tile);
   TileRequest pilot = q, rest = q;
   pilot.paths = pilotPaths_;
   TileResult r = kept != keptPilots_.end() ? kept->second : transport_.run(pilot, cb);
   if (kept != keptPilots_.end() && cb) cb(0);
-  if (pilotPaths_ < job_.pathsPerSlice) {
+  if (pilotPaths_ < paths) {
     rest.firstPath = pilotPaths_;
-    rest.paths = job_.pathsPerSlice - pilotPaths_;
+    rest.paths = paths - pilotPaths_;
     r.poolPaths(transport_.run(rest, cb));
   }
   return r;
@@ -194,8 +199,10 @@ void TileComputer::addWaveTerm(const TileRequest& request, const std::function<v
 void TileComputer::verifySkippedMultiple(const TileRequest& request, const std::function<void(uint64_t)>& cb,
                                          TileResult& r) const {
   const int t = request.tile;
-  // The check's and the full tile's paths are their transports' own counts from path 0.
+  // The check's paths are its transport's own count from path 0, the full tile's the slice's.
   const TileRequest whole{request.tile, request.incidenceIndex, request.incidenceBin, request.exactDirection};
+  TileRequest allPaths = whole;
+  allPaths.paths = request.paths;
   const Job& job = job_;
   const DirectionGrid& grid = grid_;
   const GeometricTransport* check = checkTransport_.get();
@@ -213,7 +220,7 @@ void TileComputer::verifySkippedMultiple(const TileRequest& request, const std::
     r.rays += checked.rays;  // the check is the tile's work too
     if (r.multipleCheck > job.scene.tolerance) {
       const uint64_t spent = r.rays;
-      r = full->run(whole, cb);
+      r = full->run(allPaths, cb);
       r.rays += spent;
       r.multipleCheck = multipleBound(r, grid);
     } else {

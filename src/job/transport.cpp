@@ -29,19 +29,20 @@ GeometricTransport::GeometricTransport(const Job& job, const DirectionGrid& grid
       facets_ = std::make_unique<FacetSingleScattering>(job.geometry, *scene_, job.material, job.lambda_um(), grid);
       singleScattering_ = job.singleScattering;
       const double groups = job.material.directionsIndependentOfLambda() ? 1.0 : double(job.lambda_nm.size());
-      pathRays_ = 2.0 * double(job.pathsPerSlice) * groups;
+      raysPerPath_ = 2.0 * groups;
+      pathsPerSlice_ = job.pathsPerSlice;  // the job's, also for a pilot's transport: it chooses as the run does
     }
   }
 }
 
-bool GeometricTransport::facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection) const {
+bool GeometricTransport::facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection, uint64_t paths) const {
   if (!facets_) return false;
   if (singleScattering_ == Job::SingleScatteringMode::Facets) return true;
-  return facets_->cheaperThan(incidenceBin, exactDirection, pathRays_);
+  return facets_->cheaperThan(incidenceBin, exactDirection, raysPerPath_ * double(paths > 0 ? paths : pathsPerSlice_));
 }
 
 const GeometricEstimator& GeometricTransport::estimatorFor(const TileRequest& q) const {
-  if (q.firstPath == 0 && facetSum(q.incidenceBin, q.exactDirection)) return *facets_;
+  if (q.firstPath == 0 && facetSum(q.incidenceBin, q.exactDirection, q.paths)) return *facets_;
   return *paths_;
 }
 

@@ -7,7 +7,7 @@
 // geometry, a tile's `coherent` may instead come from the deterministic facet sum
 // (scattering/single_scattering.h): [sampling] single_scattering = "facets" always, "auto" per tile
 // where its counted work (FacetSingleScattering::cheaperThan) is below the path tracer's 2 rays x
-// paths_per_slice x wavelength groups (a path of depth 1 casts two) — so the choice depends only
+// the slice's paths x wavelength groups (a path of depth 1 casts two) — so the choice depends only
 // on the job and the tile, never on timing.
 #pragma once
 #include <functional>
@@ -43,8 +43,9 @@ class GeometricTransport : public GeometricEstimator {
   std::string describe() const;
   // Whether the job lets any tile's single scattering come from the facet sum.
   bool mayUseFacetSum() const { return facets_ != nullptr; }
-  // Whether tile `incidenceBin` / `exactDirection` is computed by the facet sum (no paths).
-  bool facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection) const;
+  // Whether tile `incidenceBin` / `exactDirection` is computed by the facet sum (no paths), against
+  // the path tracer at `paths` (0: the job's paths_per_slice).
+  bool facetSum(int incidenceBin, const std::optional<Vec3>& exactDirection, uint64_t paths = 0) const;
 
  private:
   std::unique_ptr<PeriodicScene> scene_;
@@ -52,7 +53,8 @@ class GeometricTransport : public GeometricEstimator {
   std::unique_ptr<GeometricEstimator> paths_;  // the path tracer, or the microflake walk
   std::unique_ptr<FacetSingleScattering> facets_;
   Job::SingleScatteringMode singleScattering_ = Job::SingleScatteringMode::Auto;
-  double pathRays_ = 0;  // rays of the path tracer per tile at the job's paths_per_slice
+  uint64_t pathsPerSlice_ = 0;  // the job's paths_per_slice
+  double raysPerPath_ = 0;      // the path tracer's rays per path (2 x wavelength groups) at depth 1
 };
 
 // Tile t (an index into job.incidence) as the job samples it: along its exact direction when the

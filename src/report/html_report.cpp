@@ -64,9 +64,9 @@ std::string row(const std::string& key, const std::string& value) {
 std::string provenance(const BsdfFileReader& f, const nlohmann::json& summary) {
   std::string h = "<table class=\"kv\">\n";
   h += row("file", summary["file"].get<std::string>());
-  for (const char* a :
-       {"title", "program_version", "job_file", "geometry_kind", "geometry_hash", "material", "seed", "paths_per_slice",
-        "max_depth", "incidence_sampling", "storage_profile", "reciprocity", "symmetry", "input_files"})
+  for (const char* a : {"title", "program_version", "job_file", "geometry_kind", "geometry_hash", "material", "seed",
+                        "paths_per_slice", "path_allocation", "max_depth", "incidence_sampling", "storage_profile",
+                        "reciprocity", "symmetry", "input_files"})
     if (f.hasAttribute(a)) h += row(a, f.attribute(a));
   h += row("grid", summary["grid"].get<std::string>() + ", " + summary["bins"].dump() + " bins over the sphere");
   h += row("wavelengths (nm)", summary["wavelengths_nm"].dump());

@@ -21,11 +21,13 @@ namespace mbsdf {
 
 // The weight of f(i → o) in the mean of a reciprocal pair's two estimates, f(o → i) having the
 // rest, where each was tallied by paths into its exit bin (o, and the bin of i): a tally's variance
-// is about f / (N Ω⊥) of its bin, f the same both ways, so w = Ω⊥(o) / (Ω⊥(o) + Ω⊥(i)) gives the
-// mean of least variance. With independent estimates of N paths each, that mean's variance is w
-// times the first's. BsdfFileWriter's fold of pairs stored once uses it, and `plan` to predict it.
-inline double reciprocalPairWeight(const DirectionGrid& grid, int exitBin, int incidenceBin) {
-  const double a = grid.projectedSolidAngle(exitBin), b = grid.projectedSolidAngle(incidenceBin);
+// is about f / (N Ω⊥) of its bin, f the same both ways, so w = N_i Ω⊥(o) / (N_i Ω⊥(o) + N_o Ω⊥(i))
+// gives the mean of least variance (pathsRatio = N_o / N_i, the partner slice's paths over slice
+// i's: 1 unless the job allocates paths per slice, path_allocation.h). With independent estimates
+// that mean's variance is w times the first's. BsdfFileWriter's fold of pairs stored once uses it,
+// and `plan` to predict it.
+inline double reciprocalPairWeight(const DirectionGrid& grid, int exitBin, int incidenceBin, double pathsRatio = 1.0) {
+  const double a = grid.projectedSolidAngle(exitBin), b = grid.projectedSolidAngle(incidenceBin) * pathsRatio;
   return a + b > 0 ? a / (a + b) : 0.5;
 }
 

@@ -471,6 +471,101 @@ def test_pairs_stored_once():
     assert "wrote once.csv" in r.stdout + r.stderr
 
 
+def equal_error_shares(op, n_theta, n_phi):
+    """path_allocation = "equal-error" from its definition, bin by bin (scattering/path_allocation.h):
+    the paths N_i that make Σ_o sqrt(Ω⊥(o) w_io / N_i) the same for every upper incidence bin i of a
+    theta-phi grid, w_io = N_i Ω⊥(o) / (N_i Ω⊥(o) + N_o Ω⊥(i)) (1 for o = i), largest 1."""
+    n = n_theta * n_phi
+    a = op[:n]
+    paths = np.ones(n)
+    for _ in range(64):
+        w = paths[:, None] * a[None, :] / (paths[:, None] * a[None, :] + paths[None, :] * a[:, None])
+        np.fill_diagonal(w, 1.0)
+        e = np.sum(np.sqrt(a[None, :] * w), axis=1)
+        paths = e ** 2 / np.max(e ** 2)
+    return paths
+
+
+def slice_l1(h, comp):
+    """Per slice, the L1 its stored errors give: max over wavelengths of sqrt(2/pi) Σ σ Ω⊥ / Σ |f| Ω⊥."""
+    sys.path.insert(0, os.path.join(SRC, "python"))
+    import microbsdf_h5 as mh  # noqa: E402
+    op = h["/grid/projected_solid_angle"][:]
+    f, s = mh.table(h, comp), mh.table(h, comp, error=True)
+    return np.max(np.sqrt(2 / np.pi) * np.sum(s * op, axis=2) / np.sum(np.abs(f) * op, axis=2), axis=1)
+
+
+def test_path_allocation():
+    """[sampling] path_allocation = "equal-error" with pairs stored once (rough gold, every upper
+    bin of 6 x 12 an incidence, coherent + multiple, 2 ranks): each slice is traced with the paths of
+    the allocation, recomputed here bin by bin from its definition (/stats/samples; the largest
+    paths_per_slice); the same bytes on 1 and 2 ranks; against a reference with 16 times the paths
+    the stored errors are honest (mean z² 1 within the estimator's spread); per slice, the L1 the
+    stored errors give moves against the same job with the same paths everywhere as the model
+    predicts (within 10 %), so that the slices the fold helps least keep their error while the
+    others spend fewer paths; `plan` predicts each pilot slice's L1 within 5 % of the stored errors'."""
+    job = full_sphere_job
+    n_theta, n_phi, paths = 6, 12, 20000
+    for name, extra in (("uniform", ""), ("equal", 'path_allocation = "equal-error"'),
+                        ("equal1", 'path_allocation = "equal-error"')):
+        path = job(name, 'pairs = "once"', n_theta=n_theta, n_phi=n_phi, paths=paths)
+        text = open(path).read().replace("[sampling]\n", "[sampling]\n" + extra + "\n")
+        open(path, "w").write(text)
+    run(["run", "uniform.toml"], mpi=2)
+    run(["run", "equal.toml"], mpi=2)
+    run(["run", "equal1.toml", "--threads", "1"])
+    assert datasets(os.path.join(TMP, "equal.h5")) == datasets(os.path.join(TMP, "equal1.h5")), "1 vs 2 ranks"
+    run(["run", job("ref", 'pairs = "both"', n_theta=n_theta, n_phi=n_phi, paths=16 * paths, seed=7)], mpi=2)
+    sys.path.insert(0, os.path.join(SRC, "python"))
+    import microbsdf_h5 as mh  # noqa: E402
+    with h5py.File(os.path.join(TMP, "equal.h5"), "r") as e, h5py.File(os.path.join(TMP, "uniform.h5"), "r") as u, \
+            h5py.File(os.path.join(TMP, "ref.h5"), "r") as r:
+        op = e["/grid/projected_solid_angle"][:]
+        share = equal_error_shares(op, n_theta, n_phi)
+        samples = e["/stats/samples"][:]
+        assert np.all(np.abs(samples - np.ceil(share * paths)) <= 1), (samples, share * paths)
+        assert samples.max() == paths and "equal-error" in e.attrs["path_allocation"].decode()
+        print("paths per ring:", samples[::n_phi], f"mean {samples.mean() / paths:.3f} of paths_per_slice")
+        for comp in ("coherent", "multiple"):
+            fe, se = mh.table(e, comp), mh.table(e, comp, error=True)
+            fr, sr = mh.table(r, comp), mh.table(r, comp, error=True)
+            sel = (se > 0) & (sr > 0)
+            z = (fe[sel] - fr[sel]) / np.sqrt(se[sel] ** 2 + sr[sel] ** 2)
+            spread = 5 * np.sqrt(2.0 / sel.sum())
+            assert abs(np.mean(z ** 2) - 1) < spread + 0.1, (comp, np.mean(z ** 2), sel.sum())
+            # The model's L1 per slice (a table constant over the bins) with the allocation's paths
+            # and with paths_per_slice everywhere: the ratio it predicts against the one measured.
+            bins = e["/incidence/bin"][:].astype(int)
+            a = op[bins]
+            def model(n):
+                w = n[:, None] * a[None, :] / (n[:, None] * a[None, :] + n[None, :] * a[:, None])
+                np.fill_diagonal(w, 1.0)
+                return np.sum(np.sqrt(a[None, :] * w / n[:, None]), axis=1)
+            predicted = model(samples.astype(float)) / model(np.full(len(a), float(paths)))
+            measured = slice_l1(e, comp) / slice_l1(u, comp)
+            dev = measured / predicted
+            worst_e, worst_u = slice_l1(e, comp).max(), slice_l1(u, comp).max()
+            print(f"{comp}: mean z² {np.mean(z ** 2):.3f} over {sel.sum()} bins; L1 per slice against the same paths "
+                  f"everywhere: measured / predicted {dev.min():.3f}-{dev.max():.3f} (rings "
+                  f"{np.round(measured[::n_phi], 3)}); worst slice {worst_e:.4f} against {worst_u:.4f}")
+            assert np.all(np.abs(dev - 1) < 0.1), (comp, dev)
+            assert worst_e < 1.1 * worst_u, (comp, worst_e, worst_u)
+    for name in ("equal",):
+        run(["plan", name + ".toml", "--json", f"plan-{name}.json"])
+        with open(os.path.join(TMP, f"plan-{name}.json")) as f:
+            predicted = json.load(f)["accuracy"]["l1"]
+        assert predicted["path_allocation"]["kind"] == "equal-error"
+        with h5py.File(os.path.join(TMP, name + ".h5"), "r") as h:
+            for comp in ("coherent", "multiple"):
+                stored = slice_l1(h, comp)
+                for pilot in predicted["components"][comp]["per_pilot"]:
+                    i = pilot["incidence"]
+                    ratio = pilot["rel_l1"] / stored[i]
+                    print(f"plan, equal-error: {comp} at incidence {i} ({pilot['theta_deg']:.1f} deg) predicts "
+                          f"L1 {pilot['rel_l1']:.4f}, the stored errors give {stored[i]:.4f} ({ratio:.3f} x)")
+                    assert abs(ratio - 1) < 0.05, (comp, i, ratio)
+
+
 def wm_excess_beyond_noise(a, b, brdf_only=False):
     """Per slice and wavelength, how far the auto table `a` (h5py file) differs from the WM model of
     the full table `b` (the same seeds) beyond noise: sum|f_WM - f_auto| * proj. solid angle, less

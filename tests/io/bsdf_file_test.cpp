@@ -444,7 +444,10 @@ TEST(BsdfFile, ColourTablesAreTheSpectrumsColour) {
 // sqrt(w1² σ1² + w2² σ2²) — or, for two slices of one tile (symmetry), at most w1 σ1 + w2 σ2; the
 // table itself holds each pair once (NaN in the mirrored half); the transmitted bins and the
 // diagonal are kept as computed.
-TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
+// Pairs stored once, written from tiles with known values and errors, read back against the same
+// tiles stored both ways: each pair the weighted mean, w1 = N_i Ω⊥(o) / (N_i Ω⊥(o) + N_j Ω⊥(i)) with
+// each slice's paths N (slicePaths; empty: the same everywhere), its error propagated.
+static void checkPairsStoredOnce(const std::vector<uint64_t>& slicePaths) {
   Job job = loadJobFromString(
       "[directions]\nn_theta = 3\nn_phi = 4\nincidence = \"all\"\nsymmetry = \"none\"\n"
       "[spectrum]\nwavelengths_nm = [450.0, 650.0]\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n"
@@ -454,6 +457,7 @@ TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
   const int nI = int(job.incidence.size()), nB = g.binCount();
   ASSERT_EQ(nI, 12);
   OutputSchema once = outputSchemaOf(job);
+  once.slicePaths = slicePaths;
   once.sourceTile[5] = 3;                      // slice 5 a copy of tile 3's estimate (as symmetry makes them)
   once.components.add(Component::Incoherent);  // a wave term's table, without the wave term's run
   OutputSchema both = once;
@@ -498,7 +502,9 @@ TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
             const int j = o;  // incidence index = bin on this grid
             const double f2 = y.slice(name, j)[size_t(l) * nB + job.incidence[size_t(i)].bin];
             const double s2 = y.sliceStdError(name, j)[size_t(l) * nB + job.incidence[size_t(i)].bin];
-            const double opO = g.projectedSolidAngle(o), opI = g.projectedSolidAngle(job.incidence[size_t(i)].bin);
+            const double pathsI = double(once.pathsFor(i)), pathsJ = double(once.pathsFor(j));
+            const double opO = g.projectedSolidAngle(o) * pathsI,
+                         opI = g.projectedSolidAngle(job.incidence[size_t(i)].bin) * pathsJ;
             const double w1 = opO / (opO + opI), w2 = opI / (opO + opI);
             want = w1 * vi[k] + w2 * f2;
             const bool shared = once.sourceTile[size_t(i)] == once.sourceTile[size_t(j)];
@@ -540,6 +546,17 @@ TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
     std::filesystem::remove(c);
   }
   for (const std::string& p : {a, b}) std::filesystem::remove(p);
+}
+
+TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
+  checkPairsStoredOnce({});
+}
+
+// path_allocation = "equal-error": slices with paths of their own weigh by them too.
+TEST(BsdfFile, PairsStoredOnceWeighBySlicePaths) {
+  std::vector<uint64_t> paths;
+  for (int i = 0; i < 12; ++i) paths.push_back(uint64_t(1000 * (1 + 3 * (i % 4))));
+  checkPairsStoredOnce(paths);
 }
 
 // The default profile rounds each value to its noise: every stored value lies within σ/32 of the

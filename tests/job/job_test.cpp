@@ -389,3 +389,28 @@ TEST(Job, StorageProfileAndItsColour) {
     EXPECT_NE(e.find("test.toml:2"), std::string::npos) << bad << ": " << e;
   }
 }
+
+// [sampling] path_allocation: "equal-error" gives each slice of a job storing its pairs once the
+// paths of scattering/path_allocation.h (the largest exactly paths_per_slice, the same in a ring);
+// without pairs stored once, with progressive sampling, or an unknown value, an error names the key.
+TEST(Job, PathAllocationNeedsPairsStoredOnce) {
+  const std::string full =
+      "[directions]\nn_theta = 6\nn_phi = 12\nincidence = \"all\"\n[sampling]\npaths_per_slice = 9000\n";
+  Job uniform = loadJobFromString(full + "[output]\npairs = \"once\"\n", "t.toml", "");
+  EXPECT_TRUE(uniform.slicePaths.empty());
+  EXPECT_EQ(uniform.pathsFor(3), 9000u);
+  Job equal = loadJobFromString(full + "path_allocation = \"equal-error\"\n[output]\npairs = \"once\"\n", "t.toml", "");
+  ASSERT_EQ(equal.slicePaths.size(), equal.incidence.size());
+  EXPECT_EQ(*std::max_element(equal.slicePaths.begin(), equal.slicePaths.end()), 9000u);
+  EXPECT_LT(*std::min_element(equal.slicePaths.begin(), equal.slicePaths.end()), 9000u);
+  for (size_t i = 0; i < equal.incidence.size(); ++i) EXPECT_EQ(equal.slicePaths[i], equal.slicePaths[i / 12 * 12]);
+  EXPECT_NE(equal.describePaths().find("equal-error"), std::string::npos);
+  for (const std::string& bad :
+       {full + "path_allocation = \"equal-error\"\n",
+        full + "path_allocation = \"equal-error\"\ntarget_rel_error = 0.05\n[output]\npairs = \"once\"\n",
+        full + "path_allocation = \"by-ring\"\n[output]\npairs = \"once\"\n"}) {
+    const std::string e = errorOf(bad);
+    EXPECT_NE(e.find("sampling.path_allocation"), std::string::npos) << bad << "\n" << e;
+    EXPECT_NE(e.find("test.toml:"), std::string::npos) << e;
+  }
+}
