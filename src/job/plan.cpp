@@ -441,21 +441,31 @@ nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, c
                           : 1.0;
     double fp = 0;
     bool reached = true;
+    nlohmann::json waveAbove = nlohmann::json::array();  // where the wave part alone stays above the target
     for (const auto& [name, perPilot] : comps)
-      for (const auto& perLambda : perPilot)
-        for (const Part& part : perLambda) {
+      for (size_t k = 0; k < perPilot.size(); ++k) {
+        double above = 0;
+        for (const Part& part : perPilot[k]) {
           const double w = part.w * std::pow(fw, -rate);
           if (w > 0.99 * target) {
             reached = false;
+            above = std::max(above, w);
             continue;
           }
           if (part.p > 0) fp = std::max(fp, std::pow(part.p / (target - w), 2));
         }
+        if (above > 0)
+          waveAbove.push_back({{"table", name},
+                               {"theta_deg", job.incidence[size_t(pilots[k])].theta_deg},
+                               {"phi_deg", job.incidence[size_t(pilots[k])].phi_deg},
+                               {"rel_l1", above}});
+      }
     fp = fp > 0 ? std::max(fp, 1000.0 / double(job.pathsPerSlice)) : 1.0;
     nlohmann::json t = {{"rel_l1", target},
                         {"paths_per_slice", uint64_t(std::min(9e18, std::ceil(double(job.pathsPerSlice) * fp)))},
                         {"core_hours", (pathSeconds * fp + waveSeconds * fw) * computedTiles * cores / 3600.0},
                         {"reached", reached}};
+    if (!reached) t["wave_part_above"] = waveAbove;
     if (waveByBudget)
       t["wave_samples_per_bin"] = uint64_t(std::ceil(std::min(double(job.waveSamplesPerBin) * fw, 9e18)));
     targets.push_back(t);
@@ -698,9 +708,15 @@ std::string fmtL1(const nlohmann::json& l1) {
                      t["paths_per_slice"].dump());
     if (t.contains("wave_samples_per_bin")) o += "wave_samples_per_bin = " + t["wave_samples_per_bin"].dump() + ", ";
     o += fmt::format("{:.3g} core-hours", t["core_hours"].get<double>());
-    if (!t["reached"].get<bool>())
-      o += " (not reached: the wave term's own error estimate stays above it; for exact and fft it is set by "
-           "[sampling] wave_incidence_directions and wave_subdirections, not by the budget)";
+    if (!t["reached"].get<bool>()) {
+      std::string where;
+      for (const auto& w : t.value("wave_part_above", nlohmann::json::array()))
+        where += fmt::format("{}{} {} at ({:.3g}°, {:.3g}°)", where.empty() ? "" : ", ", w["table"].get<std::string>(),
+                             pct(w["rel_l1"].get<double>()), w["theta_deg"].get<double>(), w["phi_deg"].get<double>());
+      o += " (not reached: the wave term's own error estimate stays above it" + (where.empty() ? "" : ", " + where) +
+           "; for exact and fft it is set by [sampling] wave_incidence_directions and wave_subdirections, not by the "
+           "budget)";
+    }
     o += "\n";
   }
   if (l1.contains("with_equal_error"))
