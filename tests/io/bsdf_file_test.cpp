@@ -446,8 +446,9 @@ TEST(BsdfFile, ColourTablesAreTheSpectrumsColour) {
 // diagonal are kept as computed.
 // Pairs stored once, written from tiles with known values and errors, read back against the same
 // tiles stored both ways: each pair the weighted mean, w1 = N_i Ω⊥(o) / (N_i Ω⊥(o) + N_j Ω⊥(i)) with
-// each slice's paths N (slicePaths; empty: the same everywhere), its error propagated.
-static void checkPairsStoredOnce(const std::vector<uint64_t>& slicePaths) {
+// each slice's paths N (slicePaths; empty: the same everywhere), its error propagated. `tag` names
+// the test's files (the tests run in parallel).
+static void checkPairsStoredOnce(const std::string& tag, const std::vector<uint64_t>& slicePaths) {
   Job job = loadJobFromString(
       "[directions]\nn_theta = 3\nn_phi = 4\nincidence = \"all\"\nsymmetry = \"none\"\n"
       "[spectrum]\nwavelengths_nm = [450.0, 650.0]\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n"
@@ -476,8 +477,8 @@ static void checkPairsStoredOnce(const std::vector<uint64_t>& slicePaths) {
         }
     tiles.push_back(r);
   }
-  const std::string a = (std::filesystem::temp_directory_path() / "microbsdf_pairs_once.h5").string(),
-                    b = (std::filesystem::temp_directory_path() / "microbsdf_pairs_both.h5").string();
+  const std::string a = (std::filesystem::temp_directory_path() / ("microbsdf_" + tag + "_once.h5")).string(),
+                    b = (std::filesystem::temp_directory_path() / ("microbsdf_" + tag + "_both.h5")).string();
   for (const auto& [path, schema] : {std::pair<std::string, const OutputSchema*>{a, &once}, {b, &both}}) {
     for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(path + ext);
     BsdfFileWriter w(path, *schema, g);
@@ -528,7 +529,7 @@ static void checkPairsStoredOnce(const std::vector<uint64_t>& slicePaths) {
      // stores both estimates rounded to half, the fold rounds their mean again (twice half's rounding)
     OutputSchema half = once;
     half.storage.values = TableValues::Float16;
-    const std::string c = (std::filesystem::temp_directory_path() / "microbsdf_pairs_half.h5").string();
+    const std::string c = (std::filesystem::temp_directory_path() / ("microbsdf_" + tag + "_half.h5")).string();
     for (auto ext : {"", ".partial", ".journal"}) std::filesystem::remove(c + ext);
     {
       BsdfFileWriter w(c, half, g);
@@ -549,14 +550,14 @@ static void checkPairsStoredOnce(const std::vector<uint64_t>& slicePaths) {
 }
 
 TEST(BsdfFile, PairsStoredOnceReadBackAsTheMeanOfBothEstimates) {
-  checkPairsStoredOnce({});
+  checkPairsStoredOnce("pairs", {});
 }
 
 // path_allocation = "equal-error": slices with paths of their own weigh by them too.
 TEST(BsdfFile, PairsStoredOnceWeighBySlicePaths) {
   std::vector<uint64_t> paths;
   for (int i = 0; i < 12; ++i) paths.push_back(uint64_t(1000 * (1 + 3 * (i % 4))));
-  checkPairsStoredOnce(paths);
+  checkPairsStoredOnce("pairs_by_paths", paths);
 }
 
 // The default profile rounds each value to its noise: every stored value lies within σ/32 of the
