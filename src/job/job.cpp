@@ -685,13 +685,18 @@ std::vector<uint64_t> Job::equalErrorSlicePaths() const {
                                      pathsPerSlice);
 }
 
+double Job::meanSlicePaths() const {
+  if (slicePaths.empty()) return double(pathsPerSlice);
+  double sum = 0;
+  for (uint64_t n : slicePaths) sum += double(n);
+  return sum / double(slicePaths.size());
+}
+
 std::string Job::describePaths() const {
   if (slicePaths.empty()) return std::to_string(pathsPerSlice) + " paths per slice";
   const auto [lo, hi] = std::minmax_element(slicePaths.begin(), slicePaths.end());
-  double sum = 0;
-  for (uint64_t n : slicePaths) sum += double(n);
   return fmt::format("{} to {} paths per slice (mean {:.0f}; path_allocation = \"equal-error\")", *lo, *hi,
-                     sum / double(slicePaths.size()));
+                     meanSlicePaths());
 }
 
 Job loadJob(const std::string& path) {

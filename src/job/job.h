@@ -107,6 +107,8 @@ struct Job {
   uint64_t pathsFor(int incidence) const { return slicePaths.empty() ? pathsPerSlice : slicePaths[size_t(incidence)]; }
   // "N paths per slice", or the allocation's range and mean (for the log and `plan`).
   std::string describePaths() const;
+  // The mean of the slices' paths: paths_per_slice, or the allocation's mean.
+  double meanSlicePaths() const;
   // The paths per slice path_allocation = "equal-error" gives this job's incidences.
   std::vector<uint64_t> equalErrorSlicePaths() const;
   // Progressive sampling: rounds of pathsPerSlice paths until the slice's estimated relative error

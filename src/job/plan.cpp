@@ -281,6 +281,11 @@ double worstEnergyBalance(const Job& job, const DirectionGrid& grid, const std::
   return worst;
 }
 
+// Per pilot, the L1 parts of the path-traced components at the pilot's budget (empty where the
+// job has no such component).
+struct PilotL1 {
+  std::vector<SliceL1> coherent, multiple;
+};
 // The path pilots: each pilot incidence's tile at the pilot's budget, its time scaled to the job's
 // paths (a facet-sum tile, with no paths, is the tile's cost: transport.h), and the relative error
 // of the path-traced table at the pilot's budget (relativeError, largest over wavelengths; 0 where
@@ -291,9 +296,7 @@ struct PathPilotCost {
   int facetTiles = 0;
   std::vector<TileResult> tiles;
   std::vector<double> relErrors;
-  // Per pilot, the L1 parts of the path-traced components at the pilot's budget (empty where the
-  // job has no such component).
-  std::vector<SliceL1> coherentL1, multipleL1;
+  PilotL1 l1;
 };
 // Per exit bin of incidence `inc`'s slice of a path-traced component, what storing each same-side pair once
 // ([output] pairs = "once", BsdfFileWriter's fold) does to the bin's error. The stored value is
@@ -320,25 +323,17 @@ std::vector<double> pairFoldFactors(const Job& job, const DirectionGrid& grid, c
   return factor;
 }
 
-// The mean of the slices' paths (paths_per_slice, or the allocation's mean: path_allocation.h).
-double meanSlicePaths(const Job& job) {
-  if (job.slicePaths.empty()) return double(job.pathsPerSlice);
-  double sum = 0;
-  for (uint64_t n : job.slicePaths) sum += double(n);
-  return sum / double(job.slicePaths.size());
-}
-
 // The L1 parts of the pilot tiles' path-traced tables as `job` stores them: the tile's errors, or
 // those of the mean of both estimates where pairs are stored once (pairFoldFactors).
-void foldedL1(const Job& job, const DirectionGrid& grid, const std::vector<int>& pilots, PathPilotCost& out) {
+PilotL1 foldedL1(const Job& job, const DirectionGrid& grid, const std::vector<int>& pilots,
+                 const std::vector<TileResult>& tiles) {
   std::optional<AzimuthalSymmetry> symmetry;
   if (job.symmetryReduced() && job.storage.pairs == TablePairs::Once) symmetry.emplace(job, grid);
-  out.coherentL1.clear();
-  out.multipleL1.clear();
-  for (size_t k = 0; k < pilots.size() && k < out.tiles.size(); ++k) {
-    const TileResult& r = out.tiles[k];
+  PilotL1 out;
+  for (size_t k = 0; k < pilots.size() && k < tiles.size(); ++k) {
+    const TileResult& r = tiles[k];
     const std::vector<double> fold = pairFoldFactors(job, grid, symmetry ? &*symmetry : nullptr, pilots[k]);
-    for (auto [c, parts] : {std::pair{Component::Coherent, &out.coherentL1}, {Component::Multiple, &out.multipleL1}}) {
+    for (auto [c, parts] : {std::pair{Component::Coherent, &out.coherent}, {Component::Multiple, &out.multiple}}) {
       if (!r.has(c)) {
         parts->push_back(SliceL1{});
         continue;
@@ -348,6 +343,14 @@ void foldedL1(const Job& job, const DirectionGrid& grid, const std::vector<int>&
       parts->push_back(sliceL1(r.value[int(c)], err, r.nLambda, grid, kMeanAbsPerSigma));
     }
   }
+  return out;
+}
+
+// Per pilot, the factor that takes a Monte Carlo error from the pilot's paths to its slice's.
+std::vector<double> pilotToJob(const Job& job, const std::vector<int>& pilots, uint64_t pilotPaths) {
+  std::vector<double> toJob;
+  for (int t : pilots) toJob.push_back(std::sqrt(double(pilotPaths) / double(job.pathsFor(t))));
+  return toJob;
 }
 
 PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid& grid, const TileComputer& computer,
@@ -365,10 +368,11 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
     const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
     out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
     out.pilotSeconds += r.seconds / double(pilots.size());
-    out.seconds += r.seconds * (r.samples > 0 ? meanSlicePaths(job) / double(pilotPaths) : 1.0) / double(pilots.size());
+    out.seconds +=
+        r.seconds * (r.samples > 0 ? job.meanSlicePaths() / double(pilotPaths) : 1.0) / double(pilots.size());
     out.facetTiles += r.samples == 0;
   }
-  foldedL1(job, grid, pilots, out);
+  out.l1 = foldedL1(job, grid, pilots, out.tiles);
   return out;
 }
 
@@ -380,7 +384,7 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
 // rules' error for a deterministic estimator, which no budget lowers). `incoherent` alone is not
 // measured against its own mass: a signed difference of two larger tables, its mass is mostly its
 // noise where the tables agree; its error is f_ws's and coherent's.
-nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, const PathPilotCost& paths,
+nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, const PilotL1& paths,
                                const WavePilotCost& wave, const DirectionGrid& grid, const std::vector<double>& toJob,
                                double pathSeconds, double waveSeconds, int computedTiles, int cores) {
   struct Part {
@@ -388,7 +392,7 @@ nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, c
   };
   auto ratio = [](double d, double m) { return m > 0 ? d / m : 0.0; };
   std::vector<std::pair<std::string, std::vector<std::vector<Part>>>> comps;  // table → pilot → λ
-  for (auto [c, l1] : {std::pair{Component::Coherent, &paths.coherentL1}, {Component::Multiple, &paths.multipleL1}}) {
+  for (auto [c, l1] : {std::pair{Component::Coherent, &paths.coherent}, {Component::Multiple, &paths.multiple}}) {
     if (!job.components.has(c)) continue;
     std::vector<std::vector<Part>> perPilot;
     for (size_t k = 0; k < pilots.size() && k < l1->size(); ++k) {
@@ -425,7 +429,7 @@ nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, c
   a["components"] = byComponent;
   a["paths_per_slice"] = job.pathsPerSlice;
   if (!job.slicePaths.empty())
-    a["path_allocation"] = {{"kind", "equal-error"}, {"mean_paths_per_slice", meanSlicePaths(job)}};
+    a["path_allocation"] = {{"kind", "equal-error"}, {"mean_paths_per_slice", job.meanSlicePaths()}};
   const bool waveByBudget = job.needsWave() && !wave.deterministic && wave.rate > 0.05;
   const double rate = waveByBudget ? wave.rate : 0.0;
   double worstW = 0;
@@ -633,15 +637,13 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
         {"max_paths_per_slice", job.maxPathsPerSlice},
         {"path_seconds_per_tile_max", pathSeconds * double(job.maxPathsPerSlice) / double(job.pathsPerSlice)}};
   }
-  // A Monte Carlo error per pilot from the pilot's paths to its slice's.
-  std::vector<double> toJob;
-  for (int t : pilots) toJob.push_back(std::sqrt(double(pilotPaths) / double(job.pathsFor(t))));
+  const std::vector<double> toJob = pilotToJob(job, pilots, pilotPaths);
   p["accuracy"] =
       accuracyTable(job, pilots, pathRelErrors, toJob, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
                     waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
   if (p["accuracy"].contains("wave")) p["accuracy"]["wave"]["finer_incidence_rule"] = wave.finerIncidenceRule;
   p["accuracy"]["l1"] =
-      l1AccuracyTable(job, pilots, paths, wave, grid, toJob, pathSeconds, waveSeconds, computedTiles, cores);
+      l1AccuracyTable(job, pilots, paths.l1, wave, grid, toJob, pathSeconds, waveSeconds, computedTiles, cores);
   // Pairs stored once with the same paths everywhere: what path_allocation = "equal-error" would
   // cost for the same targets, from the same pilot tiles.
   if (job.storage.pairs == TablePairs::Once && job.slicePaths.empty() && job.targetRelError == 0 &&
@@ -649,13 +651,9 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     Job alt = job;
     alt.pathAllocation = Job::PathAllocation::EqualError;
     alt.slicePaths = job.equalErrorSlicePaths();
-    PathPilotCost altPaths = paths;
-    foldedL1(alt, grid, pilots, altPaths);
-    std::vector<double> altToJob;
-    for (int t : pilots) altToJob.push_back(std::sqrt(double(pilotPaths) / double(alt.pathsFor(t))));
-    p["accuracy"]["l1"]["with_equal_error"] =
-        l1AccuracyTable(alt, pilots, altPaths, wave, grid, altToJob,
-                        pathSeconds * meanSlicePaths(alt) / meanSlicePaths(job), waveSeconds, computedTiles, cores);
+    p["accuracy"]["l1"]["with_equal_error"] = l1AccuracyTable(
+        alt, pilots, foldedL1(alt, grid, pilots, paths.tiles), wave, grid, pilotToJob(alt, pilots, pilotPaths),
+        pathSeconds * alt.meanSlicePaths() / job.meanSlicePaths(), waveSeconds, computedTiles, cores);
   }
   // The effects pilots' paths that the run keeps as its tiles' first paths (effects_planner.h) are
   // not traced again, where the run traces paths on every tile.

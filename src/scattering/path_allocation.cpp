@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "scattering/reciprocity.h"
+
 namespace mbsdf {
 namespace {
 
@@ -81,7 +83,7 @@ std::vector<double> equalErrorPathShares(const DirectionGrid& grid, const std::v
         const double own = g.omega[a];
         double e = unpaired[side] + (transmits ? all[1 - side] : 0.0);
         for (size_t b = 0; b < n; ++b) {
-          const double o = g.omega[b], w = paths[a] * o / (paths[a] * o + paths[b] * own);
+          const double o = g.omega[b], w = reciprocalPairWeight(o, own, paths[b] / paths[a]);
           e += g.count[b] * std::sqrt(o * w);
         }
         e += std::sqrt(own) - std::sqrt(own * 0.5);  // its own bin: no partner (w = 1, not the ½ counted)

@@ -26,9 +26,13 @@ namespace mbsdf {
 // i's: 1 unless the job allocates paths per slice, path_allocation.h). With independent estimates
 // that mean's variance is w times the first's. BsdfFileWriter's fold of pairs stored once uses it,
 // and `plan` to predict it.
-inline double reciprocalPairWeight(const DirectionGrid& grid, int exitBin, int incidenceBin, double pathsRatio = 1.0) {
-  const double a = grid.projectedSolidAngle(exitBin), b = grid.projectedSolidAngle(incidenceBin) * pathsRatio;
+// The same from the two bins' projected solid angles (equal halves where both are empty).
+inline double reciprocalPairWeight(double exitOmega, double incidenceOmega, double pathsRatio = 1.0) {
+  const double a = exitOmega, b = incidenceOmega * pathsRatio;
   return a + b > 0 ? a / (a + b) : 0.5;
+}
+inline double reciprocalPairWeight(const DirectionGrid& grid, int exitBin, int incidenceBin, double pathsRatio = 1.0) {
+  return reciprocalPairWeight(grid.projectedSolidAngle(exitBin), grid.projectedSolidAngle(incidenceBin), pathsRatio);
 }
 
 class ReciprocalPairs {

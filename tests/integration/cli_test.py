@@ -471,18 +471,25 @@ def test_pairs_stored_once():
     assert "wrote once.csv" in r.stdout + r.stderr
 
 
+def folded_l1_model(a, paths):
+    """The model's L1 per slice of a table constant over the bins, pairs stored once, where every bin
+    of projected solid angle a[i] is an incidence traced with paths[i]: Σ_o sqrt(Ω⊥(o) w_io / N_i),
+    w_io = N_i Ω⊥(o) / (N_i Ω⊥(o) + N_o Ω⊥(i)) the partner's weight in the fold (1 for o = i)."""
+    w = paths[:, None] * a[None, :] / (paths[:, None] * a[None, :] + paths[None, :] * a[:, None])
+    np.fill_diagonal(w, 1.0)
+    return np.sum(np.sqrt(a[None, :] * w / paths[:, None]), axis=1)
+
+
 def equal_error_shares(op, n_theta, n_phi):
     """path_allocation = "equal-error" from its definition, bin by bin (scattering/path_allocation.h):
-    the paths N_i that make Σ_o sqrt(Ω⊥(o) w_io / N_i) the same for every upper incidence bin i of a
-    theta-phi grid, w_io = N_i Ω⊥(o) / (N_i Ω⊥(o) + N_o Ω⊥(i)) (1 for o = i), largest 1."""
+    the paths N_i that make folded_l1_model the same for every upper incidence bin i of a theta-phi
+    grid, the largest 1."""
     n = n_theta * n_phi
     a = op[:n]
     paths = np.ones(n)
     for _ in range(64):
-        w = paths[:, None] * a[None, :] / (paths[:, None] * a[None, :] + paths[None, :] * a[:, None])
-        np.fill_diagonal(w, 1.0)
-        e = np.sum(np.sqrt(a[None, :] * w), axis=1)
-        paths = e ** 2 / np.max(e ** 2)
+        e2 = paths * folded_l1_model(a, paths) ** 2
+        paths = e2 / np.max(e2)
     return paths
 
 
@@ -537,11 +544,7 @@ def test_path_allocation():
             # and with paths_per_slice everywhere: the ratio it predicts against the one measured.
             bins = e["/incidence/bin"][:].astype(int)
             a = op[bins]
-            def model(n):
-                w = n[:, None] * a[None, :] / (n[:, None] * a[None, :] + n[None, :] * a[:, None])
-                np.fill_diagonal(w, 1.0)
-                return np.sum(np.sqrt(a[None, :] * w / n[:, None]), axis=1)
-            predicted = model(samples.astype(float)) / model(np.full(len(a), float(paths)))
+            predicted = folded_l1_model(a, samples.astype(float)) / folded_l1_model(a, np.full(len(a), float(paths)))
             measured = slice_l1(e, comp) / slice_l1(u, comp)
             dev = measured / predicted
             worst_e, worst_u = slice_l1(e, comp).max(), slice_l1(u, comp).max()
