@@ -573,6 +573,10 @@ Material loadMaterialFromString(const std::string& text, const std::string& sour
 
 Job loadJobFromString(const std::string& text, const std::string& sourceName, const std::string& baseDir) {
   ParamDict root = ParamDict::parseString(text, sourceName);
+  // Every key has a default, so an empty file would be a whole job (a flat mirror over 22,500
+  // incidences); a file with no key at all is far more often a truncated copy or the wrong file.
+  if (root.empty())
+    throw InputError(sourceName + ": the job file holds no key; a job needs at least one (e.g. [geometry] kind)");
   Job job;
   job.file = sourceName;
   job.text = text;

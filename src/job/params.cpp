@@ -69,6 +69,10 @@ const toml::node* ParamDict::lookup(const std::string& key) const {
   return n;
 }
 
+bool ParamDict::empty() const {
+  return !table_ || table_->empty();
+}
+
 bool ParamDict::has(const std::string& key) const {
   return table_ && table_->contains(key);
 }

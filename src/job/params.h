@@ -27,6 +27,8 @@ class ParamDict {
   // Sub-table (empty dictionary if absent); a non-table value is an error.
   ParamDict table(const std::string& key) const;
   bool has(const std::string& key) const;
+  // No key at all (an absent table, or a file of nothing but comments and blank lines).
+  bool empty() const;
 
   double getDouble(const std::string& key, double def) const;
   int64_t getInt(const std::string& key, int64_t def) const;

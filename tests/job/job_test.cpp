@@ -52,6 +52,17 @@ TEST(Job, MalformedTomlNamesLine) {
   EXPECT_NE(e.find("malformed"), std::string::npos) << e;
 }
 
+TEST(Job, AFileWithNoKeyIsRefused) {
+  // Every key has a default: without this check an empty (truncated, mistaken) file would run a
+  // whole default job.
+  for (const char* text : {"", "\n\n", "# only a comment\n", "  \t\n# two\n# comments\n"}) {
+    const std::string e = errorOf(text);
+    EXPECT_NE(e.find("test.toml"), std::string::npos) << e;
+    EXPECT_NE(e.find("holds no key"), std::string::npos) << e;
+  }
+  EXPECT_EQ(errorOf("[geometry]\nkind = \"flat\"\n"), "");
+}
+
 TEST(Job, BadValuesNameTheKey) {
   EXPECT_NE(errorOf("[geometry]\nsize_um = [-1.0, 2.0]\n").find("geometry.size_um"), std::string::npos);
   EXPECT_NE(errorOf("[geometry]\nkind = \"sphere\"\n").find("geometry.kind"), std::string::npos);
