@@ -42,7 +42,9 @@ TEST(FabricationDefects, BallRoundsCornersToQuarterCircles) {
   // The quarter circle itself, away from the wall's texel: z = H − r + √(r² − (r − u)²), u from the edge.
   for (int i = 0; i < 1000; ++i) {
     const double u = (0.5 + 1.0 - dx) - i * dx;  // distance to the last ridge texel
-    if (u > 2 * dx && u < r) EXPECT_NEAR(opened.z_um[i], H - r + std::sqrt(r * r - (r - u) * (r - u)), 0.02 * r) << u;
+    if (u > 2 * dx && u < r) {
+      EXPECT_NEAR(opened.z_um[i], H - r + std::sqrt(r * r - (r - u) * (r - u)), 0.02 * r) << u;
+    }
   }
   Topography twice = opened;
   openWithBall(twice, r);

@@ -54,6 +54,10 @@ double apertureReference(double L, double lambda, double n1, Complex n2, Vec3 wi
   return sum;
 }
 
+}  // namespace
+
+// Outside the anonymous namespace: the test classes TEST_P derives from the fixture have external
+// linkage.
 struct FlatCase {
   std::string material;  // "Al" or "BK7"
   double theta;          // > 90: from inside the glass
@@ -61,8 +65,6 @@ struct FlatCase {
 };
 
 class WaveFlat : public ::testing::TestWithParam<FlatCase> {};
-
-}  // namespace
 
 TEST_P(WaveFlat, HemisphericalIntegralMatchesFresnel) {
   const FlatCase c = GetParam();
