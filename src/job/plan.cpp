@@ -286,6 +286,7 @@ double worstEnergyBalance(const Job& job, const DirectionGrid& grid, const std::
 struct PilotL1 {
   std::vector<SliceL1> coherent, multiple;
 };
+
 // The path pilots: each pilot incidence's tile at the pilot's budget, its time scaled to the job's
 // paths (a facet-sum tile, with no paths, is the tile's cost: transport.h), and the relative error
 // of the path-traced table at the pilot's budget (relativeError, largest over wavelengths; 0 where

@@ -25,12 +25,12 @@ namespace mbsdf {
 // gives the mean of least variance (pathsRatio = N_o / N_i, the partner slice's paths over slice
 // i's: 1 unless the job allocates paths per slice, path_allocation.h). With independent estimates
 // that mean's variance is w times the first's. BsdfFileWriter's fold of pairs stored once uses it,
-// and `plan` to predict it.
-// The same from the two bins' projected solid angles (equal halves where both are empty).
+// and `plan` to predict it. Equal halves where both bins are empty.
 inline double reciprocalPairWeight(double exitOmega, double incidenceOmega, double pathsRatio = 1.0) {
   const double a = exitOmega, b = incidenceOmega * pathsRatio;
   return a + b > 0 ? a / (a + b) : 0.5;
 }
+// The same for two bins of a grid.
 inline double reciprocalPairWeight(const DirectionGrid& grid, int exitBin, int incidenceBin, double pathsRatio = 1.0) {
   return reciprocalPairWeight(grid.projectedSolidAngle(exitBin), grid.projectedSolidAngle(incidenceBin), pathsRatio);
 }
