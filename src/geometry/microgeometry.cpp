@@ -207,6 +207,49 @@ void writePly(const Microgeometry& g, const std::string& path) {
   if (!f) throw std::runtime_error("error writing " + path);
 }
 
+namespace {
+
+// Per vertex, an id shared by the vertices at the same position (quantised to 1e-7 of the patch;
+// meshes may repeat vertices per face), by sorting: maps allocated a node per vertex (0.15 s on a
+// 512² heightfield).
+std::vector<uint32_t> positionIds(const Microgeometry& g) {
+  const double tol = 1e-7 * std::max({g.sizeX, g.sizeY, 1e-3});
+  std::vector<std::pair<std::array<long long, 3>, uint32_t>> byPosition(g.vertices.size());
+  for (size_t v = 0; v < g.vertices.size(); ++v) {
+    const Vec3& p = g.vertices[v];
+    byPosition[v] = {{std::llround(p.x / tol), std::llround(p.y / tol), std::llround(p.z / tol)}, uint32_t(v)};
+  }
+  std::sort(byPosition.begin(), byPosition.end());
+  std::vector<uint32_t> id(g.vertices.size());
+  for (size_t i = 0; i < byPosition.size(); ++i)
+    id[byPosition[i].second] =
+        i > 0 && byPosition[i].first == byPosition[i - 1].first ? id[byPosition[i - 1].second] : uint32_t(i);
+  return id;
+}
+
+}  // namespace
+
+size_t Microgeometry::removeDuplicates() {
+  const std::vector<uint32_t> id = positionIds(*this);
+  std::vector<std::array<uint32_t, 3>> corners(triangles.size());
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    corners[t] = {id[triangles[t][0]], id[triangles[t][1]], id[triangles[t][2]]};
+    std::sort(corners[t].begin(), corners[t].end());
+  }
+  std::vector<uint32_t> order(triangles.size());
+  for (size_t t = 0; t < order.size(); ++t) order[t] = uint32_t(t);
+  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return corners[a] < corners[b]; });
+  std::vector<uint8_t> repeated(triangles.size(), 0);
+  for (size_t i = 1; i < order.size(); ++i) repeated[order[i]] = corners[order[i]] == corners[order[i - 1]];
+  const size_t before = triangles.size();
+  std::vector<std::array<uint32_t, 3>> keep;
+  keep.reserve(before);
+  for (size_t t = 0; t < before; ++t)
+    if (!repeated[t]) keep.push_back(triangles[t]);
+  triangles = std::move(keep);
+  return before - triangles.size();
+}
+
 SurfaceClosure surfaceClosureOf(const Microgeometry& g) {
   SurfaceClosure c;
   if (g.triangles.empty()) return c;
@@ -220,20 +263,8 @@ SurfaceClosure surfaceClosureOf(const Microgeometry& g) {
   const double footprint = g.sizeX * g.sizeY;
   c.uncoveredFraction = footprint > 0 ? 1.0 - std::abs(signedArea) / footprint : 0.0;
   if (std::abs(c.uncoveredFraction) < 1e-9) c.uncoveredFraction = 0;
-  // Vertices matched by quantised position (meshes may repeat vertices per face), and each edge's
-  // count of triangles, both by sorting: maps allocated a node per vertex and per edge (0.15 s on
-  // a 512² heightfield).
-  const double tol = 1e-7 * std::max({g.sizeX, g.sizeY, 1e-3});
-  std::vector<std::pair<std::array<long long, 3>, uint32_t>> byPosition(g.vertices.size());
-  for (size_t v = 0; v < g.vertices.size(); ++v) {
-    const Vec3& p = g.vertices[v];
-    byPosition[v] = {{std::llround(p.x / tol), std::llround(p.y / tol), std::llround(p.z / tol)}, uint32_t(v)};
-  }
-  std::sort(byPosition.begin(), byPosition.end());
-  std::vector<uint32_t> id(g.vertices.size());
-  for (size_t i = 0; i < byPosition.size(); ++i)
-    id[byPosition[i].second] =
-        i > 0 && byPosition[i].first == byPosition[i - 1].first ? id[byPosition[i - 1].second] : uint32_t(i);
+  // Each edge's count of triangles, by sorting (a map allocated a node per edge).
+  const std::vector<uint32_t> id = positionIds(g);
   struct Edge {
     uint64_t key;  // the two position ids, smaller first
     uint32_t a, b;

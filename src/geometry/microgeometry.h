@@ -35,6 +35,10 @@ struct Microgeometry {
   void weld(double tol);
   // Remove zero-area triangles; returns how many were removed.
   size_t removeDegenerate();
+  // Remove triangles with the same three corners (matched by position, in any order and winding)
+  // as an earlier one, keeping the first; returns how many were removed. A face repeated by an
+  // exporter would otherwise scatter twice: its Kirchhoff amplitude doubles, its power fourfold.
+  size_t removeDuplicates();
   // Throws InputError (with `where` in the message) on non-finite vertices, out-of-range indices or
   // an empty mesh.
   void validate(const std::string& where) const;
@@ -53,12 +57,15 @@ struct Microgeometry {
 //     footprint's border of a periodic patch, where the next copy continues the surface;
 //   uncoveredFraction: 1 − |Σ projected (signed) triangle area| / footprint. A closed surface over
 //     the footprint projects onto it exactly once, overhangs included (their up- and down-facing
-//     parts cancel), so this is the fraction of vertical rays that meet nothing.
+//     parts cancel), so this is the fraction of vertical rays that meet nothing. Below zero the
+//     triangles cover the footprint more than once: overlapping sheets, which one interface
+//     between two media cannot be (coveredMoreThanOnce).
 struct SurfaceClosure {
   size_t openEdges = 0;
   size_t unusedVertices = 0;  // vertices no triangle uses
   double uncoveredFraction = 0;
   bool closed() const { return openEdges == 0 && std::abs(uncoveredFraction) < 1e-6; }
+  bool coveredMoreThanOnce() const { return uncoveredFraction < -1e-6; }
   std::string describe() const;
 };
 SurfaceClosure surfaceClosureOf(const Microgeometry& g);

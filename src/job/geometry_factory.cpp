@@ -358,6 +358,11 @@ Microgeometry buildMicrogeometry(const ParamDict& geo, const std::string& baseDi
   }
   if (size_t removed = g.removeDegenerate())
     spdlog::warn("{}: removed {} degenerate (zero-area) triangles", geo.where("kind"), removed);
+  if (size_t removed = g.removeDuplicates())
+    spdlog::warn(
+        "{}: removed {} repeated triangles (the same three corners as an earlier one), which would "
+        "scatter twice",
+        geo.where("kind"), removed);
   g.validate(geo.file() + ": [geometry]");
   return g;
 }

@@ -445,6 +445,14 @@ void parseGeometry(const ParamDict& geo, const ParamDict& eff, const std::string
     job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind, &topography);
     if (topography.heights) job.topography = std::move(topography);
     job.closure = surfaceClosureOf(job.geometry);
+    // One interface between two media projects onto its footprint once; more is a second sheet
+    // (a copy of the surface, overlapping parts), whose light the model would count twice.
+    if (job.closure.coveredMoreThanOnce())
+      geo.fail(geo.has("file") ? "file" : "kind",
+               fmt::format("the triangles cover the footprint {:.4g} times (their signed projected area over the "
+                           "footprint's): overlapping or repeated sheets, where one surface between two media "
+                           "covers it once",
+                           1 - job.closure.uncoveredFraction));
     if (!job.closure.closed() || job.closure.unusedVertices)
       spdlog::warn("{}: [geometry] {}: {}{}", sourceName, job.geometryKind, job.closure.describe(),
                    job.closure.closed() ? "" : "; light through the holes is counted as missed, not scattered");

@@ -57,3 +57,37 @@ TEST(SurfaceClosure, AHoleIsFoundAndMeasured) {
   EXPECT_EQ(c.openEdges, 3u);
   EXPECT_NEAR(c.uncoveredFraction, lost, 1e-12);
 }
+
+// A face repeated by an exporter (the same corners, by index or by position, in any order or
+// winding) is removed once, keeping the first; a triangle sharing only an edge is kept. Without
+// it the repeated face scatters twice, and the patch covers its footprint more than once.
+TEST(SurfaceClosure, RepeatedFacesAreRemovedAndDoubleCoverIsFound) {
+  Microgeometry g = square(true);
+  g.vertices.push_back({1, 1, 0});   // vertex 4: the position of vertex 2 again
+  g.triangles.push_back({0, 1, 2});  // the first triangle again
+  g.triangles.push_back({4, 0, 1});  // again, rotated, through the repeated vertex
+  g.triangles.push_back({0, 2, 1});  // again, wound the other way
+  const SurfaceClosure before = surfaceClosureOf(g);
+  EXPECT_TRUE(before.coveredMoreThanOnce()) << before.describe();
+  EXPECT_EQ(g.removeDuplicates(), 3u);
+  ASSERT_EQ(g.triangles.size(), 2u);
+  EXPECT_EQ(g.triangles[0], (std::array<uint32_t, 3>{0, 1, 2}));
+  EXPECT_EQ(g.triangles[1], (std::array<uint32_t, 3>{0, 2, 3}));
+  const SurfaceClosure after = surfaceClosureOf(g);
+  EXPECT_FALSE(after.coveredMoreThanOnce());
+  EXPECT_NEAR(after.uncoveredFraction, 0.0, 1e-12);
+  EXPECT_EQ(after.openEdges, 0u);
+  // Generated patches hold no repeated face; a second sheet lifted above the first is no repeat
+  // (other corners) but covers the footprint twice.
+  Microgeometry dome =
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3});
+  EXPECT_EQ(dome.removeDuplicates(), 0u);
+  Microgeometry sheets = square(true);
+  for (uint32_t v = 0; v < 4; ++v) sheets.vertices.push_back(sheets.vertices[v] + Vec3{0, 0, 0.5});
+  sheets.triangles.push_back({4, 5, 6});
+  sheets.triangles.push_back({4, 6, 7});
+  EXPECT_EQ(sheets.removeDuplicates(), 0u);
+  const SurfaceClosure two = surfaceClosureOf(sheets);
+  EXPECT_TRUE(two.coveredMoreThanOnce());
+  EXPECT_NEAR(two.uncoveredFraction, -1.0, 1e-12);
+}

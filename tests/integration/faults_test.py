@@ -222,7 +222,8 @@ def test_resume_changed_inputs():
 
 def test_broken_meshes():
     """Malformed OBJ and PLY faces are errors naming file:line (or the face); a patch with a hole is
-    reported by check, plan and the run log, and its light through the hole is `missed`."""
+    reported by check, plan and the run log, and its light through the hole is `missed`; repeated faces
+    are removed (the same tables) and a second sheet over the first is refused."""
     quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
     files = {
         "trunc.obj": (quad + "f 1 2 3\nf 1\n", "trunc.obj:6", "a face needs at least 3 vertices"),
@@ -264,9 +265,28 @@ def test_broken_meshes():
     with open(facets, "w") as f:
         f.write(text.replace("[sampling]\n", '[sampling]\nsingle_scattering = "facets"\n'))
     expect(["check", facets], EXIT_BAD_INPUT, "single_scattering", "needs a closed surface")
+    # A face repeated by the exporter (again, and rotated with the other winding) would scatter twice:
+    # removed with a warning, and the tables are those of the mesh without the repeats. A second sheet
+    # over the first covers the footprint twice: refused, naming the file's key.
+    tables = {}
+    for name, faces in (("once.obj", "f 1 2 3\nf 1 3 4\n"), ("repeated.obj", "f 1 2 3\nf 1 3 4\nf 1 2 3\nf 3 2 1\n")):
+        with open(os.path.join(TMP, name), "w") as f:
+            f.write(quad + faces)
+        job = small_job(os.path.join(TMP, name + ".toml"), geometry=f'kind = "mesh"\nfile = "{name}"',
+                        extra='[effects]\ncomponents = ["coherent", "incoherent"]\n')
+        log = expect(["run", job, "-o", name + ".h5"], 0, *(["removed 2 repeated triangles"] if name == "repeated.obj" else []))
+        tables[name] = datasets(os.path.join(TMP, name + ".h5"))
+    assert tables["once.obj"] == tables["repeated.obj"]
+    with open(os.path.join(TMP, "sheets.obj"), "w") as f:
+        f.write(quad + "v -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\nf 1 2 3\nf 1 3 4\nf 5 6 7\nf 5 7 8\n")
+    job = small_job(os.path.join(TMP, "sheets.toml"), geometry='kind = "mesh"\nfile = "sheets.obj"')
+    expect(["check", job], EXIT_BAD_INPUT, "geometry.file", "cover the footprint 2 times")
+    expect(["run", job, "-o", "sheets.h5"], EXIT_BAD_INPUT, "geometry.file", "cover the footprint 2 times")
+    assert not os.path.exists(os.path.join(TMP, "sheets.h5.partial"))
     del out, plan, log
     print(f"OBJ/PLY faults named file:line; stray vertex ignored; a half-open patch: reported by check, plan and "
-          f"run, missed = {missed.round(4).tolist()} (0.5 expected)")
+          f"run, missed = {missed.round(4).tolist()} (0.5 expected); repeated faces removed (the same tables), a "
+          f"second sheet refused")
 
 
 def test_readonly_folders():

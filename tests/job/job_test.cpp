@@ -63,6 +63,29 @@ TEST(Job, AFileWithNoKeyIsRefused) {
   EXPECT_EQ(errorOf("[geometry]\nkind = \"flat\"\n"), "");
 }
 
+// A mesh file whose face is repeated loads as the mesh without the repeat (the same triangles,
+// hence the same tables); one with a second sheet over the first is refused, naming the file's key.
+TEST(Job, RepeatedFacesAreDroppedAndASecondSheetRefused) {
+  const auto dir = std::filesystem::temp_directory_path() / "microbsdf_job_repeated_faces";
+  std::filesystem::create_directories(dir);
+  const std::string square = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n";
+  std::ofstream(dir / "square.obj") << square;
+  std::ofstream(dir / "repeated.obj") << square << "f 1 2 3\nv 1 1 0\nf 2 5 3\n";
+  std::ofstream(dir / "sheets.obj") << square << "v 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\nf 5 6 7\nf 6 8 7\n";
+  auto job = [&](const char* file) {
+    return "[geometry]\nkind = \"mesh\"\nfile = \"" + (dir / file).string() + "\"\n";
+  };
+  const Job single = loadJobFromString(job("square.obj"), "test.toml", "");
+  const Job repeated = loadJobFromString(job("repeated.obj"), "test.toml", "");
+  EXPECT_EQ(repeated.geometry.triangles, single.geometry.triangles);
+  EXPECT_TRUE(repeated.closure.closed()) << repeated.closure.describe();
+  const std::string e = errorOf(job("sheets.obj"));
+  EXPECT_NE(e.find("test.toml:3"), std::string::npos) << e;
+  EXPECT_NE(e.find("geometry.file"), std::string::npos) << e;
+  EXPECT_NE(e.find("cover the footprint 2 times"), std::string::npos) << e;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Job, BadValuesNameTheKey) {
   EXPECT_NE(errorOf("[geometry]\nsize_um = [-1.0, 2.0]\n").find("geometry.size_um"), std::string::npos);
   EXPECT_NE(errorOf("[geometry]\nkind = \"sphere\"\n").find("geometry.kind"), std::string::npos);
