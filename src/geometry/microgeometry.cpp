@@ -293,11 +293,20 @@ SurfaceClosure surfaceClosureOf(const Microgeometry& g) {
     const bool alone =
         (i == 0 || edges[i - 1].key != edges[i].key) && (i + 1 == edges.size() || edges[i + 1].key != edges[i].key);
     if (alone && !(g.periodic && onBorder(g.vertices[edges[i].a], g.vertices[edges[i].b]))) ++c.openEdges;
+    // Two faces wound the same way pass their shared edge in opposite directions.
+    const bool pair = i + 1 < edges.size() && edges[i + 1].key == edges[i].key &&
+                      (i == 0 || edges[i - 1].key != edges[i].key) &&
+                      (i + 2 == edges.size() || edges[i + 2].key != edges[i].key);
+    if (pair && (id[edges[i].a] < id[edges[i].b]) == (id[edges[i + 1].a] < id[edges[i + 1].b])) ++c.windingEdges;
   }
   return c;
 }
 
 std::string SurfaceClosure::describe() const {
+  if (windingEdges)
+    return std::to_string(windingEdges) +
+           " edges between faces wound against each other (a face's corners run counter-clockwise seen from "
+           "the medium it faces, the upper one for a surface lit from above)";
   if (closed() && unusedVertices == 0) return "closed surface";
   std::string s;
   if (!closed()) {

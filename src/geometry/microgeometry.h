@@ -60,8 +60,11 @@ struct Microgeometry {
 //     parts cancel), so this is the fraction of vertical rays that meet nothing. Below zero the
 //     triangles cover the footprint more than once: overlapping sheets, which one interface
 //     between two media cannot be (coveredMoreThanOnce).
+//   windingEdges: edges whose two faces pass them in the same direction, i.e. one of the two is
+//     wound the other way round and faces the other medium.
 struct SurfaceClosure {
   size_t openEdges = 0;
+  size_t windingEdges = 0;
   size_t unusedVertices = 0;  // vertices no triangle uses
   double uncoveredFraction = 0;
   bool closed() const { return openEdges == 0 && std::abs(uncoveredFraction) < 1e-6; }

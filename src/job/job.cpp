@@ -447,6 +447,12 @@ void parseGeometry(const ParamDict& geo, const ParamDict& eff, const std::string
     job.closure = surfaceClosureOf(job.geometry);
     // One interface between two media projects onto its footprint once; more is a second sheet
     // (a copy of the surface, overlapping parts), whose light the model would count twice.
+    // A face wound the other way faces the other medium: it would take the upper medium's light as
+    // the lower's (a flat square with one face turned reflected 0.38 instead of 0.92).
+    if (job.closure.windingEdges)
+      geo.fail(geo.has("file") ? "file" : "kind",
+               "the triangles are not wound consistently: " + job.closure.describe() +
+                   "; turn the faces that face the other way");
     if (job.closure.coveredMoreThanOnce())
       geo.fail(geo.has("file") ? "file" : "kind",
                fmt::format("the triangles cover the footprint {:.4g} times (their signed projected area over the "

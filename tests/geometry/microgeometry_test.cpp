@@ -33,6 +33,7 @@ TEST(SurfaceClosure, GeneratedPatchesAreClosed) {
     const SurfaceClosure c = surfaceClosureOf(g);
     EXPECT_TRUE(c.closed()) << c.describe();
     EXPECT_EQ(c.openEdges, 0u);
+    EXPECT_EQ(c.windingEdges, 0u);
     EXPECT_NEAR(c.uncoveredFraction, 0.0, 1e-9);  // overhangs included: their projections cancel
   }
 }
@@ -90,4 +91,19 @@ TEST(SurfaceClosure, RepeatedFacesAreRemovedAndDoubleCoverIsFound) {
   const SurfaceClosure two = surfaceClosureOf(sheets);
   EXPECT_TRUE(two.coveredMoreThanOnce());
   EXPECT_NEAR(two.uncoveredFraction, -1.0, 1e-12);
+}
+
+// A face wound the other way round faces the other medium: the edges it shares with its neighbours
+// are counted (the square's diagonal; on a dome lattice the three edges of one turned face), and
+// the description says so instead of reporting the face's area as uncovered.
+TEST(SurfaceClosure, AFaceWoundTheOtherWayIsFound) {
+  Microgeometry g = square(true);
+  g.triangles[1] = {0, 3, 2};
+  const SurfaceClosure c = surfaceClosureOf(g);
+  EXPECT_EQ(c.windingEdges, 1u);
+  EXPECT_NE(c.describe().find("wound against each other"), std::string::npos) << c.describe();
+  Microgeometry dome =
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3});
+  std::swap(dome.triangles[dome.triangles.size() / 2][1], dome.triangles[dome.triangles.size() / 2][2]);
+  EXPECT_EQ(surfaceClosureOf(dome).windingEdges, 3u);
 }

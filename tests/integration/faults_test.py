@@ -223,7 +223,8 @@ def test_resume_changed_inputs():
 def test_broken_meshes():
     """Malformed OBJ and PLY faces are errors naming file:line (or the face); a patch with a hole is
     reported by check, plan and the run log, and its light through the hole is `missed`; repeated faces
-    are removed (the same tables) and a second sheet over the first is refused."""
+    are removed (the same tables); a second sheet over the first, or a face wound the other way round, is
+    refused."""
     quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
     files = {
         "trunc.obj": (quad + "f 1 2 3\nf 1\n", "trunc.obj:6", "a face needs at least 3 vertices"),
@@ -283,10 +284,15 @@ def test_broken_meshes():
     expect(["check", job], EXIT_BAD_INPUT, "geometry.file", "cover the footprint 2 times")
     expect(["run", job, "-o", "sheets.h5"], EXIT_BAD_INPUT, "geometry.file", "cover the footprint 2 times")
     assert not os.path.exists(os.path.join(TMP, "sheets.h5.partial"))
+    # A face wound the other way round faces the lower medium: refused, not taken for a hole.
+    with open(os.path.join(TMP, "turned.obj"), "w") as f:
+        f.write(quad + "f 1 2 3\nf 1 4 3\n")
+    job = small_job(os.path.join(TMP, "turned.toml"), geometry='kind = "mesh"\nfile = "turned.obj"')
+    expect(["check", job], EXIT_BAD_INPUT, "geometry.file", "not wound consistently")
     del out, plan, log
     print(f"OBJ/PLY faults named file:line; stray vertex ignored; a half-open patch: reported by check, plan and "
           f"run, missed = {missed.round(4).tolist()} (0.5 expected); repeated faces removed (the same tables), a "
-          f"second sheet refused")
+          f"second sheet and a turned face refused")
 
 
 def test_readonly_folders():

@@ -64,14 +64,16 @@ TEST(Job, AFileWithNoKeyIsRefused) {
 }
 
 // A mesh file whose face is repeated loads as the mesh without the repeat (the same triangles,
-// hence the same tables); one with a second sheet over the first is refused, naming the file's key.
-TEST(Job, RepeatedFacesAreDroppedAndASecondSheetRefused) {
+// hence the same tables); one with a second sheet over the first, or with a face wound the other way
+// round, is refused, naming the file's key.
+TEST(Job, RepeatedFacesAreDroppedASecondSheetAndATurnedFaceRefused) {
   const auto dir = std::filesystem::temp_directory_path() / "microbsdf_job_repeated_faces";
   std::filesystem::create_directories(dir);
   const std::string square = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n";
   std::ofstream(dir / "square.obj") << square;
   std::ofstream(dir / "repeated.obj") << square << "f 1 2 3\nv 1 1 0\nf 2 5 3\n";
   std::ofstream(dir / "sheets.obj") << square << "v 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\nf 5 6 7\nf 6 8 7\n";
+  std::ofstream(dir / "turned.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 3 4\n";
   auto job = [&](const char* file) {
     return "[geometry]\nkind = \"mesh\"\nfile = \"" + (dir / file).string() + "\"\n";
   };
@@ -83,6 +85,10 @@ TEST(Job, RepeatedFacesAreDroppedAndASecondSheetRefused) {
   EXPECT_NE(e.find("test.toml:3"), std::string::npos) << e;
   EXPECT_NE(e.find("geometry.file"), std::string::npos) << e;
   EXPECT_NE(e.find("cover the footprint 2 times"), std::string::npos) << e;
+  // A face wound the other way round: refused, not run as a patch with a hole.
+  const std::string turned = errorOf(job("turned.obj"));
+  EXPECT_NE(turned.find("geometry.file"), std::string::npos) << turned;
+  EXPECT_NE(turned.find("not wound consistently"), std::string::npos) << turned;
   std::filesystem::remove_all(dir);
 }
 
