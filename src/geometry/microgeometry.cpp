@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <algorithm>
 #include <sstream>
@@ -227,6 +228,41 @@ std::vector<uint32_t> positionIds(const Microgeometry& g) {
   return id;
 }
 
+// A periodic patch continues across its border into the next copy: an edge on the border x = x0
+// must meet one on x = x1 with the same (y, z) ends, and likewise in y. One that does not is a
+// crack at the seam (the two sides' heights differ, or their vertices do), through which light
+// leaves the surface.
+size_t unmatchedSeamEdges(const std::vector<std::array<Vec3, 2>>& border, double x0, double x1, double y0, double y1,
+                          double tol) {
+  using Key = std::array<long long, 4>;
+  auto q = [&](double v) { return std::llround(v / tol); };
+  auto key = [&](double u0, double z0, double u1, double z1) {
+    std::array<long long, 2> p{q(u0), q(z0)}, r{q(u1), q(z1)};
+    if (r < p) std::swap(p, r);
+    return Key{p[0], p[1], r[0], r[1]};
+  };
+  auto at = [&](double u, double edge) { return std::abs(u - edge) < tol; };
+  std::vector<Key> side[2][2];  // [x or y border][low or high]
+  for (const auto& [a, b] : border) {
+    if (at(a.x, x0) && at(b.x, x0))
+      side[0][0].push_back(key(a.y, a.z, b.y, b.z));
+    else if (at(a.x, x1) && at(b.x, x1))
+      side[0][1].push_back(key(a.y, a.z, b.y, b.z));
+    else
+      side[1][at(a.y, y1) && at(b.y, y1) ? 1 : 0].push_back(key(a.x, a.z, b.x, b.z));
+  }
+  size_t unmatched = 0;
+  for (auto& axis : side) {
+    std::sort(axis[0].begin(), axis[0].end());
+    std::sort(axis[1].begin(), axis[1].end());
+    std::vector<Key> lone;
+    std::set_symmetric_difference(axis[0].begin(), axis[0].end(), axis[1].begin(), axis[1].end(),
+                                  std::back_inserter(lone));
+    unmatched += lone.size();
+  }
+  return unmatched;
+}
+
 }  // namespace
 
 size_t Microgeometry::removeDuplicates() {
@@ -289,16 +325,22 @@ SurfaceClosure surfaceClosureOf(const Microgeometry& g) {
     auto both = [&](double u, double v, double edge) { return std::abs(u - edge) < btol && std::abs(v - edge) < btol; };
     return both(a.x, b.x, x0) || both(a.x, b.x, x1) || both(a.y, b.y, y0) || both(a.y, b.y, y1);
   };
+  std::vector<std::array<Vec3, 2>> border;  // a periodic patch's border edges
   for (size_t i = 0; i < edges.size(); ++i) {
     const bool alone =
         (i == 0 || edges[i - 1].key != edges[i].key) && (i + 1 == edges.size() || edges[i + 1].key != edges[i].key);
-    if (alone && !(g.periodic && onBorder(g.vertices[edges[i].a], g.vertices[edges[i].b]))) ++c.openEdges;
+    const Vec3 &a = g.vertices[edges[i].a], &b = g.vertices[edges[i].b];
+    if (alone && g.periodic && onBorder(a, b))
+      border.push_back({a, b});
+    else if (alone)
+      ++c.openEdges;
     // Two faces wound the same way pass their shared edge in opposite directions.
     const bool pair = i + 1 < edges.size() && edges[i + 1].key == edges[i].key &&
                       (i == 0 || edges[i - 1].key != edges[i].key) &&
                       (i + 2 == edges.size() || edges[i + 2].key != edges[i].key);
     if (pair && (id[edges[i].a] < id[edges[i].b]) == (id[edges[i + 1].a] < id[edges[i + 1].b])) ++c.windingEdges;
   }
+  c.seamEdges = unmatchedSeamEdges(border, x0, x1, y0, y1, btol);
   return c;
 }
 
@@ -310,10 +352,13 @@ std::string SurfaceClosure::describe() const {
   if (closed() && unusedVertices == 0) return "closed surface";
   std::string s;
   if (!closed()) {
-    char buf[160];
+    char buf[256];
     std::snprintf(buf, sizeof buf, "%zu open edges (holes or cracks), %.3g %% of the footprint uncovered", openEdges,
                   100 * uncoveredFraction);
     s = buf;
+    if (seamEdges)
+      s += ", " + std::to_string(seamEdges) +
+           " edges on the period's border with no partner on the opposite border (a crack where the copies meet)";
   } else
     s = "closed surface";
   if (unusedVertices) s += ", " + std::to_string(unusedVertices) + " vertices used by no triangle (ignored)";

@@ -61,13 +61,17 @@ struct Microgeometry {
 //     triangles cover the footprint more than once: overlapping sheets, which one interface
 //     between two media cannot be (coveredMoreThanOnce).
 //   windingEdges: edges whose two faces pass them in the same direction, i.e. one of the two is
-//     wound the other way round and faces the other medium.
+//     wound the other way round and faces the other medium;
+//   seamEdges: a periodic patch's border edges with no partner on the opposite border (the same
+//     ends shifted by the period): a crack where the copies meet, e.g. a heightfield whose two
+//     sides differ in height.
 struct SurfaceClosure {
   size_t openEdges = 0;
   size_t windingEdges = 0;
+  size_t seamEdges = 0;
   size_t unusedVertices = 0;  // vertices no triangle uses
   double uncoveredFraction = 0;
-  bool closed() const { return openEdges == 0 && std::abs(uncoveredFraction) < 1e-6; }
+  bool closed() const { return openEdges == 0 && seamEdges == 0 && std::abs(uncoveredFraction) < 1e-6; }
   bool coveredMoreThanOnce() const { return uncoveredFraction < -1e-6; }
   std::string describe() const;
 };

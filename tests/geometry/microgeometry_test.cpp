@@ -34,6 +34,7 @@ TEST(SurfaceClosure, GeneratedPatchesAreClosed) {
     EXPECT_TRUE(c.closed()) << c.describe();
     EXPECT_EQ(c.openEdges, 0u);
     EXPECT_EQ(c.windingEdges, 0u);
+    EXPECT_EQ(c.seamEdges, 0u);
     EXPECT_NEAR(c.uncoveredFraction, 0.0, 1e-9);  // overhangs included: their projections cancel
   }
 }
@@ -106,4 +107,28 @@ TEST(SurfaceClosure, AFaceWoundTheOtherWayIsFound) {
       makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3});
   std::swap(dome.triangles[dome.triangles.size() / 2][1], dome.triangles[dome.triangles.size() / 2][2]);
   EXPECT_EQ(surfaceClosureOf(dome).windingEdges, 3u);
+}
+
+// A periodic patch whose two sides differ (a plane tilted along x: its copies meet with a step and
+// no wall) has a crack where the copies meet, through which light leaves: it was reported as a
+// closed surface, and a sawtooth of such planes lit at 60 deg reflected 0.0001 of the light without
+// a word. Its border edges find no partner across the period.
+TEST(SurfaceClosure, ACrackWhereTheCopiesMeetIsFound) {
+  Microgeometry tilted = square(true);
+  for (Vec3& v : tilted.vertices) v.z = 0.25 * v.x;
+  const SurfaceClosure c = surfaceClosureOf(tilted);
+  EXPECT_EQ(c.openEdges, 0u);
+  EXPECT_EQ(c.seamEdges, 2u);  // x = -1 and x = 1; the y borders match
+  EXPECT_FALSE(c.closed());
+  EXPECT_NE(c.describe().find("a crack where the copies meet"), std::string::npos) << c.describe();
+  // Tilted along y instead: the x borders now match (z changes with y alike on both), the y
+  // borders differ.
+  Microgeometry along = square(true);
+  for (Vec3& v : along.vertices) v.z = 0.25 * v.y;
+  EXPECT_EQ(surfaceClosureOf(along).seamEdges, 2u);
+  Microgeometry flat = square(true);
+  EXPECT_EQ(surfaceClosureOf(flat).seamEdges, 0u);
+  // A finite patch has no seam: its border is open.
+  tilted.periodic = false;
+  EXPECT_EQ(surfaceClosureOf(tilted).seamEdges, 0u);
 }
