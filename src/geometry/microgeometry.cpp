@@ -231,31 +231,15 @@ std::vector<uint32_t> positionIds(const Microgeometry& g) {
 // A periodic patch continues across its border into the next copy: an edge on the border x = x0
 // must meet one on x = x1 with the same (y, z) ends, and likewise in y. One that does not is a
 // crack at the seam (the two sides' heights differ, or their vertices do), through which light
-// leaves the surface.
-size_t unmatchedSeamEdges(const std::vector<std::array<Vec3, 2>>& border, double x0, double x1, double y0, double y1,
-                          double tol) {
-  using Key = std::array<long long, 4>;
-  auto q = [&](double v) { return std::llround(v / tol); };
-  auto key = [&](double u0, double z0, double u1, double z1) {
-    std::array<long long, 2> p{q(u0), q(z0)}, r{q(u1), q(z1)};
-    if (r < p) std::swap(p, r);
-    return Key{p[0], p[1], r[0], r[1]};
-  };
-  auto at = [&](double u, double edge) { return std::abs(u - edge) < tol; };
-  std::vector<Key> side[2][2];  // [x or y border][low or high]
-  for (const auto& [a, b] : border) {
-    if (at(a.x, x0) && at(b.x, x0))
-      side[0][0].push_back(key(a.y, a.z, b.y, b.z));
-    else if (at(a.x, x1) && at(b.x, x1))
-      side[0][1].push_back(key(a.y, a.z, b.y, b.z));
-    else
-      side[1][at(a.y, y1) && at(b.y, y1) ? 1 : 0].push_back(key(a.x, a.z, b.x, b.z));
-  }
+// leaves the surface. border[axis][side]: the edges on x = x0, x = x1 (axis 0), y = y0, y = y1
+// (axis 1), each as its two ends' (coordinate along the border, z).
+using SeamKey = std::array<long long, 4>;
+size_t unmatchedSeamEdges(std::vector<SeamKey> (&border)[2][2]) {
   size_t unmatched = 0;
-  for (auto& axis : side) {
+  for (auto& axis : border) {
     std::sort(axis[0].begin(), axis[0].end());
     std::sort(axis[1].begin(), axis[1].end());
-    std::vector<Key> lone;
+    std::vector<SeamKey> lone;
     std::set_symmetric_difference(axis[0].begin(), axis[0].end(), axis[1].begin(), axis[1].end(),
                                   std::back_inserter(lone));
     unmatched += lone.size();
@@ -321,26 +305,40 @@ SurfaceClosure surfaceClosureOf(const Microgeometry& g) {
       y0 = std::min(y0, g.vertices[v].y), y1 = std::max(y1, g.vertices[v].y);
     }
   const double btol = 1e-6 * std::max({g.sizeX, g.sizeY, 1e-3});
-  auto onBorder = [&](const Vec3& a, const Vec3& b) {
+  // A periodic patch's border edges by border, keyed by their ends along it (quantised to btol).
+  std::vector<SeamKey> border[2][2];
+  auto addIfOnBorder = [&](const Vec3& a, const Vec3& b) {
     auto both = [&](double u, double v, double edge) { return std::abs(u - edge) < btol && std::abs(v - edge) < btol; };
-    return both(a.x, b.x, x0) || both(a.x, b.x, x1) || both(a.y, b.y, y0) || both(a.y, b.y, y1);
+    auto key = [&](double u0, double z0, double u1, double z1) {
+      std::array<long long, 2> p{std::llround(u0 / btol), std::llround(z0 / btol)},
+          r{std::llround(u1 / btol), std::llround(z1 / btol)};
+      if (r < p) std::swap(p, r);
+      return SeamKey{p[0], p[1], r[0], r[1]};
+    };
+    // The x borders first: an edge along a corner (x and y both on the border) is an x border's.
+    for (int side = 0; side < 2; ++side)
+      if (both(a.x, b.x, side ? x1 : x0)) {
+        border[0][side].push_back(key(a.y, a.z, b.y, b.z));
+        return true;
+      }
+    for (int side = 0; side < 2; ++side)
+      if (both(a.y, b.y, side ? y1 : y0)) {
+        border[1][side].push_back(key(a.x, a.z, b.x, b.z));
+        return true;
+      }
+    return false;
   };
-  std::vector<std::array<Vec3, 2>> border;  // a periodic patch's border edges
   for (size_t i = 0; i < edges.size(); ++i) {
     const bool alone =
         (i == 0 || edges[i - 1].key != edges[i].key) && (i + 1 == edges.size() || edges[i + 1].key != edges[i].key);
-    const Vec3 &a = g.vertices[edges[i].a], &b = g.vertices[edges[i].b];
-    if (alone && g.periodic && onBorder(a, b))
-      border.push_back({a, b});
-    else if (alone)
-      ++c.openEdges;
+    if (alone && !(g.periodic && addIfOnBorder(g.vertices[edges[i].a], g.vertices[edges[i].b]))) ++c.openEdges;
     // Two faces wound the same way pass their shared edge in opposite directions.
     const bool pair = i + 1 < edges.size() && edges[i + 1].key == edges[i].key &&
                       (i == 0 || edges[i - 1].key != edges[i].key) &&
                       (i + 2 == edges.size() || edges[i + 2].key != edges[i].key);
     if (pair && (id[edges[i].a] < id[edges[i].b]) == (id[edges[i + 1].a] < id[edges[i + 1].b])) ++c.windingEdges;
   }
-  c.seamEdges = unmatchedSeamEdges(border, x0, x1, y0, y1, btol);
+  c.seamEdges = unmatchedSeamEdges(border);
   return c;
 }
 

@@ -445,16 +445,16 @@ void parseGeometry(const ParamDict& geo, const ParamDict& eff, const std::string
     job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind, &topography);
     if (topography.heights) job.topography = std::move(topography);
     job.closure = surfaceClosureOf(job.geometry);
-    // One interface between two media projects onto its footprint once; more is a second sheet
-    // (a copy of the surface, overlapping parts), whose light the model would count twice.
+    const char* shapeKey = geo.has("file") ? "file" : "kind";
     // A face wound the other way faces the other medium: it would take the upper medium's light as
     // the lower's (a flat square with one face turned reflected 0.38 instead of 0.92).
     if (job.closure.windingEdges)
-      geo.fail(geo.has("file") ? "file" : "kind",
-               "the triangles are not wound consistently: " + job.closure.describe() +
-                   "; turn the faces that face the other way");
+      geo.fail(shapeKey, "the triangles are not wound consistently: " + job.closure.describe() +
+                             "; turn the faces that face the other way");
+    // One interface between two media projects onto its footprint once; more is a second sheet
+    // (a copy of the surface, overlapping parts), whose light the model would count twice.
     if (job.closure.coveredMoreThanOnce())
-      geo.fail(geo.has("file") ? "file" : "kind",
+      geo.fail(shapeKey,
                fmt::format("the triangles cover the footprint {:.4g} times (their signed projected area over the "
                            "footprint's): overlapping or repeated sheets, where one surface between two media "
                            "covers it once",
