@@ -27,6 +27,19 @@ RTCRayHit makeRayHit(const Vec3& o, const Vec3& d, float tnear, float tfar) {
   return rh;
 }
 
+// An occlusion query's context with the triangle its ray leaves, which the filter below skips
+// (Embree's documented way to pass per-query data to a filter: the context first in a larger struct).
+struct SkipContext {
+  RTCIntersectContext ctx;
+  unsigned skipPrim;
+};
+
+void skipLeftTriangle(const RTCFilterFunctionNArguments* args) {
+  const auto* c = reinterpret_cast<const SkipContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i)
+    if (args->valid[i] == -1 && RTCHitN_primID(args->hit, args->N, i) == c->skipPrim) args->valid[i] = 0;
+}
+
 void embreeError(void*, RTCError code, const char* str) {
   throw std::runtime_error(std::string("Embree error ") + std::to_string(int(code)) + ": " + (str ? str : ""));
 }
@@ -72,6 +85,7 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
                                                             3 * sizeof(unsigned), g.triangles.size()));
   for (size_t t = 0; t < g.triangles.size(); ++t)
     for (int k = 0; k < 3; ++k) ib[3 * t + k] = g.triangles[t][k];
+  rtcSetGeometryOccludedFilterFunction(geom, skipLeftTriangle);
   rtcCommitGeometry(geom);
   rtcAttachGeometry(scene_.get(), geom);
   rtcReleaseGeometry(geom);
@@ -200,6 +214,81 @@ TraceResult PeriodicScene::traceFrom(Vec3 o, const Vec3& d, int ignorePrim, int 
   }
   r.kind = TraceResult::Kind::TooManyWraps;
   return r;
+}
+
+bool PeriodicScene::escapes(Vec3 o, const Vec3& d, int ignorePrim, bool up) const {
+  return escapesFrom(o, d, ignorePrim, up, 0);
+}
+
+bool PeriodicScene::escapesFrom(Vec3 o, const Vec3& d, int ignorePrim, bool up, int firstWrap) const {
+  // The same segments as traceFrom(); each asks only whether something is met on it.
+  TraceResult r;
+  for (int wrap = firstWrap; wrap <= maxWraps_; ++wrap) {
+    double tExit;
+    int face;
+    if (slabExit(o, d, &tExit, &face, &r)) return escapedAs(r.kind, up);
+    SkipContext c;
+    rtcInitIntersectContext(&c.ctx);
+    // Only the first segment can meet the triangle it leaves (after a wrap it is another copy).
+    c.skipPrim = wrap == 0 && ignorePrim >= 0 ? unsigned(ignorePrim) : RTC_INVALID_GEOMETRY_ID;
+    RTCRay ray = makeRayHit(o, d, 0.f, segmentEnd(tExit, eps_)).ray;
+    rtcOccluded1(scene_.get(), &c.ctx, &ray);
+    if (ray.tfar < 0) return false;  // Embree marks a met triangle with tfar = -inf
+    if (wrapOrEscape(&o, d, tExit, face, &r)) return escapedAs(r.kind, up);
+  }
+  return false;  // the wrap limit: counted as blocked, as trace() reports it
+}
+
+void PeriodicScene::escapesMany(std::span<const Vec3> o, const Vec3& d, int ignorePrim, bool up,
+                                std::span<uint8_t> out) const {
+  constexpr size_t K = 16;
+  SkipContext c;
+  rtcInitIntersectContext(&c.ctx);
+  c.skipPrim = ignorePrim >= 0 ? unsigned(ignorePrim) : RTC_INVALID_GEOMETRY_ID;
+  for (size_t p0 = 0; p0 < o.size(); p0 += K) {
+    alignas(64) RTCRay16 ray;
+    alignas(64) int valid[K];
+    double tExit[K];
+    int face[K];
+    bool any = false;
+    for (size_t k = 0; k < K; ++k) {
+      valid[k] = 0;
+      const size_t i = p0 + k;
+      if (i >= o.size()) continue;
+      TraceResult r;
+      if (slabExit(o[i], d, &tExit[k], &face[k], &r)) {
+        out[i] = escapedAs(r.kind, up);
+        continue;
+      }
+      valid[k] = -1;
+      any = true;
+      ray.org_x[k] = float(o[i].x);
+      ray.org_y[k] = float(o[i].y);
+      ray.org_z[k] = float(o[i].z);
+      ray.dir_x[k] = float(d.x);
+      ray.dir_y[k] = float(d.y);
+      ray.dir_z[k] = float(d.z);
+      ray.tnear[k] = 0.f;
+      ray.tfar[k] = segmentEnd(tExit[k], eps_);
+      ray.mask[k] = 0xFFFFFFFFu;
+      ray.flags[k] = 0;
+      ray.time[k] = 0.f;
+      ray.id[k] = 0;
+    }
+    if (!any) continue;
+    rtcOccluded16(valid, scene_.get(), &c.ctx, &ray);
+    for (size_t k = 0; k < K && p0 + k < o.size(); ++k) {
+      if (!valid[k]) continue;
+      const size_t i = p0 + k;
+      if (ray.tfar[k] < 0) {
+        out[i] = 0;
+        continue;
+      }
+      Vec3 oi = o[i];
+      TraceResult r;
+      out[i] = wrapOrEscape(&oi, d, tExit[k], face[k], &r) ? escapedAs(r.kind, up) : escapesFrom(oi, d, -1, up, 1);
+    }
+  }
 }
 
 // Interleaves the bits of a 16-bit x and y: the position of (x, y) along a Morton (Z-order) curve.

@@ -65,6 +65,17 @@ class PeriodicScene {
   // memory latencies overlap.
   void traceMany(std::span<const Vec3> o, std::span<const Vec3> d, std::span<const int> ignorePrim, TraceMode mode,
                  std::span<TraceResult> out) const;
+  // Whether a ray from o along d leaves the patch through its top (up) or bottom (!up) without
+  // meeting a triangle other than `ignorePrim` on its first segment: trace()'s answer (a hit or
+  // the wrap limit is false; a finite patch's ray that leaves it any way is true), asked of Embree
+  // as occlusion queries, which stop at the first triangle met instead of searching for the
+  // nearest (the visibility rays of the wave estimators).
+  bool escapes(Vec3 o, const Vec3& d, int ignorePrim, bool up) const;
+  // escapes() for rays along one direction from nearby points that leave the same triangle (the
+  // points of one facet's sub-elements): out[i] = escapes(o[i], d, ignorePrim, up). Their first
+  // segments are asked as packets of 16 (rtcOccluded16), whose near-identical traversals share the
+  // tree's nodes; rays that leave a side of the periodic cell go on one by one.
+  void escapesMany(std::span<const Vec3> o, const Vec3& d, int ignorePrim, bool up, std::span<uint8_t> out) const;
   // One raw Embree query without wrapping (used by the benchmark baseline).
   bool intersectRaw(const Vec3& o, const Vec3& d, double tfar, double* t) const;
 
@@ -89,6 +100,13 @@ class PeriodicScene {
   // After a segment that met nothing: true when the ray escaped (r set), else o re-enters from the
   // opposite side of the patch.
   bool wrapOrEscape(Vec3* o, const Vec3& d, double tExit, int face, TraceResult* r) const;
+  // escapes() from wrap `firstWrap` on.
+  bool escapesFrom(Vec3 o, const Vec3& d, int ignorePrim, bool up, int firstWrap) const;
+  // What escapes() answers for a ray that left the patch as `kind`.
+  bool escapedAs(TraceResult::Kind kind, bool up) const {
+    if (!periodic_) return true;
+    return up ? kind == TraceResult::Kind::EscapedUp : kind == TraceResult::Kind::EscapedDown;
+  }
   // trace() from wrap `firstWrap` on.
   TraceResult traceFrom(Vec3 o, const Vec3& d, int ignorePrim, int firstWrap) const;
 

@@ -3,6 +3,8 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <functional>
 
@@ -12,6 +14,71 @@
 namespace mbsdf::wave {
 namespace {
 constexpr int kSubOffset[kExactMaxDepth + 1] = {0, 0, 16, 80};  // first sub-point of each depth
+
+// The visibility of points of one facet t (unit normal m towards the incident medium) for one
+// order: 0 shadowed, 1 visible, 2 masked.
+struct FacetVisibility {
+  const WaveContext& ctx;
+  const VisibilityTable* table;
+  const std::vector<uint8_t>& lit;
+  ShadowCache& shadow;
+  const OrderDirection& ord;
+  Vec3 wi;
+  bool fromAbove, litClear, exitClear;
+  uint32_t t;
+  size_t slot;  // t's index in the cell (its rows of the shadow cache)
+  Vec3 m;
+  uint64_t* rays;
+
+  // First-level point k: its shadowing is known (`lit`), and the shared table may answer its
+  // masking (the facet faces ω_G here, so visibleExit's answer is escapes').
+  int firstLevel(const Vec3& x, int k) const {
+    if (!((lit[t] >> k) & 1)) return 0;
+    if (exitClear) return 1;
+    if (table)
+      if (const auto e = ord.transmission ? table->escapes(t, k, -m, ord.wo, !fromAbove)
+                                          : table->escapes(t, k, m, ord.wo, fromAbove))
+        return *e ? 1 : 2;
+    const ExitVisibility v = visibleExit(ctx.scene, x, m, ord.wo, t, fromAbove, ord.transmission, rays);
+    return v == ExitVisibility::Visible ? 1 : 2;
+  }
+
+  // Sub-element points x[0..count) (count <= 16) with shadow-cache slots `sub`: shadowing from the
+  // cache (cast and stored on first use), then the lit points' masking rays towards ω_G together,
+  // as packets: they start within one facet and run parallel, the most coherent rays there are.
+  void subElements(const Vec3* x, const size_t* sub, int count, int* st) const {
+    std::array<Vec3, 16> o;
+    std::array<int, 16> which;
+    int n = 0;
+    for (int k = 0; k < count; ++k) {
+      if (!litClear) {
+        std::atomic<uint8_t>& known = shadow.state[slot * kExactSubPoints + sub[k]];
+        uint8_t sh = known.load(std::memory_order_relaxed);
+        if (sh == 0) {
+          sh = escapes(ctx.scene, x[k], m, wi, t, fromAbove) ? 1 : 2;
+          // Counted by the thread that stores it (a ray two threads raced to cast counts once).
+          uint8_t unknown = 0;
+          if (known.compare_exchange_strong(unknown, sh, std::memory_order_relaxed)) ++*rays;
+        }
+        if (sh == 2) {
+          st[k] = 0;
+          continue;
+        }
+      }
+      st[k] = 1;
+      if (exitClear) continue;
+      // visibleExit's ray (the facet faces ω_G: it was checked before any point was asked).
+      o[size_t(n)] = x[k] + (ord.transmission ? -m : m) * ctx.scene.rayEpsilon();
+      which[size_t(n++)] = k;
+    }
+    if (n == 0) return;
+    std::array<uint8_t, 16> seen;
+    ctx.scene.escapesMany({o.data(), size_t(n)}, ord.wo, int(t), ord.transmission ? !fromAbove : fromAbove,
+                          {seen.data(), size_t(n)});
+    *rays += uint64_t(n);
+    for (int r = 0; r < n; ++r) st[which[size_t(r)]] = seen[size_t(r)] ? 1 : 2;
+  }
+};
 }  // namespace
 
 std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
@@ -71,60 +138,53 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
     if (ord.transmission ? mo >= 0 : mo <= 0) continue;  // back-facing to the order direction
     // g (s, p) of the facet: the integrand without its phase.
     const KirchhoffValue g0 = integrandAt(media, l, Vec3{0, 0, 0}, m, wi, ord.wo, k0, fromAbove, ord.transmission);
-    // 0 shadowed, 1 visible, 2 masked, for a point of facet t; `firstLevel` >= 0: the point is the
-    // facet's first-level point of that index, whose shadowing is known (`lit`) and whose masking
-    // the shared table may answer (the facet faces ω_G here, so visibleExit's answer is escapes');
-    // otherwise `sub` indexes its shadowing in the cache.
-    auto state = [&](const Vec3& x, int firstLevel, size_t sub) {
-      if (firstLevel < 0 && !litClear) {
-        std::atomic<uint8_t>& known = shadow.state[slot * kExactSubPoints + sub];
-        uint8_t st = known.load(std::memory_order_relaxed);
-        if (st == 0) {
-          st = escapes(ctx.scene, x, m, wi, unsigned(t), fromAbove) ? 1 : 2;
-          // Counted by the thread that stores it (a ray two threads raced to cast counts once).
-          uint8_t unknown = 0;
-          if (known.compare_exchange_strong(unknown, st, std::memory_order_relaxed)) ++*rays;
-        }
-        if (st == 2) return 0;
-      } else if (firstLevel >= 0 && !((lit[t] >> firstLevel) & 1))
-        return 0;
-      if (exitClear) return 1;
-      if (table && firstLevel >= 0)
-        if (const auto e = ord.transmission ? table->escapes(t, firstLevel, -m, ord.wo, !fromAbove)
-                                            : table->escapes(t, firstLevel, m, ord.wo, fromAbove))
-          return *e ? 1 : 2;
-      const ExitVisibility v = visibleExit(ctx.scene, x, m, ord.wo, unsigned(t), fromAbove, ord.transmission, rays);
-      return v == ExitVisibility::Visible ? 1 : 2;
-    };
+    const FacetVisibility vis{ctx, table, lit, shadow, ord, wi, fromAbove, litClear, exitClear, t, slot, m, rays};
     auto add = [&](const Vec3& a, const Vec3& b, const Vec3& c, int st) {
       if (st == 0 || (st == 2 && !masked)) return;
       const Complex f = triangleFourier(a, b, c, q);
       Hc[st == 1 ? 0 : 2] += g0.s * f;
       Hc[st == 1 ? 1 : 3] += g0.p * f;
     };
-    // Visibility by the centroid and three points inset towards the vertices; split where they
-    // disagree.
+    // Visibility by the centroid and three points inset towards the vertices (states `st`); split
+    // where they disagree, the four children's points decided together. A child at the deepest
+    // level takes its centroid's state, so only that point is asked there.
     // `path`: the sub-element's index among the 4^depth of its depth.
-    std::function<void(const Vec3&, const Vec3&, const Vec3&, int, size_t)> element =
-        [&](const Vec3& a, const Vec3& b, const Vec3& c, int depth, size_t path) {
-          const auto pts = firstLevelPoints(a, b, c);
-          auto st = [&](int k) {
-            return state(pts[size_t(k)], depth == 0 ? k : -1, size_t(kSubOffset[depth]) + path * 4 + size_t(k));
-          };
-          const int s0 = st(0);
-          bool agree = true;
-          for (int k = 1; k < 4; ++k) agree = agree && st(k) == s0;
-          if (agree || depth == kExactMaxDepth) {
-            add(a, b, c, s0);
+    std::function<void(const Vec3&, const Vec3&, const Vec3&, int, size_t, const int*)> element =
+        [&](const Vec3& a, const Vec3& b, const Vec3& c, int depth, size_t path, const int* st) {
+          if ((st[1] == st[0] && st[2] == st[0] && st[3] == st[0]) || depth == kExactMaxDepth) {
+            add(a, b, c, st[0]);
             return;
           }
           const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
-          element(a, ab, ca, depth + 1, path * 4);
-          element(ab, b, bc, depth + 1, path * 4 + 1);
-          element(ca, bc, c, depth + 1, path * 4 + 2);
-          element(ab, bc, ca, depth + 1, path * 4 + 3);
+          const std::array<std::array<Vec3, 3>, 4> child = {{{a, ab, ca}, {ab, b, bc}, {ca, bc, c}, {ab, bc, ca}}};
+          const int perChild = depth + 1 == kExactMaxDepth ? 1 : 4;
+          std::array<Vec3, 16> x;
+          std::array<size_t, 16> sub;
+          int count = 0;
+          for (size_t ch = 0; ch < 4; ++ch) {
+            const auto pts = firstLevelPoints(child[ch][0], child[ch][1], child[ch][2]);
+            for (int k = 0; k < perChild; ++k) {
+              x[size_t(count)] = pts[size_t(k)];
+              sub[size_t(count++)] = size_t(kSubOffset[depth + 1]) + (path * 4 + ch) * 4 + size_t(k);
+            }
+          }
+          std::array<int, 16> packed, childStates;
+          vis.subElements(x.data(), sub.data(), count, packed.data());
+          for (size_t ch = 0; ch < 4; ++ch)
+            for (int k = 0; k < 4; ++k)
+              childStates[4 * ch + size_t(k)] = packed[ch * size_t(perChild) + size_t(std::min(k, perChild - 1))];
+          for (size_t ch = 0; ch < 4; ++ch)
+            element(child[ch][0], child[ch][1], child[ch][2], depth + 1, path * 4 + ch, &childStates[4 * ch]);
         };
-    element(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0, 0);
+    const auto pts = firstLevelPoints(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]]);
+    // Points 1–3 only while they agree with the centroid: the first that differs decides the split.
+    int st0[4] = {vis.firstLevel(pts[0], 0), 0, 0, 0};
+    bool agree = true;
+    for (int k = 1; k < 4; ++k) {
+      st0[k] = agree ? vis.firstLevel(pts[size_t(k)], k) : st0[0];
+      agree = agree && st0[k] == st0[0];
+    }
+    element(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0, 0, st0);
   }
   for (int i = 0; i < 4; ++i) H[i] += double(cell.copies()) * Hc[i];
 }

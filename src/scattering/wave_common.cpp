@@ -26,10 +26,7 @@ FresnelAmplitudes Media::fresnel(int l, double cosLocal, bool fromAbove) const {
 }
 
 bool escapes(const PeriodicScene& scene, const Vec3& x, const Vec3& side, const Vec3& d, unsigned prim, bool up) {
-  TraceResult r = scene.trace(x + side * scene.rayEpsilon(), d, int(prim));
-  if (r.kind == TraceResult::Kind::Hit || r.kind == TraceResult::Kind::TooManyWraps) return false;
-  if (!scene.periodic()) return true;
-  return up ? r.kind == TraceResult::Kind::EscapedUp : r.kind == TraceResult::Kind::EscapedDown;
+  return scene.escapes(x + side * scene.rayEpsilon(), d, int(prim), up);
 }
 
 std::vector<int> exitBins(const DirectionGrid& grid, bool fromAbove, bool dielectric, bool masked,

@@ -185,5 +185,127 @@ TEST(PeriodicScene, TraceManyEqualsTraceRayByRay) {
   }
 }
 
+// escapes() asks Embree occlusion queries (with a filter that skips the triangle the ray leaves)
+// where trace() asks for the nearest hit: both must give every visibility ray the same answer.
+// Rays from above and below down to 1e-7 rad of elevation, rays from inside the slab, and rays
+// leaving a triangle: lifted off it as the wave estimators cast them, and from the triangle's own
+// plane, where Embree meets the triangle they leave at t = 0 and only the skip keeps them going.
+TEST(PeriodicScene, EscapesAnswersAsTraceDoes) {
+  std::vector<std::pair<const char*, Microgeometry>> cases;
+  cases.emplace_back("grating", grating());
+  cases.emplace_back(
+      "domes",
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3}));
+  Microgeometry finite = makeGaussian(6, 6, 0.3, 1.0, 32, 32, 4);
+  finite.periodic = false;
+  cases.emplace_back("finite", std::move(finite));
+  for (auto& [name, g] : cases) {
+    const PeriodicScene scene(g);
+    Sampler s(9, 0, 0);
+    struct Ray {
+      Vec3 o, d;
+      int leaves;
+    };
+    std::vector<Ray> rays;
+    for (double elevation = kPi / 2; elevation > 1e-7; elevation /= 2.5)
+      for (int side = 0; side < 2; ++side)
+        for (int k = 0; k < 24; ++k) {
+          const double phi = 2 * kPi * s.get1D(), z = std::sin(elevation), r = std::cos(elevation);
+          rays.push_back(
+              {{(s.get1D() - 0.5) * g.sizeX, (s.get1D() - 0.5) * g.sizeY, side ? scene.zBottom() : scene.zTop()},
+               {r * std::cos(phi), r * std::sin(phi), side ? z : -z},
+               -1});
+        }
+    for (int k = 0; k < 2000; ++k) {
+      const double z = 2 * s.get1D() - 1, phi = 2 * kPi * s.get1D(), r = std::sqrt(1 - z * z);
+      rays.push_back(
+          {{(s.get1D() - 0.5) * g.sizeX, (s.get1D() - 0.5) * g.sizeY, g.zMin() + s.get1D() * (g.zMax() - g.zMin())},
+           {r * std::cos(phi), r * std::sin(phi), z},
+           -1});
+    }
+    size_t leaving = 0, met = 0;
+    for (size_t i = 0, n = rays.size(); i < n; ++i) {
+      const TraceResult h = scene.trace(rays[i].o, rays[i].d);
+      if (h.kind != TraceResult::Kind::Hit) continue;
+      ++leaving;
+      // Off the hit, to a random direction on either side of the triangle: lifted to that side
+      // (a visibility ray) and from the hit point itself.
+      const double z = 2 * s.get1D() - 1, phi = 2 * kPi * s.get1D(), r = std::sqrt(1 - z * z);
+      const Vec3 d{r * std::cos(phi), r * std::sin(phi), z};
+      const Vec3 side = dot(d, h.n) > 0 ? h.n : -h.n;
+      rays.push_back({h.p + side * scene.rayEpsilon(), d, int(h.prim)});
+      rays.push_back({h.p, d, int(h.prim)});
+    }
+    ASSERT_GT(leaving, 300u) << name;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      const TraceResult h = scene.trace(rays[i].o, rays[i].d, rays[i].leaves);
+      met += h.kind == TraceResult::Kind::Hit;
+      for (bool up : {true, false}) {
+        const bool expected =
+            h.kind != TraceResult::Kind::Hit && h.kind != TraceResult::Kind::TooManyWraps &&
+            (!scene.periodic() || h.kind == (up ? TraceResult::Kind::EscapedUp : TraceResult::Kind::EscapedDown));
+        ASSERT_EQ(scene.escapes(rays[i].o, rays[i].d, rays[i].leaves, up), expected)
+            << name << " ray " << i << (up ? " up" : " down");
+      }
+    }
+    // Both answers occur often enough for the comparison to mean something.
+    EXPECT_GT(met, rays.size() / 10) << name;
+    EXPECT_LT(met, rays.size() * 9 / 10) << name;
+  }
+}
+
+// escapesMany() asks the rays of one facet along one direction as packets of 16: each answer must
+// be escapes()'s for that ray. Points spread over the hit triangles (20 per triangle: a full packet
+// and a partial one), lifted off them and on them, to random directions on either side, with
+// grazing ones among them.
+TEST(PeriodicScene, EscapesManyAnswersAsEscapesDoes) {
+  std::vector<std::pair<const char*, Microgeometry>> cases;
+  cases.emplace_back("grating", grating());
+  cases.emplace_back(
+      "domes",
+      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3}));
+  Microgeometry finite = makeGaussian(6, 6, 0.3, 1.0, 32, 32, 4);
+  finite.periodic = false;
+  cases.emplace_back("finite", std::move(finite));
+  for (auto& [name, g] : cases) {
+    const PeriodicScene scene(g);
+    Sampler s(11, 0, 0);
+    size_t asked = 0, seen = 0;
+    for (int k = 0; k < 600; ++k) {
+      const Vec3 o{(s.get1D() - 0.5) * g.sizeX, (s.get1D() - 0.5) * g.sizeY, scene.zTop()};
+      const double zi = -0.2 - 0.8 * s.get1D(), phi_i = 2 * kPi * s.get1D();
+      const TraceResult h =
+          scene.trace(o, {std::sqrt(1 - zi * zi) * std::cos(phi_i), std::sqrt(1 - zi * zi) * std::sin(phi_i), zi});
+      if (h.kind != TraceResult::Kind::Hit) continue;
+      // Every fourth direction within 1e-3 rad of the horizon.
+      const double z = k % 4 == 0 ? (s.get1D() - 0.5) * 2e-3 : 2 * s.get1D() - 1, phi = 2 * kPi * s.get1D();
+      const Vec3 d{std::sqrt(1 - z * z) * std::cos(phi), std::sqrt(1 - z * z) * std::sin(phi), z};
+      const Vec3 side = dot(d, h.n) > 0 ? h.n : -h.n;
+      const auto& tri = g.triangles[h.prim];
+      const Vec3 a = g.vertices[tri[0]], b = g.vertices[tri[1]], c = g.vertices[tri[2]];
+      std::vector<Vec3> pts;
+      for (int j = 0; j < 20; ++j) {
+        double u = s.get1D(), v = s.get1D();
+        if (u + v > 1) u = 1 - u, v = 1 - v;
+        const Vec3 x = a * (1 - u - v) + b * u + c * v;
+        pts.push_back(k % 2 ? x : x + side * scene.rayEpsilon());
+      }
+      for (bool up : {true, false}) {
+        std::vector<uint8_t> many(pts.size(), 7);
+        scene.escapesMany(pts, d, int(h.prim), up, many);
+        for (size_t j = 0; j < pts.size(); ++j) {
+          const bool one = scene.escapes(pts[j], d, int(h.prim), up);
+          ASSERT_EQ(many[j], uint8_t(one)) << name << " ray " << k << " point " << j << (up ? " up" : " down");
+          ++asked;
+          seen += one;
+        }
+      }
+    }
+    EXPECT_GT(asked, 5000u) << name;
+    EXPECT_GT(seen, asked / 10) << name;
+    EXPECT_LT(seen, asked * 9 / 10) << name;
+  }
+}
+
 }  // namespace
 }  // namespace mbsdf
