@@ -39,7 +39,12 @@ C secondDifferenceSeries(const std::array<double, 3>& x) {
     }
     const C term = ik * (h012 / fact);
     sum += term;
-    if (m > 4 && std::abs(term) < 1e-18 * std::abs(sum)) break;
+    // |term| is |h012| / m! (i^k is a unit), and |sum| <= |Re| + |Im|: the modulus of the sum, a
+    // hypot, is taken only when the term may have become small enough.
+    if (m > 4) {
+      const double t = std::abs(h012 / fact);
+      if (t < 2e-18 * (std::abs(sum.real()) + std::abs(sum.imag())) && t < 1e-18 * std::abs(sum)) break;
+    }
     ik *= C(0, 1);
     fact *= double(m + 3);
   }

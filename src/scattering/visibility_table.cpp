@@ -17,6 +17,14 @@ VisibilityTable::VisibilityTable(const Microgeometry& g, const PeriodicScene& sc
   const auto t0 = std::chrono::steady_clock::now();
   const size_t F = cell.facets.size();
   words_ = wordsPerRow(M);
+  coord_.resize(size_t(M) + 1);
+  for (int i = 0; i <= M; ++i) coord_[size_t(i)] = -1 + 2.0 * i / M;
+  cornerZ_.resize(size_t(M + 1) * size_t(M + 1));
+  for (int i = 0; i <= M; ++i)
+    for (int j = 0; j <= M; ++j) {
+      const double x = coord_[size_t(i)], y = coord_[size_t(j)];
+      cornerZ_[size_t(i) * size_t(M + 1) + size_t(j)] = x * x + y * y < 1 - 1e-12 ? safeSqrt(1 - x * x - y * y) : -1;
+    }
   slot_.assign(g.triangles.size(), -1);
   normal_.resize(F);
   for (size_t f = 0; f < F; ++f) {
@@ -60,14 +68,12 @@ VisibilityTable::VisibilityTable(const Microgeometry& g, const PeriodicScene& sc
 }
 
 bool VisibilityTable::cornerInside(int i, int j) const {
-  const double x = -1 + 2.0 * i / M_, y = -1 + 2.0 * j / M_;
-  return x * x + y * y < 1 - 1e-12;
+  return cornerZ_[size_t(i) * size_t(M_ + 1) + size_t(j)] >= 0;
 }
 
 Vec3 VisibilityTable::corner(int i, int j, bool up) const {
-  const double x = -1 + 2.0 * i / M_, y = -1 + 2.0 * j / M_;
-  const double z = safeSqrt(1 - x * x - y * y);
-  return {x, y, up ? z : -z};
+  const double z = cornerZ_[size_t(i) * size_t(M_ + 1) + size_t(j)];
+  return {coord_[size_t(i)], coord_[size_t(j)], up ? z : -z};
 }
 
 std::optional<bool> VisibilityTable::escapes(uint32_t t, int k, const Vec3& side, const Vec3& d, bool up) const {

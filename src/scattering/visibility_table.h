@@ -57,6 +57,9 @@ class VisibilityTable {
   std::vector<int32_t> slot_;   // triangle -> index into cell.facets (−1: not in the table)
   std::vector<Vec3> normal_;    // per slot: unit normal
   std::vector<uint64_t> bits_;  // [hemisphere][slot][k][word]
+  // Per corner index: its coordinate along x or y, and per corner (i, j) its |z| (−1 outside the
+  // disk), computed once: a query looks at four corners, and computing them was a sixth of a tile.
+  std::vector<double> coord_, cornerZ_;
   uint64_t rays_ = 0;
   double seconds_ = 0;
 };
