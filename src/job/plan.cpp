@@ -94,13 +94,23 @@ double waveRelativeError(const WaveTileResult& w, const DirectionGrid& grid) {
   return worst;
 }
 
+// A path-traced tile's time, fixed + perPath × paths. What a tile costs whatever its paths (its
+// tallies' allocation, merge and errors, the facet sum, its threads' start) is counted once, not
+// scaled with the paths: at the pilots' 20 000 paths it was most of a paper-resolution tile's time
+// (0.06 s), and scaled by the job's 67 million paths per slice it made plan's 1 % cost 2.5 times
+// what the tiles take.
+struct PathTileCost {
+  double fixed = 0, perPath = 0;
+  double seconds(double paths) const { return fixed + perPath * paths; }
+};
+
 // What accuracy costs for this job. A Monte Carlo part's relative error falls as 1/√N with its
 // budget N and its time grows as N, so from the pilots' errors at their own budget the error at the
 // job's budget (per pilot incidence, and the largest), and the budget (and core-hours) that reach
 // 10 %, 3 % and 1 %, follow; a deterministic part (the facet sum, `exact`, `fft`) has the error of
 // its rules whatever the budget.
 nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, const std::vector<double>& pathErrPilot,
-                             const std::vector<double>& toJob, uint64_t pilotPaths, double pathSeconds,
+                             const std::vector<double>& toJob, uint64_t pilotPaths, const PathTileCost& pathCost,
                              bool pathsDeterministic, const std::vector<double>& waveErrAtJob, double waveRate,
                              bool waveDeterministic, double waveSeconds, int computedTiles, int cores) {
   nlohmann::json a;
@@ -148,7 +158,8 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
     const double fw =
         !waveByBudget ? 1.0 : std::max(16.0 / double(job.waveSamplesPerBin), std::pow(waveErr / target, 1 / waveRate));
     nlohmann::json t = {{"rel_error", target},
-                        {"core_hours", (pathSeconds * fp + waveSeconds * fw) * computedTiles * cores / 3600.0}};
+                        {"core_hours", (pathCost.seconds(job.meanSlicePaths() * fp) + waveSeconds * fw) *
+                                           computedTiles * cores / 3600.0}};
     if (!pathsDeterministic) t["paths_per_slice"] = uint64_t(std::ceil(double(job.pathsPerSlice) * fp));
     if (!pathsDeterministic && job.slicePaths.empty()) {
       // The same accuracy bought progressively ([sampling] target_rel_error): rounds of the job's
@@ -161,10 +172,10 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
         meanRounds += rounds / double(pathErrPilot.size());
         maxRounds = std::max(maxRounds, rounds);
       }
-      t["progressive"] = {
-          {"target_rel_error", target},
-          {"max_paths_per_slice", uint64_t(maxRounds) * job.pathsPerSlice},
-          {"core_hours", (pathSeconds * meanRounds + waveSeconds * fw) * computedTiles * cores / 3600.0}};
+      t["progressive"] = {{"target_rel_error", target},
+                          {"max_paths_per_slice", uint64_t(maxRounds) * job.pathsPerSlice},
+                          {"core_hours", (pathCost.seconds(job.meanSlicePaths()) * meanRounds + waveSeconds * fw) *
+                                             computedTiles * cores / 3600.0}};
     }
     if (waveByBudget)
       t["wave_samples_per_bin"] = uint64_t(std::ceil(std::min(double(job.waveSamplesPerBin) * fw, 9e18)));
@@ -292,7 +303,8 @@ struct PilotL1 {
 // of the path-traced table at the pilot's budget (relativeError, largest over wavelengths; 0 where
 // the tile is deterministic).
 struct PathPilotCost {
-  double seconds = 0;       // per tile at the job's budget, mean over the pilots
+  PathTileCost cost;        // mean over the pilots
+  double seconds = 0;       // per tile at the job's budget
   double pilotSeconds = 0;  // per pilot tile as run
   int facetTiles = 0;
   std::vector<TileResult> tiles;
@@ -369,10 +381,23 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
     const std::vector<double> e = r.samples > 0 ? relativeError(r, traced, grid) : std::vector<double>{0.0};
     out.relErrors.push_back(*std::max_element(e.begin(), e.end()));
     out.pilotSeconds += r.seconds / double(pilots.size());
-    out.seconds +=
-        r.seconds * (r.samples > 0 ? job.meanSlicePaths() / double(pilotPaths) : 1.0) / double(pilots.size());
+    // The tile again at four times the paths: the difference is the paths' own time. A facet-sum
+    // tile (no paths) costs what it cost.
+    PathTileCost c{r.seconds, 0.0};
+    if (r.samples > 0) {
+      TileRequest more = tileRequestOf(job, t);
+      more.paths = 4 * pilotPaths;
+      const TileResult r4 = computer.compute(more, heartbeat("plan: path pilot"), &pathSeconds, &waveSeconds);
+      c.perPath = (r4.seconds - r.seconds) / double(3 * pilotPaths);
+      c.fixed = r.seconds - c.perPath * double(pilotPaths);
+      // Timing noise larger than the fixed part: all of the larger tile's time per path.
+      if (c.perPath <= 0 || c.fixed < 0) c = {0.0, r4.seconds / double(4 * pilotPaths)};
+    }
+    out.cost.fixed += c.fixed / double(pilots.size());
+    out.cost.perPath += c.perPath / double(pilots.size());
     out.facetTiles += r.samples == 0;
   }
+  out.seconds = out.cost.seconds(job.meanSlicePaths());
   out.l1 = foldedL1(job, grid, pilots, out.tiles);
   return out;
 }
@@ -387,7 +412,7 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
 // noise where the tables agree; its error is f_ws's and coherent's.
 nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, const PilotL1& paths,
                                const WavePilotCost& wave, const DirectionGrid& grid, const std::vector<double>& toJob,
-                               double pathSeconds, double waveSeconds, int computedTiles, int cores) {
+                               const PathTileCost& pathCost, double waveSeconds, int computedTiles, int cores) {
   struct Part {
     double p = 0, w = 0;
   };
@@ -468,7 +493,8 @@ nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, c
     fp = fp > 0 ? std::max(fp, 1000.0 / double(job.pathsPerSlice)) : 1.0;
     nlohmann::json t = {{"rel_l1", target},
                         {"paths_per_slice", uint64_t(std::min(9e18, std::ceil(double(job.pathsPerSlice) * fp)))},
-                        {"core_hours", (pathSeconds * fp + waveSeconds * fw) * computedTiles * cores / 3600.0},
+                        {"core_hours", (pathCost.seconds(job.meanSlicePaths() * fp) + waveSeconds * fw) *
+                                           computedTiles * cores / 3600.0},
                         {"reached", reached}};
     if (!reached) t["wave_part_above"] = waveAbove;
     if (waveByBudget)
@@ -633,18 +659,17 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
                 {"cores", cores}};
   if (job.targetRelError > 0) {
     // Progressive sampling: the estimate above is the first round; the budget bounds the rest.
-    p["progressive"] = {
-        {"target_rel_error", job.targetRelError},
-        {"max_paths_per_slice", job.maxPathsPerSlice},
-        {"path_seconds_per_tile_max", pathSeconds * double(job.maxPathsPerSlice) / double(job.pathsPerSlice)}};
+    p["progressive"] = {{"target_rel_error", job.targetRelError},
+                        {"max_paths_per_slice", job.maxPathsPerSlice},
+                        {"path_seconds_per_tile_max", paths.cost.seconds(double(job.maxPathsPerSlice))}};
   }
   const std::vector<double> toJob = pilotToJob(job, pilots, pilotPaths);
   p["accuracy"] =
-      accuracyTable(job, pilots, pathRelErrors, toJob, pilotPaths, pathSeconds, facetTiles == int(pilots.size()),
+      accuracyTable(job, pilots, pathRelErrors, toJob, pilotPaths, paths.cost, facetTiles == int(pilots.size()),
                     waveRelErrors, waveRate, waveDeterministic, waveSeconds, computedTiles, cores);
   if (p["accuracy"].contains("wave")) p["accuracy"]["wave"]["finer_incidence_rule"] = wave.finerIncidenceRule;
   p["accuracy"]["l1"] =
-      l1AccuracyTable(job, pilots, paths.l1, wave, grid, toJob, pathSeconds, waveSeconds, computedTiles, cores);
+      l1AccuracyTable(job, pilots, paths.l1, wave, grid, toJob, paths.cost, waveSeconds, computedTiles, cores);
   // Pairs stored once with the same paths everywhere: what path_allocation = "equal-error" would
   // cost for the same targets, from the same pilot tiles.
   if (job.storage.pairs == TablePairs::Once && job.slicePaths.empty() && job.targetRelError == 0 &&
@@ -652,19 +677,21 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
     Job alt = job;
     alt.pathAllocation = Job::PathAllocation::EqualError;
     alt.slicePaths = job.equalErrorSlicePaths();
-    p["accuracy"]["l1"]["with_equal_error"] = l1AccuracyTable(
-        alt, pilots, foldedL1(alt, grid, pilots, paths.tiles), wave, grid, pilotToJob(alt, pilots, pilotPaths),
-        pathSeconds * alt.meanSlicePaths() / job.meanSlicePaths(), waveSeconds, computedTiles, cores);
+    p["accuracy"]["l1"]["with_equal_error"] =
+        l1AccuracyTable(alt, pilots, foldedL1(alt, grid, pilots, paths.tiles), wave, grid,
+                        pilotToJob(alt, pilots, pilotPaths), paths.cost, waveSeconds, computedTiles, cores);
   }
   // The effects pilots' paths that the run keeps as its tiles' first paths (effects_planner.h) are
   // not traced again, where the run traces paths on every tile.
   double keptPilotSeconds = 0;
   if (effects && effects->pilotTilesKept && (job.statistical || effects->components.has(Component::Multiple)))
-    keptPilotSeconds = double(effects->pilots.size()) *
-                       std::min(1.0, double(effects->pilotPaths) / double(job.pathsPerSlice)) * pathSeconds;
+    keptPilotSeconds = double(effects->pilots.size()) * paths.cost.perPath *
+                       double(std::min<uint64_t>(effects->pilotPaths, job.pathsPerSlice));
   p["estimate"] = {{"seconds_per_tile", tileSeconds},
                    {"kept_pilot_path_seconds", keptPilotSeconds},
                    {"path_seconds_per_tile", pathSeconds},
+                   {"path_seconds_per_tile_fixed", paths.cost.fixed},
+                   {"path_seconds_per_path", paths.cost.perPath},
                    {"wave_seconds_per_tile", waveSeconds},
                    {"wave_setup_seconds_per_rank", waveSetupSeconds},
                    {"write_seconds_per_slice", writeSeconds},
@@ -814,8 +841,9 @@ std::string formatPlan(const nlohmann::json& p) {
     << p["pilot"]["paths"] << " paths in " << n(p["pilot"]["path_seconds"]) << " s on " << p["pilot"]["cores"]
     << " cores\n"
     << "per tile:       " << n(p["estimate"]["seconds_per_tile"]) << " s (paths "
-    << n(p["estimate"]["path_seconds_per_tile"]) << " s, wave " << n(p["estimate"]["wave_seconds_per_tile"])
-    << " s) on these cores; writing " << n(p["estimate"]["write_seconds_per_slice"]) << " s per slice"
+    << n(p["estimate"]["path_seconds_per_tile"]) << " s, of which " << n(p["estimate"]["path_seconds_per_tile_fixed"])
+    << " s whatever the paths; wave " << n(p["estimate"]["wave_seconds_per_tile"]) << " s) on these cores; writing "
+    << n(p["estimate"]["write_seconds_per_slice"]) << " s per slice"
     << (p["estimate"]["wave_setup_seconds_per_rank"].get<double>() > 0
             ? "; once per rank " + n(p["estimate"]["wave_setup_seconds_per_rank"]) + " s (exact's visibility table)"
             : std::string())

@@ -116,12 +116,9 @@ TEST(PeriodicScene, NearHorizonRaysAboveTheTopPlateau) {
     }
 }
 
-// traceMany, by single rays and by packets, against trace ray by ray, to the last bit (kind,
-// triangle, distance, point, normal): first rays from above and below the slab at elevations swept
-// from the normal down to 1e-7 rad (wrapping many times), rays from inside the slab, and the
-// secondary rays that leave the triangles those met (the triangle to skip given), on periodic
-// patches (a binary grating, a dome lattice) and a finite one.
-TEST(PeriodicScene, TraceManyEqualsTraceRayByRay) {
+// A periodic grating, a periodic dome lattice and a finite rough patch: the scenes the tracing
+// functions are compared on.
+std::vector<std::pair<const char*, Microgeometry>> rayCases() {
   std::vector<std::pair<const char*, Microgeometry>> cases;
   cases.emplace_back("grating", grating());
   cases.emplace_back(
@@ -130,7 +127,16 @@ TEST(PeriodicScene, TraceManyEqualsTraceRayByRay) {
   Microgeometry finite = makeGaussian(6, 6, 0.3, 1.0, 32, 32, 4);
   finite.periodic = false;
   cases.emplace_back("finite", std::move(finite));
-  for (auto& [name, g] : cases) {
+  return cases;
+}
+
+// traceMany, by single rays and by packets, against trace ray by ray, to the last bit (kind,
+// triangle, distance, point, normal): first rays from above and below the slab at elevations swept
+// from the normal down to 1e-7 rad (wrapping many times), rays from inside the slab, and the
+// secondary rays that leave the triangles those met (the triangle to skip given), on periodic
+// patches (a binary grating, a dome lattice) and a finite one.
+TEST(PeriodicScene, TraceManyEqualsTraceRayByRay) {
+  for (auto& [name, g] : rayCases()) {
     const PeriodicScene scene(g);
     Sampler s(5, 0, 0);
     std::vector<Vec3> o, d;
@@ -191,15 +197,7 @@ TEST(PeriodicScene, TraceManyEqualsTraceRayByRay) {
 // leaving a triangle: lifted off it as the wave estimators cast them, and from the triangle's own
 // plane, where Embree meets the triangle they leave at t = 0 and only the skip keeps them going.
 TEST(PeriodicScene, EscapesAnswersAsTraceDoes) {
-  std::vector<std::pair<const char*, Microgeometry>> cases;
-  cases.emplace_back("grating", grating());
-  cases.emplace_back(
-      "domes",
-      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3}));
-  Microgeometry finite = makeGaussian(6, 6, 0.3, 1.0, 32, 32, 4);
-  finite.periodic = false;
-  cases.emplace_back("finite", std::move(finite));
-  for (auto& [name, g] : cases) {
+  for (auto& [name, g] : rayCases()) {
     const PeriodicScene scene(g);
     Sampler s(9, 0, 0);
     struct Ray {
@@ -259,15 +257,7 @@ TEST(PeriodicScene, EscapesAnswersAsTraceDoes) {
 // and a partial one), lifted off them and on them, to random directions on either side, with
 // grazing ones among them.
 TEST(PeriodicScene, EscapesManyAnswersAsEscapesDoes) {
-  std::vector<std::pair<const char*, Microgeometry>> cases;
-  cases.emplace_back("grating", grating());
-  cases.emplace_back(
-      "domes",
-      makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.3}));
-  Microgeometry finite = makeGaussian(6, 6, 0.3, 1.0, 32, 32, 4);
-  finite.periodic = false;
-  cases.emplace_back("finite", std::move(finite));
-  for (auto& [name, g] : cases) {
+  for (auto& [name, g] : rayCases()) {
     const PeriodicScene scene(g);
     Sampler s(11, 0, 0);
     size_t asked = 0, seen = 0;
