@@ -28,7 +28,9 @@ RTCRayHit makeRayHit(const Vec3& o, const Vec3& d, float tnear, float tfar) {
 }
 
 // An occlusion query's context with the triangle its ray leaves, which the filter below skips
-// (Embree's documented way to pass per-query data to a filter: the context first in a larger struct).
+// (Embree's documented way to pass per-query data to a filter: the context first in a larger
+// struct). The filter is the scene's occlusion filter, so every occlusion query of a PeriodicScene
+// passes one of these.
 struct SkipContext {
   RTCIntersectContext ctx;
   unsigned skipPrim;
@@ -70,6 +72,12 @@ PeriodicScene::PeriodicScene(const Microgeometry& g, int maxWraps)
   zGeoHi_ = std::min(zHi_, zmax + margin);
   slabLo_ = {-sizeX_ / 2, -sizeY_ / 2, zGeoLo_};
   slabHi_ = {sizeX_ / 2, sizeY_ / 2, zGeoHi_};
+  // escapes() skips the triangle a ray leaves by a filter function: an Embree built without them
+  // would count it as met, and every visibility ray as blocked.
+  if (!rtcGetDeviceProperty(device_.get(), RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED))
+    throw std::runtime_error(
+        "Embree was built without filter functions (EMBREE_FILTER_FUNCTION), which the "
+        "visibility rays need");
   scene_.reset(rtcNewScene(device_.get()));
   rtcSetSceneFlags(scene_.get(), RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(scene_.get(), RTC_BUILD_QUALITY_HIGH);

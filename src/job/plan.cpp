@@ -96,9 +96,9 @@ double waveRelativeError(const WaveTileResult& w, const DirectionGrid& grid) {
 
 // A path-traced tile's time, fixed + perPath × paths. What a tile costs whatever its paths (its
 // tallies' allocation, merge and errors, the facet sum, its threads' start) is counted once, not
-// scaled with the paths: at the pilots' 20 000 paths it was most of a paper-resolution tile's time
-// (0.06 s), and scaled by the job's 67 million paths per slice it made plan's 1 % cost 2.5 times
-// what the tiles take.
+// scaled with the paths: at the pilots' 20 000 paths it is most of a paper-resolution tile's time,
+// and scaled by the 67 million paths per slice of 1 % there it would count 2.5 times what the tiles
+// take.
 struct PathTileCost {
   double fixed = 0, perPath = 0;
   double seconds(double paths) const { return fixed + perPath * paths; }
