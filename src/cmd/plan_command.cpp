@@ -34,8 +34,8 @@ Command addPlanCommand(CLI::App& app) {
     PlanOptions po;
     po.jobLoadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loading).count();
     po.threads = o->threads;
-    po.writeSecondsPerSlice = [](const Job& j, const DirectionGrid& g) {
-      return measureWriteSecondsPerSlice(outputSchemaOf(j), g);
+    po.writeSecondsPerSlice = [](const Job& j, const DirectionGrid& g, int slicesPerCommit) {
+      return measureWriteSecondsPerSlice(outputSchemaOf(j), g, slicesPerCommit);
     };
     po.storedBytesPerSlice = [](const Job& j, const DirectionGrid& g, const std::vector<TileResult>& tiles) {
       return storedBytesPerSlice(outputSchemaOf(j), g, tiles);

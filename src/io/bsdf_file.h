@@ -208,7 +208,7 @@ std::vector<double> energyStdError(const TileResult& r, Component c, int side, c
 // Seconds the writer spends on one slice of this job's layout (a flush and a journal fsync each),
 // measured by writing up to 3 zero slices to a scratch file in the temporary directory: `plan`'s
 // estimate of rank 0's serial writing.
-double measureWriteSecondsPerSlice(const OutputSchema& schema, const DirectionGrid& grid);
+double measureWriteSecondsPerSlice(const OutputSchema& schema, const DirectionGrid& grid, int slicesPerCommit);
 // Bytes a slice takes in the file, the mean over `tiles` (pilot tiles, each filled as the job's
 // paths will fill it): its table chunks compressed as the writer stores them and its statistics
 // rows (prepareSlice); a table whose pairs are stored once counts the share of its entries it

@@ -646,7 +646,11 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   p["scalar_validity"] = toJson(scalarValidity(job));
   // Rank 0 writes every slice (rotated ones too) with a flush and a journal fsync: measured by the
   // caller's writer (PlanOptions::writeSecondsPerSlice), which this layer does not know.
-  const double writeSeconds = options.writeSecondsPerSlice ? options.writeSecondsPerSlice(job, grid) : 0.0;
+  const double writeSeconds =
+      options.writeSecondsPerSlice
+          ? options.writeSecondsPerSlice(job, grid,
+                                         std::max(1, (nTiles + computedTiles - 1) / std::max(1, computedTiles)))
+          : 0.0;
   const double coreHours = (tileSeconds * computedTiles + waveSetupSeconds) * cores / 3600.0;
   p["pilot"] = {{"tile", pilot},
                 {"tiles", pilots},

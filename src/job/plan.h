@@ -16,9 +16,11 @@ struct PlanOptions {
   uint64_t pilotPaths = 20000;
   int pilotWaveDivisor = 16;  // the pilot uses 1/16 of the wave samples (at least 2 per bin)
   int threads = 0;            // 0: all cores
-  // Seconds rank 0 spends writing one slice of this job's layout (the output writer lives above
-  // this layer: `microbsdf plan` passes io's measureWriteSecondsPerSlice); unset: not counted.
-  std::function<double(const Job&, const DirectionGrid&)> writeSecondsPerSlice;
+  // Seconds rank 0 spends writing one slice of this job's layout, committed with the others of its
+  // computed tile (the last argument: slices per computed tile) as the run commits them (the output
+  // writer lives above this layer: `microbsdf plan` passes io's measureWriteSecondsPerSlice);
+  // unset: not counted.
+  std::function<double(const Job&, const DirectionGrid&, int)> writeSecondsPerSlice;
   // Bytes one slice takes in the output file in the job's storage profile, measured by compressing
   // the pilot tiles as the writer stores them (io's storedBytesPerSlice); unset: not reported.
   std::function<double(const Job&, const DirectionGrid&, const std::vector<TileResult>&)> storedBytesPerSlice;
