@@ -304,7 +304,6 @@ struct PilotL1 {
 // the tile is deterministic).
 struct PathPilotCost {
   PathTileCost cost;        // mean over the pilots
-  double seconds = 0;       // per tile at the job's budget
   double pilotSeconds = 0;  // per pilot tile as run
   int facetTiles = 0;
   std::vector<TileResult> tiles;
@@ -397,7 +396,6 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
     out.cost.perPath += c.perPath / double(pilots.size());
     out.facetTiles += r.samples == 0;
   }
-  out.seconds = out.cost.seconds(job.meanSlicePaths());
   out.l1 = foldedL1(job, grid, pilots, out.tiles);
   return out;
 }
@@ -622,7 +620,7 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   const GeometricTransport& transport = computer.transport();
   const double sceneSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
   PathPilotCost paths = pathPilots(job, planned, grid, computer, pilots, pilotPaths);
-  const double pathSeconds = paths.seconds, pilotSeconds = paths.pilotSeconds;
+  const double pathSeconds = paths.cost.seconds(job.meanSlicePaths()), pilotSeconds = paths.pilotSeconds;
   const int facetTiles = paths.facetTiles;
   std::vector<TileResult>& pilotTiles = paths.tiles;
   const std::vector<double>& pathRelErrors = paths.relErrors;
