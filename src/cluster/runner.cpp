@@ -201,8 +201,14 @@ struct TimedTiles {
       throwIfStopped();
       if (between) between();
     };
+    // The wave term counts its own work (facet sums, orders), not paths: a reporter of its own.
+    auto waveBeat = heartbeat("tile " + std::to_string(t) + ": wave term", 30.0);
+    auto waveCb = [&](uint64_t n) {
+      waveBeat(n);
+      if (between) between();
+    };
     double paths = 0, waveTerm = 0;
-    TileResult r = tiles.compute(t, cb, &paths, &waveTerm);
+    TileResult r = tiles.compute(t, cb, &paths, &waveTerm, waveCb);
     pathSeconds += paths;
     waveSeconds += waveTerm;
     tileSeconds += r.seconds;

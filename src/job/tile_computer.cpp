@@ -95,7 +95,8 @@ TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, PilotResul
 }
 
 TileResult TileComputer::compute(const TileRequest& request, const std::function<void(uint64_t)>& cb,
-                                 double* pathSeconds, double* waveSeconds) const {
+                                 double* pathSeconds, double* waveSeconds,
+                                 const std::function<void(uint64_t)>& waveProgress) const {
   const Job& job = job_;
   const DirectionGrid& grid = grid_;
   const int t = request.tile;
@@ -134,7 +135,7 @@ TileResult TileComputer::compute(const TileRequest& request, const std::function
   *pathSeconds += since(ts);
   if (wave_ && (!job.guarded.has(Component::Incoherent) || verifySkippedDiffraction(t, r))) {
     auto tw = Clock::now();
-    addWaveTerm(q, cb, r);
+    addWaveTerm(q, waveProgress ? waveProgress : cb, r);
     if (job.guarded.has(Component::Incoherent)) recordDiffractionCheck(t, r);
     *waveSeconds += since(tw);
   }

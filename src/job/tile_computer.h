@@ -35,14 +35,15 @@ class TileComputer {
   // One tile as the job computes it: the request's incidence (request.tile indexes job.incidence)
   // through the geometric transport, progressive sampling, the checks of skipped effects and the
   // wave term, every estimator asked with the same request. progress(done) is called from the inner
-  // loops and may throw to abandon the tile; the seconds spent on paths and on the wave term are
-  // added to the counters given.
+  // loops of the paths, waveProgress(done) from the wave term's (its own unit of work, not paths;
+  // progress when empty); either may throw to abandon the tile. The seconds spent on paths and on
+  // the wave term are added to the counters given.
   TileResult compute(const TileRequest& request, const std::function<void(uint64_t)>& progress, double* pathSeconds,
-                     double* waveSeconds) const;
+                     double* waveSeconds, const std::function<void(uint64_t)>& waveProgress = {}) const;
   // Tile t as the job samples it (tileRequestOf).
-  TileResult compute(int t, const std::function<void(uint64_t)>& progress, double* pathSeconds,
-                     double* waveSeconds) const {
-    return compute(tileRequestOf(job_, t), progress, pathSeconds, waveSeconds);
+  TileResult compute(int t, const std::function<void(uint64_t)>& progress, double* pathSeconds, double* waveSeconds,
+                     const std::function<void(uint64_t)>& waveProgress = {}) const {
+    return compute(tileRequestOf(job_, t), progress, pathSeconds, waveSeconds, waveProgress);
   }
 
   const GeometricTransport& transport() const { return transport_; }
