@@ -200,6 +200,22 @@ int DirectionGrid::binOf(const Vec3& wIn) const {
   return hemi * perHemisphere_ + local;
 }
 
+bool DirectionGrid::atPoleOrHorizon(int bin) const {
+  const int local = bin % perHemisphere_;
+  return std::visit(Overloaded{[&](const ThetaPhiGrid& g) {
+                                 const int t = local / g.nPhi;
+                                 return t == 0 || t == g.nTheta - 1;
+                               },
+                               [&](const DiskGrid&) {
+                                 double x0, x1, y0, y1;
+                                 xyBounds(bin, &x0, &x1, &y0, &y1);
+                                 const bool centre = x0 <= 0 && x1 >= 0 && y0 <= 0 && y1 >= 0;
+                                 const double fx = std::max(x0 * x0, x1 * x1), fy = std::max(y0 * y0, y1 * y1);
+                                 return centre || fx + fy > 1;
+                               }},
+                    layout_);
+}
+
 Vec3 DirectionGrid::centre(int bin) const {
   int hemi = bin / perHemisphere_, local = bin % perHemisphere_;
   Vec3 w =

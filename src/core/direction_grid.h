@@ -63,6 +63,9 @@ class DirectionGrid {
   DirectionSample sampleCosine(int bin, Sampler& s) const;
   // Bounding box of the bin's directions projected on the xy plane (x = sin θ cos φ, y = sin θ sin φ).
   void xyBounds(int bin, double* xmin, double* xmax, double* ymin, double* ymax) const;
+  // Whether the bin reaches normal incidence or the horizon of its hemisphere: a theta-phi grid's
+  // first and last rings, a disk grid's pixels at the disk's centre and those its rim cuts.
+  bool atPoleOrHorizon(int bin) const;
   // Bin for an incidence direction given in degrees (theta in [0, 180], phi any).
   int binOfAngles(double theta_deg, double phi_deg) const;
   // Theta-phi layout: sin θ of ring edge t (t = 0 … n_theta), the radius of that edge's circle in

@@ -780,9 +780,14 @@ DiffractionPilots runDiffractionPilots(const PilotContext& ctx, DiffractionPilot
   int& wavePilotsRun = out.wavePilotsRun;
   int& replicas = out.replicas;
   // A wave pilot's work against one of the job's wave terms: its samples per bin against the job's
-  // for Monte Carlo, its incidence nodes against the job's for the deterministic ones.
-  const int n = incidenceRuleOrder(int(job.waveIncidenceDirections));
-  const double ruleRatio = binAveraged ? double(incidenceRuleNodes(n + 1)) / incidenceRuleNodes(n) : 1.0;
+  // for Monte Carlo, its incidence nodes against the job's for the deterministic ones (the pilots'
+  // mean against the job's tiles': the pole and horizon bins may have a rule of their own).
+  double ruleRatio = 1.0;
+  if (binAveraged && !pilots.empty()) {
+    double pilotNodes = 0;
+    for (int t : pilots) pilotNodes += job.incidenceRuleNodesAt(grid, job.incidence[size_t(t)].bin, 1);
+    ruleRatio = pilotNodes / double(pilots.size()) / job.meanIncidenceRuleNodes(grid);
+  }
   const double wavePilotCost = out.wavePilotCost =
       est->deterministic() ? ruleRatio : double(ws.samplesPerBin) / double(std::max<int64_t>(1, job.waveSamplesPerBin));
   const size_t waveAffordable = out.waveAffordable =

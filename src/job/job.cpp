@@ -395,6 +395,8 @@ void parseSampling(const ParamDict& samp, Job& job) {
   job.wavePointsPerDirection = bounded("wave_points_per_direction", 64, 1000000000);
   if (job.wavePointsPerDirection < 2) samp.fail("wave_points_per_direction", "must be >= 2 (pairwise estimator)");
   job.waveIncidenceDirections = bounded("wave_incidence_directions", 4, 1000000);
+  job.wavePoleHorizonIncidenceDirections =
+      bounded("wave_incidence_directions_pole_horizon", job.waveIncidenceDirections, 1000000);
   job.waveSubdirections = bounded("wave_subdirections", kDefaultSubdirections, kMaxSubdirections);
   if (job.waveSubdirections < kMinSubdirections || !std::has_single_bit(uint64_t(job.waveSubdirections)))
     samp.fail("wave_subdirections", "must be a power of two from " + std::to_string(kMinSubdirections) + " to " +
@@ -581,8 +583,12 @@ void checkWaveTerm(const ParamDict& samp, Job& job) {
 }  // namespace
 
 Material loadMaterialFromString(const std::string& text, const std::string& sourceName) {
+  const ParamDict root = ParamDict::parseString(text, sourceName);
+  // A job's text holds at least one key (loadJobFromString): an empty one is damaged or foreign,
+  // and the defaults would pass for its material.
+  if (root.empty()) throw InputError(sourceName + ": holds no job text, so the table's material is unknown");
   std::string name;
-  return parseMaterial(ParamDict::parseString(text, sourceName).table("material"), &name);
+  return parseMaterial(root.table("material"), &name);
 }
 
 Job loadJobFromString(const std::string& text, const std::string& sourceName, const std::string& baseDir) {
@@ -661,6 +667,18 @@ WaveEstimatorKind Job::resolvedWaveEstimator() const {
   return WaveEstimatorKind::Area;
 }
 
+int Job::incidenceRuleNodesAt(const DirectionGrid& grid, int bin, int extraOrders) const {
+  const int64_t directions = grid.atPoleOrHorizon(bin) ? wavePoleHorizonIncidenceDirections : waveIncidenceDirections;
+  return incidenceRuleNodes(incidenceRuleOrder(int(directions)) + extraOrders);
+}
+
+double Job::meanIncidenceRuleNodes(const DirectionGrid& grid, int extraOrders) const {
+  if (incidence.empty()) return 0;
+  double sum = 0;
+  for (const IncidenceDirection& inc : incidence) sum += incidenceRuleNodesAt(grid, inc.bin, extraOrders);
+  return sum / double(incidence.size());
+}
+
 int Job::visibilityTableResolution() const {
   constexpr int M = 128;
   if (visibilityTable == VisibilityTableMode::Off || statistical || resolvedWaveEstimator() != WaveEstimatorKind::Exact)
@@ -668,8 +686,7 @@ int Job::visibilityTableResolution() const {
   if (visibilityTable == VisibilityTableMode::On) return M;
   const double hemispheres = material.isConductor() ? 1 : 2;
   if (VisibilityTable::bytesFor(size_t(facetsPerCell()), M, !material.isConductor()) > 1e9) return 0;
-  const int n = incidenceRuleOrder(int(waveIncidenceDirections));
-  const double nodes = exactIncidence ? 1.0 : double(incidenceRuleNodes(n));
+  const double nodes = exactIncidence ? 1.0 : meanIncidenceRuleNodes(DirectionGrid(gridLayout));
   double orders = 0;
   for (double l : lambda_um()) orders += kPi * cellSizeX() * cellSizeY() / (l * l);
   // Measured on the paper's HEMISPHERES (one 5 µm cell, 550 nm): the table answers about 3/4 of

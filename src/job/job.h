@@ -121,6 +121,8 @@ struct Job {
   int64_t waveSamplesPerBin = 256;
   int64_t wavePointsPerDirection = 64;
   int64_t waveIncidenceDirections = 4;
+  // The same at the incidence bins that reach normal incidence or the horizon.
+  int64_t wavePoleHorizonIncidenceDirections = 4;
   int64_t waveSubdirections = kDefaultSubdirections;  // exact, fft: sub-directions per axis of an incidence bin
   // [sampling] visibility_table: the `exact` estimator's shared visibility table
   // (scattering/visibility_table.h); see visibilityTableResolution().
@@ -157,6 +159,12 @@ struct Job {
   // facet and order direction it saves in every tile (tiles x incidence nodes x orders, the orders
   // π A_cell / λ² per wavelength), and when it fits in 1 GB. M = 128 (0.9° apart at the zenith).
   int visibilityTableResolution() const;
+  // The deterministic wave estimators' incidence directions per tile (the nodes of both rules) over
+  // incidence bin `bin`, at its rule (wave_incidence_directions, or _pole_horizon at the bins that
+  // reach normal incidence or the horizon) raised by `extraOrders`; and their mean over the job's
+  // incidences.
+  int incidenceRuleNodesAt(const DirectionGrid& grid, int bin, int extraOrders = 0) const;
+  double meanIncidenceRuleNodes(const DirectionGrid& grid, int extraOrders = 0) const;
   bool halvesWaveByReciprocity() const { return reciprocityOffReason().empty(); }
   // Sphere bin of each incidence direction, in incidence order.
   std::vector<int> incidenceBins() const {

@@ -146,6 +146,10 @@ const std::vector<JobKey>& jobKeys() {
        "how single scattering is computed without deeper paths"},
       {"sampling.wave_incidence_directions", Integer, "4", "[1, 1e6]",
        "orders, bin-averaged: incidence directions per bin"},
+      {"sampling.wave_incidence_directions_pole_horizon", Integer, "wave_incidence_directions", "[1, 1e6]",
+       "the same for the incidence bins that reach normal incidence or the horizon (a theta-phi grid's first "
+       "and last rings, a disk grid's centre pixels and those its rim cuts), where the bin's average "
+       "converges slowest"},
       {"sampling.wave_subdirections", Integer, "16", "16, 32, …, 512",
        "exact, fft, bin-averaged: sub-directions per axis of the incidence bin"},
 

@@ -214,7 +214,6 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   // HEMISPHERES: 18 % as an L1 sum for a table 0.3–0.7 % from n = 4's). The pilots run one node
   // order more, whose estimate is the job's table's distance from the finer rule's (as the effects
   // planner's pilots do), and their facet sums' time is scaled to the job's rule.
-  const int ruleOrder = incidenceRuleOrder(int(job.waveIncidenceDirections));
   const bool finerRule = out.finerIncidenceRule = deterministicEstimator(ws.estimator) && !job.exactIncidence;
   auto est = makeJobWaveEstimator(job, grid, *transport.scene(), finerRule ? withFinerIncidenceRule(job, ws) : ws);
   waveDeterministic = est->deterministic();
@@ -230,16 +229,20 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   const int timedSamples = twoPasses ? ws2.samplesPerBin : ws.samplesPerBin;
   // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost,
   // at the job's rule, which makes fewer facet sums than the finer one the pilots ran (their
-  // binning over the sub-directions costs the same at any rule).
+  // binning over the sub-directions costs the same at any rule). The facet sums' time is pooled per
+  // incidence node over the pilots and counted at the job's nodes per tile, averaged over its
+  // tiles: the pole and horizon rings may have a rule of their own, and the pilots sample them far
+  // more often (two of six) than the job has them (two rings of 75 on the paper's grid).
   const double scale = waveDeterministic ? 1.0 : double(job.waveSamplesPerBin) / double(timedSamples);
-  const double ruleScale = finerRule ? double(incidenceRuleNodes(ruleOrder)) / incidenceRuleNodes(ruleOrder + 1) : 1.0;
-  double binningSeconds = 0;
+  const double jobNodesPerTile = finerRule ? job.meanIncidenceRuleNodes(grid) : 1.0;
+  double binningSeconds = 0, pilotNodes = 0;
   const double N = double(job.waveSamplesPerBin);
   for (size_t k = 0; k < pilots.size(); ++k) {
     const int t = pilots[k];
     spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
     const WaveTileResult w = est->run(tileRequestOf(job, t), heartbeat("plan: wave pilot"));
     const double e1 = waveRelativeError(w, grid);
+    pilotNodes += finerRule ? job.incidenceRuleNodesAt(grid, job.incidence[size_t(t)].bin, 1) : 1.0;
     // The f_ws table's L1 parts at the job's budget: the pass's deviation scaled as its error is.
     auto keepL1 = [&](const WaveTileResult& pass, double toJob) {
       SliceL1 l1 = sliceL1(pass.fws, pass.fwsErr, pass.nLambda, grid, waveDeterministic ? 1.0 : kMeanAbsPerSigma);
@@ -274,7 +277,10 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   // What the first pilot built for every later tile (exact's visibility table) is paid once per
   // rank, not per tile.
   out.setupSeconds = est->setupSeconds();
-  waveSeconds = ((waveSeconds - out.setupSeconds) * ruleScale + binningSeconds) * scale / double(pilots.size());
+  if (!pilots.empty())
+    waveSeconds =
+        ((waveSeconds - out.setupSeconds) / pilotNodes * jobNodesPerTile + binningSeconds / double(pilots.size())) *
+        scale;
   out.bytes = est->memoryBytes();
   return out;
 }
@@ -742,8 +748,9 @@ std::string fmtL1(const nlohmann::json& l1) {
         where += fmt::format("{}{} {} at ({:.3g}°, {:.3g}°)", where.empty() ? "" : ", ", w["table"].get<std::string>(),
                              pct(w["rel_l1"].get<double>()), w["theta_deg"].get<double>(), w["phi_deg"].get<double>());
       o += " (not reached: the wave term's own error estimate stays above it" + (where.empty() ? "" : ", " + where) +
-           "; for exact and fft it is set by [sampling] wave_incidence_directions and wave_subdirections, not by the "
-           "budget)";
+           "; for exact and fft it is set by [sampling] wave_incidence_directions "
+           "(wave_incidence_directions_pole_horizon "
+           "at the pole and horizon bins) and wave_subdirections, not by the budget)";
     }
     o += "\n";
   }

@@ -77,6 +77,8 @@ TileRequest tileRequestOf(const Job& job, int t) {
 WaveSettings withFinerIncidenceRule(const Job& job, WaveSettings ws) {
   const int n = incidenceRuleOrder(int(job.waveIncidenceDirections)) + 1;
   ws.incidenceDirections = std::max(ws.incidenceDirections, n * n);
+  const int nEdge = incidenceRuleOrder(int(job.wavePoleHorizonIncidenceDirections)) + 1;
+  ws.poleHorizonIncidenceDirections = std::max(ws.poleHorizonIncidenceDirections, nEdge * nEdge);
   return ws;
 }
 
@@ -86,6 +88,7 @@ WaveSettings waveSettingsOf(const Job& job) {
   ws.samplesPerBin = int(job.waveSamplesPerBin);
   ws.pointsPerDirection = int(job.wavePointsPerDirection);
   ws.incidenceDirections = int(job.waveIncidenceDirections);
+  ws.poleHorizonIncidenceDirections = int(job.wavePoleHorizonIncidenceDirections);
   ws.subdirections = int(job.waveSubdirections);
   ws.seed = job.seed;
   ws.computeMasked = job.components.has(Component::Lost);

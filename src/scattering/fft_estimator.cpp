@@ -351,7 +351,8 @@ WaveTileResult FftSpeckleEstimator::run(const TileRequest& request, const std::f
   const bool transmissionWanted = !media.conductor() && wave::otherSideWanted(grid, fromAbove, exitMask);
   bool denseSide = false;
   for (int l = 0; l < nL && transmissionWanted; ++l) denseSide = denseSide || media.reverseTransmission(l, fromAbove);
-  const auto rule = wave::incidenceRule(grid, incidenceBin, exactDirection, ctx_.settings.incidenceDirections);
+  const auto rule =
+      wave::incidenceRule(grid, incidenceBin, exactDirection, incidenceDirectionsOf(ctx_.settings, grid, incidenceBin));
   WaveTileResult r(nL, nB, false);
   const size_t n = size_t(nL) * size_t(nB);
   // Per rule: incidence high/low x exit rule high/low.

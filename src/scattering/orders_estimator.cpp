@@ -629,7 +629,7 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
                                 const wave::Media& media, const std::vector<NodePowers>& nodePower, bool masked,
                                 WaveTileResult* r) {
   const int nB = grid.binCount();
-  const int n = incidenceRuleOrder(ctx.settings.incidenceDirections);
+  const int n = incidenceRuleOrder(incidenceDirectionsOf(ctx.settings, grid, incidenceBin));
   const QuadratureRule qh = gaussLegendre(n, 0.0, 1.0), ql = gaussLegendre(n - 1, 0.0, 1.0);
   using Sub = SubDirection;
   const int M = ctx.settings.subdirections;
@@ -783,11 +783,12 @@ WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::f
   // Incidence directions: one collimated beam; else K random ones (orders), or the nodes of the
   // Gauss–Legendre rules over the incidence bin (exact, fft: wave::incidenceRule).
   const bool deterministic = amplitudes_ != OrderAmplitudes::MonteCarlo;
+  const int directions = incidenceDirectionsOf(ctx_.settings, grid, incidenceBin);
   const std::vector<wave::IncidenceNode> rule =
-      deterministic ? wave::incidenceRule(grid, incidenceBin, exactDirection, ctx_.settings.incidenceDirections)
+      deterministic ? wave::incidenceRule(grid, incidenceBin, exactDirection, directions)
                     : std::vector<wave::IncidenceNode>{};
   const bool quadrature = deterministic && !exactDirection;
-  const int K = deterministic ? int(rule.size()) : exactDirection ? 1 : std::max(2, ctx_.settings.incidenceDirections);
+  const int K = deterministic ? int(rule.size()) : exactDirection ? 1 : std::max(2, directions);
   const bool masked = ctx_.settings.computeMasked;
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   const bool transmissionWanted = wave::otherSideWanted(grid, fromAbove, exitMask);

@@ -8,6 +8,10 @@ namespace mbsdf {
 int incidenceRuleOrder(int directions) {
   return std::max(2, int(std::ceil(std::sqrt(double(std::max(1, directions))))));
 }
+int incidenceDirectionsOf(const WaveSettings& ws, const DirectionGrid& grid, int bin) {
+  return ws.poleHorizonIncidenceDirections > 0 && grid.atPoleOrHorizon(bin) ? ws.poleHorizonIncidenceDirections
+                                                                            : ws.incidenceDirections;
+}
 }  // namespace mbsdf
 
 namespace mbsdf::wave {

@@ -34,6 +34,9 @@ struct WaveSettings {
   int samplesPerBin = 256;      // area: points x directions per exit bin; paper: passes
   int pointsPerDirection = 64;  // area: points per exit direction; directions = samples / points (>= 2)
   int incidenceDirections = 4;  // orders: incidence directions per slice (bin-averaged incidence)
+  // The same for the incidence bins at normal incidence and at the horizon
+  // (DirectionGrid::atPoleOrHorizon), where a bin's integrand varies fastest; 0: incidenceDirections.
+  int poleHorizonIncidenceDirections = 0;
   // exact and fft with bin-averaged incidence: sub-directions per axis of the incidence bin through
   // which each order's power is binned (a power of two, kMinSubdirections to kMaxSubdirections).
   int subdirections = kDefaultSubdirections;
@@ -113,6 +116,9 @@ class WaveEstimator {
 // The order n of the deterministic estimators' n x n Gauss–Legendre rule over an incidence bin
 // (with its (n − 1) x (n − 1) companion for the error estimate): n² >= directions, n >= 2.
 int incidenceRuleOrder(int directions);
+// The incidence directions over incidence bin `bin`: ws.poleHorizonIncidenceDirections at the bins
+// that reach normal incidence or the horizon when it is set, ws.incidenceDirections elsewhere.
+int incidenceDirectionsOf(const WaveSettings& ws, const DirectionGrid& grid, int bin);
 // The incidence directions a deterministic estimator evaluates per tile over an incidence bin with
 // the n × n rule: its own nodes and the (n − 1) × (n − 1) companion's (wave::incidenceRule).
 inline int incidenceRuleNodes(int n) {

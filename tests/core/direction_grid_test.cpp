@@ -136,6 +136,31 @@ TEST(DirectionGrid, FastBinSearchFollowsTheGridsRule) {
   }
 }
 
+// The pole and horizon bins, counted by hand: a theta-phi grid's first and last rings; on an 8 x 8
+// disk, per quadrant of 4 x 4 pixels with corners at multiples of 1/4, the pixel at the centre and
+// the 8 whose far corner (a, b)/4 lies outside the unit circle (a² + b² > 16), less the corner
+// pixel, which lies outside it entirely (an empty bin).
+TEST(DirectionGrid, PoleAndHorizonBins) {
+  const DirectionGrid tp{ThetaPhiGrid{6, 8}};
+  for (int b = 0; b < tp.binCount(); ++b) {
+    const int ring = (b % tp.binsPerHemisphere()) / 8;
+    EXPECT_EQ(tp.atPoleOrHorizon(b), ring == 0 || ring == 5) << b;
+  }
+  const DirectionGrid disk{DiskGrid{8, 8}};
+  int flagged = 0;
+  for (int b = 0; b < disk.binsPerHemisphere(); ++b) {
+    flagged += disk.atPoleOrHorizon(b) && disk.projectedSolidAngle(b) > 0;
+    EXPECT_EQ(disk.atPoleOrHorizon(b), disk.atPoleOrHorizon(b + disk.binsPerHemisphere()));
+  }
+  EXPECT_EQ(flagged, 4 * 8);
+  // An odd disk: the middle pixel holds the centre in its interior; its neighbours do not.
+  const DirectionGrid odd{DiskGrid{5, 5}};
+  EXPECT_TRUE(odd.atPoleOrHorizon(2 * 5 + 2));
+  EXPECT_FALSE(odd.atPoleOrHorizon(2 * 5 + 1));
+  EXPECT_FALSE(odd.atPoleOrHorizon(1 * 5 + 2));
+  EXPECT_TRUE(odd.atPoleOrHorizon(0));
+}
+
 TEST(DirectionGrid, UniformSampleWeightsAverageToOne) {
   // weight = cos θ / mean cos over the bin: its mean over uniform samples is 1.
   DirectionGrid g(ThetaPhiGrid{10, 20});

@@ -454,3 +454,34 @@ TEST(Job, PathAllocationNeedsPairsStoredOnce) {
     EXPECT_NE(e.find("test.toml:"), std::string::npos) << e;
   }
 }
+
+// [sampling] wave_incidence_directions_pole_horizon: the job's rule unless set; the mean incidence
+// nodes per tile count each incidence at its bin's rule (an 8-ring theta-phi grid, all upper bins:
+// 2 of 8 rings at n = 4, 25 nodes, and 6 at n = 2, 5 nodes); a bad value names the key.
+TEST(Job, PoleAndHorizonIncidenceRule) {
+  const std::string grid = "[directions]\nn_theta = 8\nn_phi = 4\nincidence = \"all\"\n";
+  const Job plain = loadJobFromString(grid, "t.toml", "");
+  EXPECT_EQ(plain.wavePoleHorizonIncidenceDirections, plain.waveIncidenceDirections);
+  const DirectionGrid g(plain.gridLayout);
+  EXPECT_DOUBLE_EQ(plain.meanIncidenceRuleNodes(g), 5.0);
+  EXPECT_DOUBLE_EQ(plain.meanIncidenceRuleNodes(g, 1), 13.0);
+  const Job edges = loadJobFromString(grid + "[sampling]\nwave_incidence_directions_pole_horizon = 16\n", "t.toml", "");
+  EXPECT_EQ(edges.wavePoleHorizonIncidenceDirections, 16);
+  EXPECT_EQ(edges.waveIncidenceDirections, 4);
+  EXPECT_DOUBLE_EQ(edges.meanIncidenceRuleNodes(g), (2 * 25.0 + 6 * 5.0) / 8);
+  EXPECT_DOUBLE_EQ(edges.meanIncidenceRuleNodes(g, 1), (2 * 41.0 + 6 * 13.0) / 8);
+  const std::string e = errorOf("[sampling]\nwave_incidence_directions_pole_horizon = 0\n");
+  EXPECT_NE(e.find("sampling.wave_incidence_directions_pole_horizon"), std::string::npos) << e;
+}
+
+// A table's material comes from the job text stored in its file: an empty text (a damaged or
+// foreign file) is an error naming the source, not the default material.
+TEST(Job, MaterialFromAnEmptyJobTextIsRefused) {
+  EXPECT_TRUE(loadMaterialFromString("[material]\nname = \"Au\"\n", "t.h5 (job_text)").isConductor());
+  try {
+    loadMaterialFromString("", "t.h5 (job_text)");
+    FAIL() << "an empty job text gave a material";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("t.h5 (job_text)"), std::string::npos) << e.what();
+  }
+}

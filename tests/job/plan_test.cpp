@@ -278,7 +278,7 @@ TEST(Plan, WaveRuleErrorFromTheFinerRuleBoundsTheTrueOne) {
   const DirectionGrid grid(job.gridLayout);
   GeometricTransport transport(job, grid, job.pathsPerSlice);
   WaveSettings fine = waveSettingsOf(job);
-  fine.incidenceDirections = 25;
+  fine.incidenceDirections = fine.poleHorizonIncidenceDirections = 25;
   auto est = makeJobWaveEstimator(job, grid, *transport.scene(), waveSettingsOf(job));
   auto estRef = makeJobWaveEstimator(job, grid, *transport.scene(), fine);
   ASSERT_EQ(perPilot.size(), job.incidence.size());

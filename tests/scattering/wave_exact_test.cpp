@@ -251,3 +251,31 @@ TEST(WaveExact, IncidenceBinAverageConvergesWithSubdirections) {
     }
   }
 }
+
+// [sampling] wave_incidence_directions_pole_horizon: the bins that reach normal incidence or the
+// horizon take their own rule, the others the job's. With 4 directions (n = 2) elsewhere and 16
+// (n = 4) there, a pole and a horizon bin give the table of 16 directions everywhere, bit for bit,
+// and a middle bin that of 4 everywhere; for `exact` and for `fft` (a sine grating, a heightfield).
+TEST(WaveExact, PoleAndHorizonBinsTakeTheirOwnRule) {
+  for (WaveEstimatorKind kind : {WaveEstimatorKind::Exact, WaveEstimatorKind::Fft}) {
+    auto tableAt = [&](int directions, int poleHorizon, double theta) {
+      WaveSettings ws;
+      ws.estimator = kind;
+      ws.incidenceDirections = directions;
+      ws.poleHorizonIncidenceDirections = poleHorizon;
+      WaveScenario sc(makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0), material("mirror"), ThetaPhiGrid{8, 16}, {0.5}, 50.0,
+                      ws);
+      const int bin = sc.grid.binOf(sphericalDirection(radians(theta), radians(10.0)));
+      return std::pair{sc.estimator->run(0, bin, std::nullopt), sc.grid.atPoleOrHorizon(bin)};
+    };
+    for (double theta : {5.0, 39.4, 85.0}) {
+      const auto [mixed, edge] = tableAt(4, 16, theta);
+      EXPECT_EQ(edge, theta != 39.4);
+      const WaveTileResult same = tableAt(edge ? 16 : 4, 0, theta).first;
+      const WaveTileResult other = tableAt(edge ? 4 : 16, 0, theta).first;
+      EXPECT_EQ(mixed.fws, same.fws) << "theta " << theta;
+      EXPECT_EQ(mixed.fwsErr, same.fwsErr) << "theta " << theta;
+      EXPECT_NE(mixed.fws, other.fws) << "theta " << theta;
+    }
+  }
+}
