@@ -195,7 +195,9 @@ struct TimedTiles {
   int done = 0;
 
   TileResult compute(int t, const std::function<void()>& between) {
-    ProgressReporter pathProgress("tile " + std::to_string(t), job.pathsFor(t), 30.0, false);
+    // Progressive sampling stops at its target or at max_paths_per_slice: the count runs up to that.
+    const uint64_t budget = job.targetRelError > 0 ? job.maxPathsPerSlice : job.pathsFor(t);
+    ProgressReporter pathProgress("tile " + std::to_string(t), budget, 30.0, false);
     auto cb = [&](uint64_t n) {
       pathProgress.update(n);
       throwIfStopped();

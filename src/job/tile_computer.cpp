@@ -94,6 +94,12 @@ TileComputer::TileComputer(const Job& job, const DirectionGrid& grid, PilotResul
   }
 }
 
+// A later round's progress counted on from the paths before it, so that a tile's count only grows.
+static std::function<void(uint64_t)> continuedFrom(const std::function<void(uint64_t)>& cb, uint64_t before) {
+  if (!cb) return {};
+  return [&cb, before](uint64_t done) { cb(before + done); };
+}
+
 TileResult TileComputer::compute(const TileRequest& request, const std::function<void(uint64_t)>& cb,
                                  double* pathSeconds, double* waveSeconds,
                                  const std::function<void(uint64_t)>& waveProgress) const {
@@ -128,7 +134,7 @@ TileResult TileComputer::compute(const TileRequest& request, const std::function
       }
       TileRequest more = request;
       more.firstPath = r.samples;
-      r.poolPaths(transport_.run(more, cb));
+      r.poolPaths(transport_.run(more, continuedFrom(cb, r.samples)));
     }
   }
   if (job.guarded.has(Component::Multiple)) verifySkippedMultiple(q, cb, r);
@@ -155,7 +161,7 @@ TileResult TileComputer::firstRound(const TileRequest& q, const std::function<vo
   if (pilotPaths_ < paths) {
     rest.firstPath = pilotPaths_;
     rest.paths = paths - pilotPaths_;
-    r.poolPaths(transport_.run(rest, cb));
+    r.poolPaths(transport_.run(rest, continuedFrom(cb, pilotPaths_)));
   }
   return r;
 }

@@ -142,3 +142,24 @@ TEST(TileComputer, WaveTermReportsItsProgressApart) {
   EXPECT_LE(mostPaths, job.pathsPerSlice);
   EXPECT_GT(waveCalls, 0u);
 }
+
+// Progressive sampling's rounds continue the tile's count of paths (each round used to count from 0
+// again): the count never falls and ends at the paths the tile took.
+TEST(TileComputer, ProgressiveRoundsCountOn) {
+  const Job job = loadJobFromString(
+      "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0\n"
+      "[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
+      "incidence = [[30.0, 0.0]]\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n"
+      "[sampling]\npaths_per_slice = 2000\ntarget_rel_error = 0.0001\nmax_paths_per_slice = 8000\n",
+      "t.toml", "");
+  const DirectionGrid grid(job.gridLayout);
+  const TileComputer computer(job, grid);
+  std::vector<uint64_t> counts;
+  double paths = 0, wave = 0;
+  const TileResult r = computer.compute(
+      0, [&](uint64_t n) { counts.push_back(n); }, &paths, &wave);
+  ASSERT_EQ(r.samples, 8000u);  // the target is out of reach: four rounds
+  ASSERT_FALSE(counts.empty());
+  for (size_t i = 1; i < counts.size(); ++i) EXPECT_GE(counts[i], counts[i - 1]) << i;
+  EXPECT_EQ(counts.back(), r.samples);
+}
