@@ -229,20 +229,23 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   const int timedSamples = twoPasses ? ws2.samplesPerBin : ws.samplesPerBin;
   // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost,
   // at the job's rule, which makes fewer facet sums than the finer one the pilots ran (their
-  // binning over the sub-directions costs the same at any rule). The facet sums' time is pooled per
-  // incidence node over the pilots and counted at the job's nodes per tile, averaged over its
-  // tiles: the pole and horizon rings may have a rule of their own, and the pilots sample them far
-  // more often (two of six) than the job has them (two rings of 75 on the paper's grid).
+  // binning over the sub-directions costs the same at any rule). Each pilot's facet sums give a time
+  // per incidence node; a job tile costs the mean of that over the pilots of its kind (the bins at
+  // the pole or horizon, or the others) times its own nodes: those rings may have a rule of their
+  // own and a cost per node of their own (on the paper's HEMISPHERES 1.5 s at the horizon against
+  // 3–4 s elsewhere), and the pilots sample them far more often (two of six) than the job has them
+  // (two rings of 75).
   const double scale = waveDeterministic ? 1.0 : double(job.waveSamplesPerBin) / double(timedSamples);
-  const double jobNodesPerTile = finerRule ? job.meanIncidenceRuleNodes(grid) : 1.0;
-  double binningSeconds = 0, pilotNodes = 0;
+  double binningSeconds = 0;
+  std::vector<double> pilotSeconds, pilotNodes;
   const double N = double(job.waveSamplesPerBin);
   for (size_t k = 0; k < pilots.size(); ++k) {
     const int t = pilots[k];
     spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
     const WaveTileResult w = est->run(tileRequestOf(job, t), heartbeat("plan: wave pilot"));
     const double e1 = waveRelativeError(w, grid);
-    pilotNodes += finerRule ? job.incidenceRuleNodesAt(grid, job.incidence[size_t(t)].bin, 1) : 1.0;
+    pilotNodes.push_back(finerRule ? job.incidenceRuleNodesAt(grid, job.incidence[size_t(t)].bin, 1) : 1.0);
+    const double secondsBefore = waveSeconds;
     // The f_ws table's L1 parts at the job's budget: the pass's deviation scaled as its error is.
     auto keepL1 = [&](const WaveTileResult& pass, double toJob) {
       SliceL1 l1 = sliceL1(pass.fws, pass.fwsErr, pass.nLambda, grid, waveDeterministic ? 1.0 : kMeanAbsPerSigma);
@@ -270,6 +273,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
       waveSeconds += w2.seconds;
       keepL1(w2, std::pow(N / double(ws2.samplesPerBin), -rate));
     }
+    pilotSeconds.push_back(waveSeconds - secondsBefore);
     if (pilotTiles[k].has(Component::Coherent))
       addWaveComponents(pilotTiles[k], w, job.components.has(Component::Incoherent),
                         job.components.has(Component::Lost));
@@ -277,10 +281,25 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   // What the first pilot built for every later tile (exact's visibility table) is paid once per
   // rank, not per tile.
   out.setupSeconds = est->setupSeconds();
-  if (!pilots.empty())
-    waveSeconds =
-        ((waveSeconds - out.setupSeconds) / pilotNodes * jobNodesPerTile + binningSeconds / double(pilots.size())) *
-        scale;
+  if (!pilots.empty()) {
+    pilotSeconds[0] -= out.setupSeconds;  // built by the first pilot
+    // Per kind (at the pole or horizon, or not): the pilots' mean time per node (all pilots' where
+    // none is of that kind).
+    double rate[2] = {0, 0}, count[2] = {0, 0}, all = 0;
+    for (size_t k = 0; k < pilots.size(); ++k) {
+      const int edge = grid.atPoleOrHorizon(job.incidence[size_t(pilots[k])].bin) ? 1 : 0;
+      rate[edge] += pilotSeconds[k] / pilotNodes[k];
+      count[edge] += 1;
+      all += pilotSeconds[k] / pilotNodes[k];
+    }
+    for (int e = 0; e < 2; ++e) rate[e] = count[e] > 0 ? rate[e] / count[e] : all / double(pilots.size());
+    double perTile = 0;
+    for (const IncidenceDirection& inc : job.incidence)
+      perTile +=
+          rate[grid.atPoleOrHorizon(inc.bin) ? 1 : 0] * (finerRule ? job.incidenceRuleNodesAt(grid, inc.bin) : 1.0);
+    perTile /= double(job.incidence.size());
+    waveSeconds = (perTile + binningSeconds / double(pilots.size())) * scale;
+  }
   out.bytes = est->memoryBytes();
   return out;
 }
