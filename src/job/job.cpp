@@ -668,8 +668,11 @@ WaveEstimatorKind Job::resolvedWaveEstimator() const {
 }
 
 int Job::incidenceRuleNodesAt(const DirectionGrid& grid, int bin, int extraOrders) const {
-  const int64_t directions = grid.atPoleOrHorizon(bin) ? wavePoleHorizonIncidenceDirections : waveIncidenceDirections;
-  return incidenceRuleNodes(incidenceRuleOrder(int(directions)) + extraOrders);
+  // The estimators' own choice of rule (incidenceDirectionsOf), from the job's two keys.
+  WaveSettings ws;
+  ws.incidenceDirections = int(waveIncidenceDirections);
+  ws.poleHorizonIncidenceDirections = int(wavePoleHorizonIncidenceDirections);
+  return incidenceRuleNodes(incidenceRuleOrder(incidenceDirectionsOf(ws, grid, bin)) + extraOrders);
 }
 
 double Job::meanIncidenceRuleNodes(const DirectionGrid& grid, int extraOrders) const {

@@ -4,6 +4,7 @@
 // or computes it again.
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <map>
 #include <string>
 
@@ -51,6 +52,24 @@ void expectPilotTilesKept(Job job) {
     EXPECT_EQ(TileResult::deserialize(sa).stdError, TileResult::deserialize(sb).stdError) << "tile " << t;
     EXPECT_EQ(a.rays, b.rays);
   }
+}
+
+// One Al tile at 30° on 8 × 16 bins, 500 nm, with the components and sampling given.
+Job oneTileJob(const std::string& geometry, const std::string& sceneAndComponents, const std::string& sampling) {
+  return loadJobFromString("[geometry]\n" + geometry +
+                               "\n[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\n"
+                               "n_theta = 8\nn_phi = 16\nincidence = [[30.0, 0.0]]\n" +
+                               sceneAndComponents + "\n[sampling]\n" + sampling,
+                           "t.toml", "");
+}
+
+// Tile 0 of `job`, its paths' progress and its wave term's given apart.
+TileResult computeTile(const Job& job, const std::function<void(uint64_t)>& progress,
+                       const std::function<void(uint64_t)>& waveProgress = {}) {
+  const DirectionGrid grid(job.gridLayout);
+  const TileComputer computer(job, grid);
+  double paths = 0, wave = 0;
+  return computer.compute(0, progress, &paths, &wave, waveProgress);
 }
 
 }  // namespace
@@ -127,18 +146,13 @@ TEST(TileComputer, KeptWavePilotIsTheTilesOwnWaveTerm) {
 // own callback: the paths' count never runs past the tile's paths (the run's reporter showed
 // "4352/1000 (435.2 %)" while it counted the wave term's facet sums as paths).
 TEST(TileComputer, WaveTermReportsItsProgressApart) {
-  const Job job = loadJobFromString(
-      "[geometry]\nkind = \"sine-grating\"\nsize_um = [4.0, 4.0]\nperiod_um = 2.0\namplitude_um = 0.1\n"
-      "[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
-      "incidence = [[30.0, 0.0]]\n[scene]\ncoherence_length_um = 50.0\n[effects]\n"
-      "components = [\"coherent\", \"incoherent\"]\n[sampling]\npaths_per_slice = 1000\nwave_estimator = \"exact\"\n",
-      "t.toml", "");
-  const DirectionGrid grid(job.gridLayout);
-  const TileComputer computer(job, grid);
+  const Job job =
+      oneTileJob("kind = \"sine-grating\"\nsize_um = [4.0, 4.0]\nperiod_um = 2.0\namplitude_um = 0.1",
+                 "[scene]\ncoherence_length_um = 50.0\n[effects]\ncomponents = [\"coherent\", \"incoherent\"]",
+                 "paths_per_slice = 1000\nwave_estimator = \"exact\"\n");
   uint64_t mostPaths = 0, waveCalls = 0;
-  double paths = 0, wave = 0;
-  computer.compute(
-      0, [&](uint64_t n) { mostPaths = std::max(mostPaths, n); }, &paths, &wave, [&](uint64_t) { ++waveCalls; });
+  computeTile(
+      job, [&](uint64_t n) { mostPaths = std::max(mostPaths, n); }, [&](uint64_t) { ++waveCalls; });
   EXPECT_LE(mostPaths, job.pathsPerSlice);
   EXPECT_GT(waveCalls, 0u);
 }
@@ -146,18 +160,11 @@ TEST(TileComputer, WaveTermReportsItsProgressApart) {
 // Progressive sampling's rounds continue the tile's count of paths (each round used to count from 0
 // again): the count never falls and ends at the paths the tile took.
 TEST(TileComputer, ProgressiveRoundsCountOn) {
-  const Job job = loadJobFromString(
-      "[geometry]\nkind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0\n"
-      "[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [500.0]\n[directions]\nn_theta = 8\nn_phi = 16\n"
-      "incidence = [[30.0, 0.0]]\n[effects]\ncomponents = [\"coherent\", \"multiple\"]\n"
-      "[sampling]\npaths_per_slice = 2000\ntarget_rel_error = 0.0001\nmax_paths_per_slice = 8000\n",
-      "t.toml", "");
-  const DirectionGrid grid(job.gridLayout);
-  const TileComputer computer(job, grid);
+  const Job job = oneTileJob("kind = \"gaussian\"\nsize_um = [10.0, 10.0]\nrms_um = 0.3\ncorrelation_um = 2.0",
+                             "[effects]\ncomponents = [\"coherent\", \"multiple\"]",
+                             "paths_per_slice = 2000\ntarget_rel_error = 0.0001\nmax_paths_per_slice = 8000\n");
   std::vector<uint64_t> counts;
-  double paths = 0, wave = 0;
-  const TileResult r = computer.compute(
-      0, [&](uint64_t n) { counts.push_back(n); }, &paths, &wave);
+  const TileResult r = computeTile(job, [&](uint64_t n) { counts.push_back(n); });
   ASSERT_EQ(r.samples, 8000u);  // the target is out of reach: four rounds
   ASSERT_FALSE(counts.empty());
   for (size_t i = 1; i < counts.size(); ++i) EXPECT_GE(counts[i], counts[i - 1]) << i;
