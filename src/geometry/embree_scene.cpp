@@ -1,7 +1,6 @@
 #include "geometry/embree_scene.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -299,18 +298,6 @@ void PeriodicScene::escapesMany(std::span<const Vec3> o, const Vec3& d, int igno
   }
 }
 
-// Interleaves the bits of a 16-bit x and y: the position of (x, y) along a Morton (Z-order) curve.
-static uint32_t mortonCode(uint32_t x, uint32_t y) {
-  auto spread = [](uint32_t v) {
-    v &= 0xFFFF;
-    v = (v | (v << 8)) & 0x00FF00FF;
-    v = (v | (v << 4)) & 0x0F0F0F0F;
-    v = (v | (v << 2)) & 0x33333333;
-    return (v | (v << 1)) & 0x55555555;
-  };
-  return spread(x) | (spread(y) << 1);
-}
-
 void PeriodicScene::traceMany(std::span<const Vec3> o, std::span<const Vec3> d, std::span<const int> ignorePrim,
                               TraceMode mode, std::span<TraceResult> out) const {
   const size_t n = o.size();
@@ -349,25 +336,8 @@ void PeriodicScene::traceMany(std::span<const Vec3> o, std::span<const Vec3> d, 
       if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) met(i, rh.hit.primID, rh.hit.u, rh.hit.v, rh.ray.tfar);
     }
   } else {
-    // Packets of neighbours along a Morton curve of the origins (periodic patch: of the origins
-    // within a period), which traverse the same part of the tree. A counting sort into 32 x 32
-    // cells of the period in Morton order: the grouping changes no result (each ray's answer is
-    // its own), only which rays share a packet, so cells as coarse as the rays are sparse serve.
-    constexpr uint32_t kBits = 5, kCells = 1u << (2 * kBits);
-    thread_local std::vector<uint32_t> order, cellOf;
-    order.resize(n);
-    cellOf.resize(n);
-    auto cell = [](double x, double size) {
-      const double f = x / size + 0.5;
-      return std::min(uint32_t((f - std::floor(f)) * (1u << kBits)), (1u << kBits) - 1);
-    };
-    std::array<uint32_t, kCells + 1> start{};
-    for (size_t i = 0; i < n; ++i) {
-      cellOf[i] = mortonCode(cell(o[i].x, sizeX_), cell(o[i].y, sizeY_));
-      ++start[cellOf[i] + 1];
-    }
-    for (uint32_t c = 0; c < kCells; ++c) start[c + 1] += start[c];
-    for (size_t i = 0; i < n; ++i) order[start[cellOf[i]]++] = uint32_t(i);
+    // Packets of 16 rays in the order given: rays ordered by origin (geometry/ray_order.h) share
+    // the tree's nodes down to its leaves when they are near-parallel.
     constexpr size_t K = 16;
     for (size_t p0 = 0; p0 < n; p0 += K) {
       alignas(64) RTCRayHit16 rh;
@@ -377,7 +347,7 @@ void PeriodicScene::traceMany(std::span<const Vec3> o, std::span<const Vec3> d, 
         rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
         rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
         if (p0 + k >= n) continue;
-        const uint32_t i = order[p0 + k];
+        const size_t i = p0 + k;
         Segment& sg = segments[i];
         if (slabExit(o[i], d[i], &sg.tExit, &sg.face, &out[i])) continue;
         sg.asked = true;
@@ -398,7 +368,7 @@ void PeriodicScene::traceMany(std::span<const Vec3> o, std::span<const Vec3> d, 
       rtcIntersect16(valid, scene_.get(), &ctx, &rh);
       for (size_t k = 0; k < K && p0 + k < n; ++k)
         if (valid[k] && rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID)
-          met(order[p0 + k], rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k], rh.ray.tfar[k]);
+          met(p0 + k, rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k], rh.ray.tfar[k]);
     }
   }
   for (size_t i = 0; i < n; ++i) {

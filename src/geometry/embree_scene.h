@@ -57,12 +57,12 @@ class PeriodicScene {
   TraceResult trace(Vec3 o, const Vec3& d, int ignorePrim = -1) const;
   // The same for many rays: out[i] is trace(o[i], d[i], ignorePrim[i]) (no triangle to skip when
   // ignorePrim is empty). Their first segments are asked of Embree one after the other
-  // (TraceMode::Single) or as packets of 16 neighbours along a Morton curve through their origins
-  // (TraceMode::Packets: for near-parallel rays from above or below the slab, such as the first
-  // rays of paths, whose traversals share the tree's nodes). Embree's packet kernels give each ray
-  // the hit its single-ray kernel gives (tests/geometry/embree_scene_test.cpp compares them ray by
-  // ray). Either way the hits' records are read only after every ray has been asked, so that their
-  // memory latencies overlap.
+  // (TraceMode::Single) or as packets of 16 rays in the order given (TraceMode::Packets: for
+  // near-parallel rays from above or below the slab ordered by origin, such as the first rays of
+  // paths, whose traversals share the tree's nodes; geometry/ray_order.h). Embree's packet kernels
+  // give each ray the hit its single-ray kernel gives (tests/geometry/embree_scene_test.cpp compares
+  // them ray by ray). Either way the hits' records are read only after every ray has been asked, so
+  // that their memory latencies overlap.
   void traceMany(std::span<const Vec3> o, std::span<const Vec3> d, std::span<const int> ignorePrim, TraceMode mode,
                  std::span<TraceResult> out) const;
   // Whether a ray from o along d leaves the patch through its top (up) or bottom (!up) without
@@ -89,6 +89,7 @@ class PeriodicScene {
   double sizeX() const { return sizeX_; }
   double sizeY() const { return sizeY_; }
   bool periodic() const { return periodic_; }
+  size_t triangleCount() const { return hitTriangles_.size(); }
   RTCScene scene() const { return scene_.get(); }
 
  private:

@@ -42,6 +42,18 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
 
 TileResult runPaths(const PathTallyPlan& plan, const PathRangeFunction& trace,
                     const std::function<void(uint64_t)>& progress) {
+  return runPaths(plan, PathBatchFunction([&](uint64_t p0, uint64_t n, int g, std::span<PathChunk> chunks) {
+                    tbb::parallel_for(size_t(0), chunks.size(), [&](size_t ci) {
+                      const uint64_t c0 = ci * kPathChunk;
+                      chunks[ci].events.reserve(std::min(n - c0, kPathChunk));
+                      trace(p0 + c0, std::min(n - c0, kPathChunk), g, chunks[ci]);
+                    });
+                  }),
+                  progress);
+}
+
+TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
+                    const std::function<void(uint64_t)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = *plan.grid;
   const int nL = plan.nLambda, nB = grid.binCount();
@@ -67,7 +79,7 @@ TileResult runPaths(const PathTallyPlan& plan, const PathRangeFunction& trace,
   r.leaked.assign(nL, 0.0);
   r.missed.assign(nL, 0.0);
 
-  constexpr uint64_t kChunk = 1024;  // paths per chunk: the unit of deterministic merging
+  constexpr uint64_t kChunk = kPathChunk;
   constexpr uint64_t kChunksPerBatch = 256;
   struct Batch {
     int group;
@@ -82,13 +94,9 @@ TileResult runPaths(const PathTallyPlan& plan, const PathRangeFunction& trace,
   auto compute = [&](const Batch& b, std::vector<PathChunk>& chunks) {
     // The chunks' storage is kept from batch to batch (allocating it anew costs page faults).
     chunks.resize(b.c1 - b.c0, PathChunk(nL));
-    tbb::parallel_for(uint64_t(0), b.c1 - b.c0, [&](uint64_t ci) {
-      PathChunk& c = chunks[ci];
-      c.clear();
-      const uint64_t p0 = (b.c0 + ci) * kChunk, p1 = std::min(N, p0 + kChunk);
-      c.events.reserve(p1 - p0);
-      trace(plan.firstPath + p0, p1 - p0, b.group, c);
-    });
+    for (PathChunk& c : chunks) c.clear();
+    const uint64_t p0 = b.c0 * kChunk, p1 = std::min(N, b.c1 * kChunk);
+    trace(plan.firstPath + p0, p1 - p0, b.group, chunks);
   };
   // Merge in chunk order: identical sums for any number of threads.
   auto merge = [&](const std::vector<PathChunk>& chunks) {

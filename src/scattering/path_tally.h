@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "core/direction_grid.h"
@@ -66,6 +67,15 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
 // chunk at once (an estimator that traces their first rays together), tallying them in path order.
 using PathRangeFunction = std::function<void(uint64_t firstPath, uint64_t count, int group, PathChunk& out)>;
 TileResult runPaths(const PathTallyPlan& plan, const PathRangeFunction& trace,
+                    const std::function<void(uint64_t)>& progress);
+// The same with `trace(firstPath, count, group, chunks)` called once for each batch of consecutive
+// chunks (an estimator that advances all their paths together, such as a wavefront ordered by
+// origin), which tallies path firstPath + i into chunks[i / kPathChunk], in path order within a
+// chunk.
+inline constexpr uint64_t kPathChunk = 1024;  // paths per chunk: the unit of deterministic merging
+using PathBatchFunction =
+    std::function<void(uint64_t firstPath, uint64_t count, int group, std::span<PathChunk> chunks)>;
+TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
                     const std::function<void(uint64_t)>& progress);
 
 // A path's incidence: cosine-distributed in its bin from the sampler's first block (two numbers,

@@ -2,8 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "core/rng.h"
+#include "geometry/ray_order.h"
 
 namespace mbsdf {
 
@@ -19,6 +24,9 @@ PathTracer::PathTracer(const PeriodicScene& scene, const Material& material, std
   ior_ = material_.iorAt(lambda_um_);
   fresnel_ = conductorFresnelTables(material_, ior_);  // optics/fresnel_table.h
   groups_ = wavelengthGroups(int(lambda_um_.size()), material_.directionsIndependentOfLambda());
+  // Ordering rays by origin pays when the scene's tree and hit records outgrow a core's cache
+  // (about 200 bytes a triangle): on a 128-triangle grating it only costs.
+  orderByOrigin_ = scene_.triangleCount() >= kOrderByOriginMinTriangles;
 }
 
 // Where a path lit from wi starts, at footprint point (px, py). Periodic patch: it enters through
@@ -34,16 +42,16 @@ static Vec3 pathOrigin(const PeriodicScene& scene, const Vec3& wi, double px, do
 }
 
 PathTracer::PathState PathTracer::startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path,
-                                            int group, double* w, double* wGeoMasked) const {
+                                            int group, double* w, Vec3* wi) const {
   PathState st(Sampler(settings_.seed, uint32_t(tile), path, uint32_t(group)));
-  st.wi = pathIncidence(grid_, incidenceBin, exact, st.s);
+  const DirectionSample incidence = pathIncidence(grid_, incidenceBin, exact, st.s);
   const double px = (st.s.get1D() - 0.5) * scene_.sizeX(), py = (st.s.get1D() - 0.5) * scene_.sizeY();
-  st.o = pathOrigin(scene_, st.wi.w, px, py);
-  st.d = -st.wi.w;
-  st.inUpper = st.wi.w.z >= 0;
+  st.o = pathOrigin(scene_, incidence.w, px, py);
+  st.d = -incidence.w;
+  st.inUpper = incidence.w.z >= 0;
   st.w = w;
-  st.wGeoMasked = wGeoMasked;
-  for (size_t k = 0; k < groups_[size_t(group)].size(); ++k) w[k] = st.wi.weight;
+  for (size_t k = 0; k < groups_[size_t(group)].size(); ++k) w[k] = incidence.weight;
+  if (wi) *wi = incidence.w;
   return st;
 }
 
@@ -51,13 +59,14 @@ bool PathTracer::step(PathState& st, const TraceResult& tr, int group, PathRecor
   const std::vector<int>& lambdas = groups_[size_t(group)];
   const size_t nl = lambdas.size();
   double* wp = st.w;
+  ++st.rays;
   if (tr.kind == TraceResult::Kind::Hit) {
     if (rec) rec->vertices.push_back(tr.p);
     ++st.depth;
     // docs/physics.md §4 step 6: the specular direction leaving the first hit is blocked.
     if (st.depth == 2 && settings_.tallyGeoMasked) {
       st.geoMaskedBin = grid_.binOf(st.d);
-      std::copy(wp, wp + nl, st.wGeoMasked);
+      std::copy(wp, wp + nl, wp + nl);
     }
     if (st.depth > settings_.maxDepth) {
       st.end = PathState::End::Truncated;
@@ -130,7 +139,8 @@ bool PathTracer::step(PathState& st, const TraceResult& tr, int group, PathRecor
 void PathTracer::commit(const PathState& st, int group, PathChunk& out) const {
   const std::vector<int>& lambdas = groups_[size_t(group)];
   const size_t nl = lambdas.size();
-  if (st.geoMaskedBin >= 0) out.tally(st.geoMaskedBin, Component::GeoMasked, group, st.wGeoMasked, nl);
+  out.rays += uint64_t(st.rays);
+  if (st.geoMaskedBin >= 0) out.tally(st.geoMaskedBin, Component::GeoMasked, group, st.w + nl, nl);
   auto addTo = [&](std::vector<double>& v) {
     for (size_t k = 0; k < nl; ++k) v[size_t(lambdas[k])] += st.w[k];
   };
@@ -153,72 +163,157 @@ void PathTracer::commit(const PathState& st, int group, PathChunk& out) const {
 void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group,
                            PathChunk& out, PathRecord* rec) const {
   const size_t nl = groups_[size_t(group)].size();
-  std::vector<double> w(nl), wGeoMasked(nl);
-  PathState st = startPath(tile, incidenceBin, exact, path, group, w.data(), wGeoMasked.data());
+  std::vector<double> w(2 * nl);
+  Vec3 wi;
+  PathState st = startPath(tile, incidenceBin, exact, path, group, w.data(), &wi);
   if (rec) {
     rec->vertices.push_back(st.o);
-    rec->wi = st.wi.w;
+    rec->wi = wi;
     rec->rays.push_back({st.o, st.d, -1});
   }
   TraceResult tr = scene_.trace(st.o, st.d);
   while (true) {
-    ++out.rays;
     if (!step(st, tr, group, rec)) break;
     tr = scene_.trace(st.o, st.d, st.lastPrim);
   }
   commit(st, group, out);
   if (rec) {
     rec->depth = st.depth;
-    rec->weight = w;
+    rec->weight.assign(w.begin(), w.begin() + std::ptrdiff_t(nl));
   }
 }
 
-void PathTracer::traceRange(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath,
-                            uint64_t count, int group, PathChunk& out) const {
-  // The paths advance together, one ray each per round (a wavefront): the first rays go to Embree
-  // as packets, later rounds as many single rays whose hit records are fetched together
-  // (PeriodicScene::traceMany). Each path draws its own random numbers, so the rounds change no
-  // number, and the tallies are made in path order at the end: the same sums as path by path.
+struct PathTracer::Wavefront {
+  // The buffers only grow: a batch reuses them without clearing or faulting in their pages.
+  std::vector<PathState> paths;
+  std::vector<double> weights;  // per path: its 2 nl weights (PathState::w)
+  // A round's rays (in origin order when the tracer orders them), each in one cache line.
+  struct alignas(64) Ray {
+    Vec3 o, d;
+    int leaving;    // the triangle it leaves (-1: none)
+    uint32_t path;  // its path within the batch
+  };
+  static_assert(sizeof(Ray) == 64);
+  std::vector<Ray> rays;
+  size_t nRays = 0;
+  // Per block of a round: the next rays of its paths that go on, and their origins' cells.
+  std::vector<std::vector<Ray>> goOn;
+  std::vector<std::vector<uint32_t>> goOnCells;
+  std::vector<uint32_t> cells;
+  OriginOrder order;
+};
+
+PathTracer::~PathTracer() = default;
+
+template <typename T>
+static void growTo(std::vector<T>& v, size_t n) {
+  if (v.size() < n) v.resize(n);
+}
+
+void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
+  // Blocks of rays, each traced and stepped by one thread: in origin order, the paths whose rays
+  // neighbour in the scene are advanced together. Each path draws its own random numbers, so the
+  // order changes no number.
+  constexpr size_t kBlock = 512;
+  const size_t n = wf.nRays, nBlocks = (n + kBlock - 1) / kBlock;
   const size_t nl = groups_[size_t(group)].size();
-  thread_local std::vector<PathState> paths;
-  thread_local std::vector<double> weights;
-  thread_local std::vector<uint32_t> active, next;
-  thread_local std::vector<Vec3> origins, directions;
-  thread_local std::vector<int> leaving;
-  thread_local std::vector<TraceResult> results;
-  weights.assign(2 * count * nl, 0.0);
-  paths.clear();
-  origins.clear();
-  directions.clear();
-  active.clear();
-  for (uint64_t j = 0; j < count; ++j) {
-    paths.push_back(
-        startPath(tile, incidenceBin, exact, firstPath + j, group, &weights[2 * j * nl], &weights[(2 * j + 1) * nl]));
-    origins.push_back(paths.back().o);
-    directions.push_back(paths.back().d);
-    active.push_back(uint32_t(j));
+  // Whether step() reads a path's weights (a real conductor's Fresnel factor, the geo_masked copy).
+  const bool stepWeighs = (conductor_ && !perfectConductor_) || settings_.tallyGeoMasked;
+  // The next round's rays are fewer: cells for n rays are as fine as they need, or finer.
+  if (orderByOrigin_) wf.order.prepare(n, scene_.sizeX(), scene_.sizeY());
+  growTo(wf.goOn, nBlocks);
+  growTo(wf.goOnCells, nBlocks);
+  // Emptied here, not only by their blocks: when the run is abandoned (runPaths cancels its batch),
+  // the blocks not run leave no rays and the rounds end.
+  for (size_t b = 0; b < nBlocks; ++b) {
+    wf.goOn[b].clear();
+    wf.goOnCells[b].clear();
   }
-  results.resize(count);
-  scene_.traceMany(origins, directions, {}, TraceMode::Packets, results);
-  while (!active.empty()) {
-    next.clear();
-    origins.clear();
-    directions.clear();
-    leaving.clear();
-    for (size_t a = 0; a < active.size(); ++a) {
-      PathState& st = paths[active[a]];
-      ++out.rays;
-      if (!step(st, results[a], group, nullptr)) continue;
-      next.push_back(active[a]);
-      origins.push_back(st.o);
-      directions.push_back(st.d);
-      leaving.push_back(st.lastPrim);
+  tbb::parallel_for(size_t(0), nBlocks, [&](size_t b) {
+    thread_local std::vector<Vec3> o, d;
+    thread_local std::vector<int> leaving;
+    thread_local std::vector<TraceResult> results;
+    const size_t k0 = b * kBlock, m = std::min(n, k0 + kBlock) - k0;
+    o.resize(m);
+    d.resize(m);
+    leaving.resize(m);
+    results.resize(m);
+    for (size_t k = 0; k < m; ++k) {
+      const Wavefront::Ray& ray = wf.rays[k0 + k];
+      o[k] = ray.o;
+      d[k] = ray.d;
+      leaving[k] = ray.leaving;
+      // The block's path states, spread over the batch's, are read after its rays are traced:
+      // fetched now, they arrive while Embree works instead of stalling each step in turn.
+      const char* st = reinterpret_cast<const char*>(&wf.paths[ray.path]);
+      __builtin_prefetch(st);
+      __builtin_prefetch(st + 64);
+      if (stepWeighs) __builtin_prefetch(&wf.weights[2 * ray.path * nl]);
     }
-    active.swap(next);
-    results.resize(active.size());
-    if (!active.empty()) scene_.traceMany(origins, directions, leaving, TraceMode::Single, results);
+    if (firstRays)
+      scene_.traceMany(o, d, {}, settings_.firstRayPackets ? TraceMode::Packets : TraceMode::Single, results);
+    else
+      scene_.traceMany(o, d, leaving, TraceMode::Single, results);
+    std::vector<Wavefront::Ray>& goOn = wf.goOn[b];
+    std::vector<uint32_t>& goOnCells = wf.goOnCells[b];
+    for (size_t k = 0; k < m; ++k) {
+      const uint32_t i = wf.rays[k0 + k].path;
+      PathState& st = wf.paths[i];
+      if (!step(st, results[k], group, nullptr)) continue;
+      goOn.push_back({st.o, st.d, st.lastPrim, i});
+      if (orderByOrigin_) goOnCells.push_back(wf.order.cellOf(st.o));
+    }
+  });
+  // The next round's rays: the blocks' rays that go on, block after block, put in origin order.
+  std::vector<size_t> start(nBlocks + 1, 0);
+  for (size_t b = 0; b < nBlocks; ++b) start[b + 1] = start[b] + wf.goOn[b].size();
+  wf.nRays = start[nBlocks];
+  std::span<const uint32_t> places;
+  if (orderByOrigin_) {
+    growTo(wf.cells, wf.nRays);
+    tbb::parallel_for(size_t(0), nBlocks, [&](size_t b) {
+      std::copy(wf.goOnCells[b].begin(), wf.goOnCells[b].end(), wf.cells.begin() + std::ptrdiff_t(start[b]));
+    });
+    places = wf.order.places({wf.cells.data(), wf.nRays});
   }
-  for (const PathState& st : paths) commit(st, group, out);
+  tbb::parallel_for(size_t(0), nBlocks, [&](size_t b) {
+    for (size_t j = 0; j < wf.goOn[b].size(); ++j)
+      wf.rays[places.empty() ? start[b] + j : places[start[b] + j]] = wf.goOn[b][j];
+  });
+}
+
+void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath,
+                            uint64_t count, int group, std::span<PathChunk> chunks, Wavefront& wf) const {
+  const size_t nl = groups_[size_t(group)].size();
+  growTo(wf.paths, count);
+  growTo(wf.weights, 2 * count * nl);  // each path sets its weights before it reads them
+  growTo(wf.rays, count);
+  growTo(wf.cells, count);
+  wf.nRays = count;
+  if (orderByOrigin_) wf.order.prepare(count, scene_.sizeX(), scene_.sizeY());
+  auto blocks = [&](auto&& body) {
+    tbb::parallel_for(tbb::blocked_range<uint64_t>(0, count, 1024), [&](const tbb::blocked_range<uint64_t>& r) {
+      for (uint64_t j = r.begin(); j < r.end(); ++j) body(j);
+    });
+  };
+  blocks([&](uint64_t j) {
+    wf.paths[j] = startPath(tile, incidenceBin, exact, firstPath + j, group, &wf.weights[2 * j * nl]);
+    if (orderByOrigin_) wf.cells[j] = wf.order.cellOf(wf.paths[j].o);
+  });
+  std::span<const uint32_t> places;
+  if (orderByOrigin_) places = wf.order.places({wf.cells.data(), count});
+  blocks([&](uint64_t j) {
+    wf.rays[places.empty() ? j : places[j]] = {wf.paths[j].o, wf.paths[j].d, -1, uint32_t(j)};
+  });
+  // The first rays are near-parallel (one incidence bin): in origin order they go to Embree as
+  // packets that share the tree's nodes down to its leaves.
+  for (bool first = true; wf.nRays > 0; first = false) traceRound(group, first, wf);
+  // The tallies in path order within each chunk: the same sums as path by path.
+  tbb::parallel_for(size_t(0), chunks.size(), [&](size_t c) {
+    const uint64_t j1 = std::min(count, (c + 1) * kPathChunk);
+    chunks[c].events.reserve(j1 - c * kPathChunk);
+    for (uint64_t j = c * kPathChunk; j < j1; ++j) commit(wf.paths[j], group, chunks[c]);
+  });
 }
 
 TileResult PathTracer::run(const TileRequest& q, const std::function<void(uint64_t)>& progress) const {
@@ -235,10 +330,29 @@ TileResult PathTracer::run(const TileRequest& q, const std::function<void(uint64
                      q.firstPath,
                      {Component::Coherent, Component::Multiple}};
   if (settings_.tallyGeoMasked) plan.components.push_back(Component::GeoMasked);
+  // The wavefront's buffers (a few hundred bytes per path of a batch) are taken from the tracer's
+  // spares and given back, so that a run of many tiles does not fault their pages in again.
+  std::unique_ptr<Wavefront> wf;
+  {
+    std::lock_guard lock(spareMutex_);
+    if (!spare_.empty()) {
+      wf = std::move(spare_.back());
+      spare_.pop_back();
+    }
+  }
+  if (!wf) wf = std::make_unique<Wavefront>();
+  struct GiveBack {
+    const PathTracer& tracer;
+    std::unique_ptr<Wavefront>& wf;
+    ~GiveBack() {
+      std::lock_guard lock(tracer.spareMutex_);
+      tracer.spare_.push_back(std::move(wf));
+    }
+  } giveBack{*this, wf};
   return runPaths(
       plan,
-      [&](uint64_t p0, uint64_t n, int g, PathChunk& c) {
-        traceRange(tile, incidenceBin, exactDirection, p0, n, g, c);
+      [&](uint64_t p0, uint64_t n, int g, std::span<PathChunk> chunks) {
+        traceBatch(tile, incidenceBin, exactDirection, p0, n, g, chunks, *wf);
       },
       progress);
 }

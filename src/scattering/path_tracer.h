@@ -13,12 +13,21 @@
 // carries a weight per wavelength (conductor: ×F_λ; dielectric: Russian roulette with F, which is
 // then the same for every λ). Otherwise each wavelength is traced on its own.
 //
-// Determinism: path j of tile t uses Sampler(seed, t, j, group); paths are processed in fixed
-// chunks whose tallies are merged in chunk order, so results do not depend on the thread count.
+// Speed: the paths of a batch (runPaths) advance together, one ray each per round, and each round's
+// rays are traced in the order of their origins (geometry/ray_order.h), so that the rays a thread
+// traces in a row meet the same part of Embree's tree while it is in the cache; the first rays,
+// near-parallel, go as packets of 16.
+//
+// Determinism: path j of tile t uses Sampler(seed, t, j, group), whatever the order its rays are
+// traced in; the paths' tallies are made in path order in fixed chunks merged in chunk order, so
+// results do not depend on the thread count.
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "core/direction_grid.h"
@@ -38,18 +47,25 @@ struct PathTracerSettings {
   int maxDepth = 100;
   uint64_t seed = 1;
   bool tallyGeoMasked = false;
+  // The first rays of a batch go to Embree as packets of 16 neighbours (false: one by one; the
+  // benchmark compares the two). Either way each ray gets the same hit.
+  bool firstRayPackets = true;
 };
 
 class PathTracer : public GeometricEstimator {
  public:
   PathTracer(const PeriodicScene& scene, const Material& material, std::vector<double> lambda_um,
              const DirectionGrid& grid, PathTracerSettings settings);
+  ~PathTracer() override;
 
   // Traces the paths of one tile (geometric_estimator.h; paths 0: the settings' count);
   // `progress(pathsDone)` is called from the calling thread between batches.
   using GeometricEstimator::run;
   TileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress) const override;
   bool deterministic() const override { return false; }
+  // Whether each round's rays are traced in the order of their origins (scenes of 4096 triangles
+  // or more), or in their paths' order.
+  bool ordersByOrigin() const { return orderByOrigin_; }
 
   // Replays a single path (for debugging a failing sample): returns its exit bin (or -1) and depth.
   struct PathRecord {
@@ -71,22 +87,27 @@ class PathTracer : public GeometricEstimator {
  private:
   // A path's state between rays: its random numbers, incidence, next ray, medium, depth, weights
   // (one per wavelength of its group, in a buffer the caller owns) and, once it has ended, how.
-  struct PathState {
+  // Two cache lines: a wavefront holds a few hundred thousand and visits them out of order.
+  struct alignas(64) PathState {
+    PathState() : s(0, 0, 0) {}
     explicit PathState(const Sampler& sampler) : s(sampler) {}
     Sampler s;
-    DirectionSample wi;
-    Vec3 o, d;
-    bool inUpper = true;
     int depth = 0;
+    int rays = 0;       // rays traced so far
     int lastPrim = -1;  // the triangle the next ray leaves
-    double* w = nullptr;
-    double* wGeoMasked = nullptr;  // the weights when the geo_masked direction was tallied
     int geoMaskedBin = -1;
-    enum class End { Exited, Truncated, Leaked, Missed } end = End::Exited;
     int exitBin = -1;
+    Vec3 o, d;
+    // Its weights, one per wavelength of its group (w[0, nl)), then those when the geo_masked
+    // direction was tallied (w[nl, 2 nl)), in a buffer the caller owns.
+    double* w = nullptr;
+    bool inUpper = true;
+    enum class End : uint8_t { Exited, Truncated, Leaked, Missed } end = End::Exited;
   };
+  static_assert(sizeof(PathState) ==
+                128);  // A path's first state; w holds its 2 nl weights (PathState::w); wi, if asked, its incidence.
   PathState startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, double* w,
-                      double* wGeoMasked) const;
+                      Vec3* wi = nullptr) const;
   // The path meets the result of its ray: true when it goes on (its next ray set), false when it
   // has ended (how, recorded in the state).
   bool step(PathState& st, const TraceResult& tr, int group, PathRecord* rec) const;
@@ -95,10 +116,16 @@ class PathTracer : public GeometricEstimator {
   // One path, its first ray traced alone (replay).
   void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, PathChunk& out,
                  PathRecord* rec) const;
-  // Paths firstPath … firstPath + count − 1 advanced together, one ray each per round
-  // (PeriodicScene::traceMany): the same results as tracePath one by one.
-  void traceRange(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath, uint64_t count,
-                  int group, PathChunk& out) const;
+  // The buffers of a batch of paths advanced together, kept from batch to batch of one tile.
+  struct Wavefront;
+  // Paths firstPath … firstPath + count − 1 advanced together, one ray each per round, each round's
+  // rays traced in the order of their origins (a wavefront; geometry/ray_order.h): the same
+  // results as tracePath one by one. Path firstPath + i is tallied into chunks[i / kPathChunk].
+  void traceBatch(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath, uint64_t count,
+                  int group, std::span<PathChunk> chunks, Wavefront& wf) const;
+  // One round of the wavefront: traces its rays in origin order and steps their paths; the paths
+  // that go on are its next rays.
+  void traceRound(int group, bool firstRays, Wavefront& wf) const;
 
   const PeriodicScene& scene_;
   const Material& material_;
@@ -109,6 +136,10 @@ class PathTracer : public GeometricEstimator {
   std::vector<std::vector<int>> groups_;        // wavelengths that share one path
   const DirectionGrid& grid_;
   PathTracerSettings settings_;
+  static constexpr size_t kOrderByOriginMinTriangles = 4096;
+  bool orderByOrigin_;  // each round's rays traced in the order of their origins
+  mutable std::mutex spareMutex_;
+  mutable std::vector<std::unique_ptr<Wavefront>> spare_;  // buffers of finished runs, for the next
 };
 
 }  // namespace mbsdf

@@ -2,6 +2,10 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <array>
+#include <chrono>
+#include <thread>
+
 #include <cmath>
 #include <optional>
 #include <string>
@@ -141,11 +145,36 @@ TEST(Determinism, ReplayMatchesBatch) {
   EXPECT_GT(r.at(c, 0, rec.exitBin), 0.0);
 }
 
-// run() advances a chunk's paths together (a wavefront: first rays as Embree packets, then one ray
-// per path per round); replay() traces one path alone with PeriodicScene::trace. The tallies of
-// run() are the sums of the replayed paths' exits, in path order, to the last bit: for a mirror
-// lattice, an Al heightfield (weights per wavelength), BK7 (random reflection or refraction at each
-// hit, transmission), a finite patch, grazing and normal incidence, bin-sampled and exact.
+namespace {
+// The tallies of replay() of paths 0 … paths − 1 (one wavelength group), as run() reports them.
+std::array<std::vector<double>, 2> replayedTallies(const Scenario& sc, int tile, int bin, uint64_t paths,
+                                                   const std::optional<Vec3>& exact, size_t nL, uint64_t* rays) {
+  const size_t nB = size_t(sc.grid.binCount());
+  std::array<std::vector<double>, 2> sum = {std::vector<double>(nL * nB, 0.0), std::vector<double>(nL * nB, 0.0)};
+  *rays = 0;
+  for (uint64_t p = 0; p < paths; ++p) {
+    const auto rec = sc.tracer->replay(tile, bin, p, 0, exact);
+    *rays += rec.rays.size();
+    if (rec.exitBin < 0) continue;
+    for (size_t l = 0; l < rec.weight.size(); ++l)
+      sum[rec.depth == 1 ? 0 : 1][l * nB + size_t(rec.exitBin)] += rec.weight[l];
+  }
+  for (auto& s : sum)
+    for (size_t i = 0; i < s.size(); ++i) {
+      const double op = sc.grid.projectedSolidAngle(int(i % nB));
+      s[i] = op > 0 ? s[i] / (double(paths) * op) : 0.0;
+    }
+  return sum;
+}
+}  // namespace
+
+// run() advances a batch's paths together (a wavefront: one ray per path per round, first rays as
+// Embree packets, each round's rays in origin order on a scene of 4096 triangles or more);
+// replay() traces one path alone with PeriodicScene::trace. The tallies of run() are the sums of
+// the replayed paths' exits, in path order, to the last bit: for a mirror lattice, an Al
+// heightfield (weights per wavelength), BK7 (random reflection or refraction at each hit,
+// transmission), a finite patch, a small grating (rays in path order), grazing and normal
+// incidence, bin-sampled and exact.
 TEST(Determinism, WavefrontRunEqualsPathByPathReplay) {
   struct Case {
     const char* name;
@@ -169,6 +198,8 @@ TEST(Determinism, WavefrontRunEqualsPathByPathReplay) {
   Microgeometry finite = makeGaussian(10, 10, 0.3, 1.0, 48, 48, 9);
   finite.periodic = false;
   cases.push_back({"Al finite 45", finite, "Al", {0.55}, 45, true});
+  cases.push_back({"Al grating 70", makeSineGrating(2.0, 0.3, 2.0, 0.03, 64, 0), "Al", {0.5, 0.6}, 70, false});
+  int ordered = 0, unordered = 0;
   for (Case& k : cases) {
     PathTracerSettings s;
     s.paths = 2500;  // more than two chunks of 1024
@@ -176,30 +207,67 @@ TEST(Determinism, WavefrontRunEqualsPathByPathReplay) {
     const int bin = sc.grid.binOfAngles(k.theta, 0);
     std::optional<Vec3> exact;
     if (k.exact) exact = sphericalDirection(radians(k.theta), 0);
+    (sc.tracer->ordersByOrigin() ? ordered : unordered) += 1;
     const TileResult r = sc.tracer->run(3, 0, bin, exact);
-    const size_t nB = size_t(sc.grid.binCount()), nL = k.lambdas.size();
-    std::vector<double> sum[2] = {std::vector<double>(nL * nB, 0.0), std::vector<double>(nL * nB, 0.0)};
+    const size_t nL = k.lambdas.size();
     uint64_t rays = 0;
     // One wavelength group in every case (Al's paths carry a weight per wavelength).
-    for (uint64_t p = 0; p < s.paths; ++p) {
-      const auto rec = sc.tracer->replay(3, bin, p, 0, exact);
-      rays += rec.rays.size();
-      if (rec.exitBin < 0) continue;
-      for (size_t l = 0; l < rec.weight.size(); ++l)
-        sum[rec.depth == 1 ? 0 : 1][l * nB + size_t(rec.exitBin)] += rec.weight[l];
-    }
+    const auto expected = replayedTallies(sc, 3, bin, s.paths, exact, nL, &rays);
     EXPECT_EQ(r.rays, rays) << k.name;
     int nonZero = 0;
     for (int c = 0; c < 2; ++c)
-      for (size_t i = 0; i < nL * nB; ++i) {
-        const double op = sc.grid.projectedSolidAngle(int(i % nB));
-        const double expected = op > 0 ? sum[c][i] / (double(s.paths) * op) : 0.0;
-        ASSERT_EQ(r.value[c == 0 ? int(Component::Coherent) : int(Component::Multiple)][i], expected)
+      for (size_t i = 0; i < expected[c].size(); ++i) {
+        ASSERT_EQ(r.value[c == 0 ? int(Component::Coherent) : int(Component::Multiple)][i], expected[c][i])
             << k.name << " component " << c << " index " << i;
-        nonZero += expected > 0;
+        nonZero += expected[c][i] > 0;
       }
     EXPECT_GT(nonZero, 10) << k.name;
   }
+  EXPECT_GE(ordered, 2);
+  EXPECT_GE(unordered, 1);
+}
+
+// A tile of more paths than one batch (runPaths: 256 chunks of 1024), run twice by one tracer
+// (the second run reuses the first's wavefront buffers, the second batch is smaller than the
+// first): both equal the replayed paths to the last bit.
+TEST(Determinism, WavefrontRunOverSeveralBatchesEqualsReplay) {
+  PathTracerSettings s;
+  s.paths = 256 * 1024 + 1500;
+  Scenario sc(makeGaussian(10, 10, 0.4, 1.0, 48, 48, 11), material("Al"), ThetaPhiGrid{6, 12}, {0.45, 0.65}, s);
+  ASSERT_TRUE(sc.tracer->ordersByOrigin());
+  const int bin = sc.grid.binOfAngles(40, 0);
+  uint64_t rays = 0;
+  const auto expected = replayedTallies(sc, 5, bin, s.paths, std::nullopt, 2, &rays);
+  for (int run = 0; run < 2; ++run) {
+    const TileResult r = sc.tracer->run(5, 0, bin);
+    EXPECT_EQ(r.rays, rays);
+    EXPECT_EQ(r.value[int(Component::Coherent)], expected[0]) << "run " << run;
+    EXPECT_EQ(r.value[int(Component::Multiple)], expected[1]) << "run " << run;
+  }
+}
+
+// A run abandoned from its progress callback (a stop request) ends although the next batch's
+// rounds are under way (the callback waits 50 ms, about the rounds' middle here, before it throws;
+// whenever the cancellation comes, the cancelled rounds leave no rays behind), and the tracer runs
+// again afterwards.
+TEST(Determinism, AbandonedWavefrontRunEnds) {
+  PathTracerSettings s;
+  s.paths = 3 * 256 * 1024;
+  Scenario sc(makeGaussian(10, 10, 0.4, 1.0, 48, 48, 11), material("Al"), ThetaPhiGrid{6, 12}, {0.55}, s);
+  ASSERT_TRUE(sc.tracer->ordersByOrigin());
+  const int bin = sc.grid.binOfAngles(40, 0);
+  struct Stop {};
+  TileRequest q;
+  q.tile = 1;
+  q.incidenceBin = bin;
+  EXPECT_THROW(sc.tracer->run(q,
+                              [](uint64_t) {
+                                std::this_thread::sleep_for(std::chrono::milliseconds(50));
+                                throw Stop{};
+                              }),
+               Stop);
+  q.paths = 2000;
+  EXPECT_EQ(sc.tracer->run(q, {}).samples, 2000u);
 }
 
 // Progressive sampling pools rounds of fresh paths: two rounds of N equal one run of 2N paths.
