@@ -7,6 +7,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "core/huge_page_allocator.h"
 #include "core/rng.h"
 #include "geometry/ray_order.h"
 
@@ -184,9 +185,13 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
 }
 
 struct PathTracer::Wavefront {
-  // The buffers only grow: a batch reuses them without clearing or faulting in their pages.
-  std::vector<PathState> paths;
-  std::vector<double> weights;  // per path: its 2 nl weights (PathState::w)
+  // The buffers only grow: a batch reuses them without clearing or faulting in their pages. Huge
+  // pages make their first touch cheap (tens of MB: thousands of faults of small pages, a fifth of
+  // a second on a small job's first tile) and their out-of-order reads light on the TLB.
+  template <typename T>
+  using Buffer = std::vector<T, HugePageAllocator<T>>;
+  Buffer<PathState> paths;
+  Buffer<double> weights;  // per path: its 2 nl weights (PathState::w)
   // A round's rays (in origin order when the tracer orders them), each in one cache line.
   struct alignas(64) Ray {
     Vec3 o, d;
@@ -194,19 +199,20 @@ struct PathTracer::Wavefront {
     uint32_t path;  // its path within the batch
   };
   static_assert(sizeof(Ray) == 64);
-  std::vector<Ray> rays;
+  Buffer<Ray> rays;
   size_t nRays = 0;
-  // Per block of a round: the next rays of its paths that go on, and their origins' cells.
-  std::vector<std::vector<Ray>> goOn;
-  std::vector<std::vector<uint32_t>> goOnCells;
-  std::vector<uint32_t> cells;
+  // The next rays of a round's paths that go on, and their origins' cells: block b's from its
+  // first ray's place on, goOnCount[b] of them.
+  Buffer<Ray> goOn;
+  Buffer<uint32_t> goOnCells, cells;
+  std::vector<size_t> goOnCount;
   OriginOrder order;
 };
 
 PathTracer::~PathTracer() = default;
 
-template <typename T>
-static void growTo(std::vector<T>& v, size_t n) {
+template <typename T, typename A>
+static void growTo(std::vector<T, A>& v, size_t n) {
   if (v.size() < n) v.resize(n);
 }
 
@@ -221,14 +227,11 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
   const bool stepWeighs = (conductor_ && !perfectConductor_) || settings_.tallyGeoMasked;
   // The next round's rays are fewer: cells for n rays are as fine as they need, or finer.
   if (orderByOrigin_) wf.order.prepare(n, scene_.sizeX(), scene_.sizeY());
-  growTo(wf.goOn, nBlocks);
-  growTo(wf.goOnCells, nBlocks);
-  // Emptied here, not only by their blocks: when the run is abandoned (runPaths cancels its batch),
+  growTo(wf.goOn, n);
+  growTo(wf.goOnCells, n);
+  // Set here, not only by their blocks: when the run is abandoned (runPaths cancels its batch),
   // the blocks not run leave no rays and the rounds end.
-  for (size_t b = 0; b < nBlocks; ++b) {
-    wf.goOn[b].clear();
-    wf.goOnCells[b].clear();
-  }
+  wf.goOnCount.assign(nBlocks, 0);
   tbb::parallel_for(size_t(0), nBlocks, [&](size_t b) {
     thread_local std::vector<Vec3> o, d;
     thread_local std::vector<int> leaving;
@@ -254,31 +257,31 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
       scene_.traceMany(o, d, {}, settings_.firstRayPackets ? TraceMode::Packets : TraceMode::Single, results);
     else
       scene_.traceMany(o, d, leaving, TraceMode::Single, results);
-    std::vector<Wavefront::Ray>& goOn = wf.goOn[b];
-    std::vector<uint32_t>& goOnCells = wf.goOnCells[b];
+    size_t goingOn = 0;
     for (size_t k = 0; k < m; ++k) {
       const uint32_t i = wf.rays[k0 + k].path;
       PathState& st = wf.paths[i];
       if (!step(st, results[k], group, nullptr)) continue;
-      goOn.push_back({st.o, st.d, st.lastPrim, i});
-      if (orderByOrigin_) goOnCells.push_back(wf.order.cellOf(st.o));
+      wf.goOn[k0 + goingOn] = {st.o, st.d, st.lastPrim, i};
+      if (orderByOrigin_) wf.goOnCells[k0 + goingOn] = wf.order.cellOf(st.o);
+      ++goingOn;
     }
+    wf.goOnCount[b] = goingOn;
   });
   // The next round's rays: the blocks' rays that go on, block after block, put in origin order.
   std::vector<size_t> start(nBlocks + 1, 0);
-  for (size_t b = 0; b < nBlocks; ++b) start[b + 1] = start[b] + wf.goOn[b].size();
+  for (size_t b = 0; b < nBlocks; ++b) start[b + 1] = start[b] + wf.goOnCount[b];
   wf.nRays = start[nBlocks];
   std::span<const uint32_t> places;
   if (orderByOrigin_) {
-    growTo(wf.cells, wf.nRays);
     tbb::parallel_for(size_t(0), nBlocks, [&](size_t b) {
-      std::copy(wf.goOnCells[b].begin(), wf.goOnCells[b].end(), wf.cells.begin() + std::ptrdiff_t(start[b]));
+      std::copy_n(wf.goOnCells.data() + b * kBlock, wf.goOnCount[b], wf.cells.data() + start[b]);
     });
     places = wf.order.places({wf.cells.data(), wf.nRays});
   }
   tbb::parallel_for(size_t(0), nBlocks, [&](size_t b) {
-    for (size_t j = 0; j < wf.goOn[b].size(); ++j)
-      wf.rays[places.empty() ? start[b] + j : places[start[b] + j]] = wf.goOn[b][j];
+    for (size_t j = 0; j < wf.goOnCount[b]; ++j)
+      wf.rays[places.empty() ? start[b] + j : places[start[b] + j]] = wf.goOn[b * kBlock + j];
   });
 }
 
