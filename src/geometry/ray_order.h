@@ -3,8 +3,8 @@
 // reordering for memory coherence (Pharr, Kolb, Gershbein & Hanrahan 1997, "Rendering complex
 // scenes with memory-coherent ray tracing"; Garanzha & Loop 2010 sort rays by a hash of origin and
 // direction): on the 20 x 20 µm `hemispheres` patch Embree traces a path tracer's rays ordered this
-// way 1.6x (rays that leave the surface) to 2.4x (first rays) faster than in the order of their
-// paths (bench/bench_path_tracer.cpp).
+// way 1.4x (all its rays) to 2.5x (first rays) faster than in the order of their paths
+// (bench/bench_path_tracer.cpp, BM_TracerRaysAgain and BM_FirstRays; docs/performance.md).
 //
 // The order is a stable counting sort by the Morton (Z-order) cell of the origin within the
 // periodic cell of the patch: rays in one cell keep their given order, so the order is unique for

@@ -34,19 +34,11 @@ std::vector<std::vector<int>> wavelengthGroups(int nLambda, bool shared) {
 
 TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
                     const std::function<void(uint64_t)>& progress) {
-  return runPaths(plan, PathRangeFunction([&](uint64_t p0, uint64_t n, int g, PathChunk& c) {
-                    for (uint64_t p = p0; p < p0 + n; ++p) trace(p, g, c);
-                  }),
-                  progress);
-}
-
-TileResult runPaths(const PathTallyPlan& plan, const PathRangeFunction& trace,
-                    const std::function<void(uint64_t)>& progress) {
   return runPaths(plan, PathBatchFunction([&](uint64_t p0, uint64_t n, int g, std::span<PathChunk> chunks) {
                     tbb::parallel_for(size_t(0), chunks.size(), [&](size_t ci) {
-                      const uint64_t c0 = ci * kPathChunk;
-                      chunks[ci].events.reserve(std::min(n - c0, kPathChunk));
-                      trace(p0 + c0, std::min(n - c0, kPathChunk), g, chunks[ci]);
+                      const uint64_t c0 = ci * kPathChunk, c1 = std::min(n, c0 + kPathChunk);
+                      chunks[ci].events.reserve(c1 - c0);
+                      for (uint64_t p = p0 + c0; p < p0 + c1; ++p) trace(p, g, chunks[ci]);
                     });
                   }),
                   progress);
@@ -79,14 +71,13 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
   r.leaked.assign(nL, 0.0);
   r.missed.assign(nL, 0.0);
 
-  constexpr uint64_t kChunk = kPathChunk;
   constexpr uint64_t kChunksPerBatch = 256;
   struct Batch {
     int group;
     uint64_t c0, c1;  // chunks [c0, c1) of the group
   };
   std::vector<Batch> batches;
-  const uint64_t nChunks = (N + kChunk - 1) / kChunk;
+  const uint64_t nChunks = (N + kPathChunk - 1) / kPathChunk;
   for (int g = 0; g < int(plan.groups.size()); ++g)
     for (uint64_t c0 = 0; c0 < nChunks; c0 += kChunksPerBatch)
       batches.push_back({g, c0, std::min(nChunks, c0 + kChunksPerBatch)});
@@ -95,7 +86,7 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
     // The chunks' storage is kept from batch to batch (allocating it anew costs page faults).
     chunks.resize(b.c1 - b.c0, PathChunk(nL));
     for (PathChunk& c : chunks) c.clear();
-    const uint64_t p0 = b.c0 * kChunk, p1 = std::min(N, b.c1 * kChunk);
+    const uint64_t p0 = b.c0 * kPathChunk, p1 = std::min(N, b.c1 * kPathChunk);
     trace(plan.firstPath + p0, p1 - p0, b.group, chunks);
   };
   // Merge in chunk order: identical sums for any number of threads.
@@ -133,7 +124,7 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
     if (i + 1 < batches.size()) ahead.run([&] { compute(batches[i + 1], next); });
     try {
       merge(current);
-      if (progress) progress(uint64_t(batches[i].group) * N + std::min(N, batches[i].c1 * kChunk));
+      if (progress) progress(uint64_t(batches[i].group) * N + std::min(N, batches[i].c1 * kPathChunk));
     } catch (...) {
       ahead.cancel();
       ahead.wait();

@@ -63,11 +63,6 @@ struct PathTallyPlan {
 using PathFunction = std::function<void(uint64_t path, int group, PathChunk& out)>;
 TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
                     const std::function<void(uint64_t)>& progress);
-// The same with `trace(firstPath, count, group, chunk)` called for the consecutive paths of each
-// chunk at once (an estimator that traces their first rays together), tallying them in path order.
-using PathRangeFunction = std::function<void(uint64_t firstPath, uint64_t count, int group, PathChunk& out)>;
-TileResult runPaths(const PathTallyPlan& plan, const PathRangeFunction& trace,
-                    const std::function<void(uint64_t)>& progress);
 // The same with `trace(firstPath, count, group, chunks)` called once for each batch of consecutive
 // chunks (an estimator that advances all their paths together, such as a wavefront ordered by
 // origin), which tallies path firstPath + i into chunks[i / kPathChunk], in path order within a

@@ -52,10 +52,14 @@ TEST(OriginOrder, StableCountingSortByMortonCell) {
     for (size_t k = 1; k < n; ++k) {
       const uint32_t a = rayAt[k - 1], b = rayAt[k];
       ASSERT_LE(cells[a], cells[b]) << "place " << k;
-      if (cells[a] == cells[b]) ASSERT_LT(a, b) << "rays of one cell out of their order, place " << k;
+      if (cells[a] == cells[b]) {
+        ASSERT_LT(a, b) << "rays of one cell out of their order, place " << k;
+      }
     }
     // About 16 rays per cell, at most 2^14 cells.
-    if (n >= 16 * 4) EXPECT_LE(double(n) / order.cellCount(), 64.0) << n;
+    if (n >= 16 * 4) {
+      EXPECT_LE(double(n) / order.cellCount(), 64.0) << n;
+    }
     EXPECT_GE(double(std::max<size_t>(n, 1)) / order.cellCount(), n >= 16 ? 16.0 : 0.0) << n;
     EXPECT_LE(order.cellCount(), 1u << 14);
   }
