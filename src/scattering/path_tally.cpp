@@ -3,9 +3,11 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_group.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <mutex>
 
 #include "core/stop.h"
 
@@ -37,12 +39,62 @@ TileResult runPaths(const PathTallyPlan& plan, const PathFunction& trace,
   return runPaths(plan, PathBatchFunction([&](uint64_t p0, uint64_t n, int g, std::span<PathChunk> chunks) {
                     tbb::parallel_for(size_t(0), chunks.size(), [&](size_t ci) {
                       const uint64_t c0 = ci * kPathChunk, c1 = std::min(n, c0 + kPathChunk);
-                      chunks[ci].events.reserve(c1 - c0);
                       for (uint64_t p = p0 + c0; p < p0 + c1; ++p) trace(p, g, chunks[ci]);
                     });
                   }),
                   progress);
 }
+
+namespace {
+
+// The events a path tallies at most: one exit event (coherent or multiple), and the geo_masked
+// copy when it is tallied.
+size_t eventsPerPath(const PathTallyPlan& plan) {
+  return 1 + size_t(std::count(plan.components.begin(), plan.components.end(), Component::GeoMasked));
+}
+
+// Chunk storage kept between runs: a batch's chunks hold some 10 MB of tallies, and allocating
+// them for every tile costs thousands of page faults and the copies of growing vectors. A run takes
+// two sets (the batch it merges and the one computed meanwhile) and gives them back.
+class ChunkPool {
+ public:
+  std::vector<PathChunk> take() {
+    std::lock_guard lock(mutex_);
+    if (spare_.empty()) return {};
+    std::vector<PathChunk> v = std::move(spare_.back());
+    spare_.pop_back();
+    return v;
+  }
+  void giveBack(std::vector<PathChunk>&& v) {
+    std::lock_guard lock(mutex_);
+    spare_.push_back(std::move(v));
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<std::vector<PathChunk>> spare_;
+};
+
+ChunkPool& chunkPool() {
+  static ChunkPool pool;
+  return pool;
+}
+
+// Two sets of chunks from the pool, given back when the run ends (also when it is abandoned). A
+// batch uses the first chunks of a set; a smaller batch leaves the others' storage for the next.
+struct PooledChunks {
+  std::vector<PathChunk> current = chunkPool().take(), next = chunkPool().take();
+  size_t currentUsed = 0, nextUsed = 0;
+  PooledChunks() = default;
+  PooledChunks(const PooledChunks&) = delete;
+  PooledChunks& operator=(const PooledChunks&) = delete;
+  ~PooledChunks() {
+    chunkPool().giveBack(std::move(current));
+    chunkPool().giveBack(std::move(next));
+  }
+};
+
+}  // namespace
 
 TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
                     const std::function<void(uint64_t)>& progress) {
@@ -82,15 +134,21 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
     for (uint64_t c0 = 0; c0 < nChunks; c0 += kChunksPerBatch)
       batches.push_back({g, c0, std::min(nChunks, c0 + kChunksPerBatch)});
 
-  auto compute = [&](const Batch& b, std::vector<PathChunk>& chunks) {
-    // The chunks' storage is kept from batch to batch (allocating it anew costs page faults).
-    chunks.resize(b.c1 - b.c0, PathChunk(nL));
-    for (PathChunk& c : chunks) c.clear();
+  auto compute = [&](const Batch& b, std::vector<PathChunk>& set, size_t& used) {
+    // The chunks' storage is kept from batch to batch and from run to run (ChunkPool).
+    used = b.c1 - b.c0;
+    if (set.size() < used) set.resize(used, PathChunk(nL));
+    const std::span<PathChunk> chunks(set.data(), used);
     const uint64_t p0 = b.c0 * kPathChunk, p1 = std::min(N, b.c1 * kPathChunk);
+    for (size_t i = 0; i < chunks.size(); ++i) {
+      chunks[i].clear(nL);
+      chunks[i].reserve(std::min(kPathChunk, p1 - p0 - i * kPathChunk), eventsPerPath(plan),
+                        plan.groups[size_t(b.group)].size());
+    }
     trace(plan.firstPath + p0, p1 - p0, b.group, chunks);
   };
   // Merge in chunk order: identical sums for any number of threads.
-  auto merge = [&](const std::vector<PathChunk>& chunks) {
+  auto merge = [&](std::span<const PathChunk> chunks) {
     for (const PathChunk& c : chunks) {
       for (const PathChunk::Event& e : c.events) {
         const auto& lambdas = plan.groups[e.group];
@@ -116,14 +174,14 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
   // The merge is serial (its order makes the sums independent of the threads): it runs on this
   // thread while the other threads compute the next batch, so that many threads per rank do not
   // wait for it (about 5 ns per path, a tenth of a walk's path on 8 threads).
-  std::vector<PathChunk> current, next;
-  if (!batches.empty()) compute(batches[0], current);
+  PooledChunks pooled;
+  if (!batches.empty()) compute(batches[0], pooled.current, pooled.currentUsed);
   for (size_t i = 0; i < batches.size(); ++i) {
     throwIfStopped();
     tbb::task_group ahead;
-    if (i + 1 < batches.size()) ahead.run([&] { compute(batches[i + 1], next); });
+    if (i + 1 < batches.size()) ahead.run([&] { compute(batches[i + 1], pooled.next, pooled.nextUsed); });
     try {
-      merge(current);
+      merge({pooled.current.data(), pooled.currentUsed});
       if (progress) progress(uint64_t(batches[i].group) * N + std::min(N, batches[i].c1 * kPathChunk));
     } catch (...) {
       ahead.cancel();
@@ -131,7 +189,8 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
       throw;
     }
     ahead.wait();
-    std::swap(current, next);
+    std::swap(pooled.current, pooled.next);
+    std::swap(pooled.currentUsed, pooled.nextUsed);
   }
   const double dN = double(N);
   for (Component c : plan.components) {

@@ -27,14 +27,20 @@ class PathChunk {
     events.push_back({bin, int(c), group, int(weights.size())});
     weights.insert(weights.end(), w, w + n);
   }
-  // Empty again, keeping the storage.
-  void clear() {
+  // Empty again for nLambda wavelengths, keeping the storage.
+  void clear(int nLambda) {
     events.clear();
     weights.clear();
-    std::fill(truncated.begin(), truncated.end(), 0.0);
-    std::fill(leaked.begin(), leaked.end(), 0.0);
-    std::fill(missed.begin(), missed.end(), 0.0);
+    truncated.assign(size_t(nLambda), 0.0);
+    leaked.assign(size_t(nLambda), 0.0);
+    missed.assign(size_t(nLambda), 0.0);
     rays = 0;
+  }
+  // Room for `paths` paths of `eventsPerPath` events with n weights each, so that tallying
+  // does not reallocate (and copy) as it goes.
+  void reserve(size_t paths, size_t eventsPerPath, size_t n) {
+    events.reserve(paths * eventsPerPath);
+    weights.reserve(paths * eventsPerPath * n);
   }
   struct Event {
     int32_t bin, component, group, weightOffset;

@@ -190,21 +190,16 @@ struct PathTracer::Wavefront {
   // a second on a small job's first tile) and their out-of-order reads light on the TLB.
   template <typename T>
   using Buffer = std::vector<T, HugePageAllocator<T>>;
-  Buffer<PathState> paths;
-  Buffer<double> weights;  // per path: its 2 nl weights (PathState::w)
-  // A round's rays (in origin order when the tracer orders them), each in one cache line.
-  struct alignas(64) Ray {
-    Vec3 o, d;
-    int leaving;    // the triangle it leaves (-1: none)
-    uint32_t path;  // its path within the batch
-  };
-  static_assert(sizeof(Ray) == 64);
-  Buffer<Ray> rays;
+  // The states of the paths that go on, one per ray of the round, in the order their rays are
+  // traced (by origin when the tracer orders them): a block reads and steps its states in
+  // sequence instead of fetching each from a place of its path.
+  Buffer<PathState> live, next;
+  Buffer<PathState> paths;  // by path within the batch: its first state, then its last
+  Buffer<double> weights;   // per path: its 2 nl weights (PathState::w)
   size_t nRays = 0;
-  // The next rays of a round's paths that go on, and their origins' cells: block b's from its
-  // first ray's place on, goOnCount[b] of them.
-  Buffer<Ray> goOn;
-  Buffer<uint32_t> goOnCells, cells;
+  // A round's states that go on stay in their block, the first goOnCount[b] of block b, with
+  // their origins' cells; from[j] is the live state that becomes the next round's j-th.
+  Buffer<uint32_t> goOnCells, cells, from;
   std::vector<size_t> goOnCount;
   OriginOrder order;
 };
@@ -214,6 +209,25 @@ PathTracer::~PathTracer() = default;
 template <typename T, typename A>
 static void growTo(std::vector<T, A>& v, size_t n) {
   if (v.size() < n) v.resize(n);
+}
+
+// Copies states into their places in sequence: next[j] = live[from[j]]. Reading scattered and
+// writing in order lets the reads overlap (each is fetched a few states ahead) where scattered
+// writes would each wait for their line.
+template <typename Buf>
+static void gatherStates(const Buf& live, std::span<const uint32_t> from, Buf& next) {
+  constexpr size_t kAhead = 16, kGrain = 4096;
+  const size_t n = from.size();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t j = r.begin(); j < r.end(); ++j) {
+      if (j + kAhead < r.end()) {
+        const char* ahead = reinterpret_cast<const char*>(&live[from[j + kAhead]]);
+        __builtin_prefetch(ahead);
+        __builtin_prefetch(ahead + 64);
+      }
+      next[j] = live[from[j]];
+    }
+  });
 }
 
 void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
@@ -227,7 +241,6 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
   const bool stepWeighs = (conductor_ && !perfectConductor_) || settings_.tallyGeoMasked;
   // The next round's rays are fewer: cells for n rays are as fine as they need, or finer.
   if (orderByOrigin_) wf.order.prepare(n, scene_.sizeX(), scene_.sizeY());
-  growTo(wf.goOn, n);
   growTo(wf.goOnCells, n);
   // Set here, not only by their blocks: when the run is abandoned (runPaths cancels its batch),
   // the blocks not run leave no rays and the rounds end.
@@ -237,33 +250,34 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
     thread_local std::vector<int> leaving;
     thread_local std::vector<TraceResult> results;
     const size_t k0 = b * kBlock, m = std::min(n, k0 + kBlock) - k0;
+    PathState* states = wf.live.data() + k0;
     o.resize(m);
     d.resize(m);
     leaving.resize(m);
     results.resize(m);
     for (size_t k = 0; k < m; ++k) {
-      const Wavefront::Ray& ray = wf.rays[k0 + k];
-      o[k] = ray.o;
-      d[k] = ray.d;
-      leaving[k] = ray.leaving;
-      // The block's path states, spread over the batch's, are read after its rays are traced:
-      // fetched now, they arrive while Embree works instead of stalling each step in turn.
-      const char* st = reinterpret_cast<const char*>(&wf.paths[ray.path]);
-      __builtin_prefetch(st);
-      __builtin_prefetch(st + 64);
-      if (stepWeighs) __builtin_prefetch(&wf.weights[2 * ray.path * nl]);
+      o[k] = states[k].o;
+      d[k] = states[k].d;
+      leaving[k] = states[k].lastPrim;
+      // The weights, spread over the batch's, are read after the rays are traced: fetched now,
+      // they arrive while Embree works.
+      if (stepWeighs) __builtin_prefetch(&wf.weights[2 * size_t(states[k].path) * nl]);
     }
     if (firstRays)
       scene_.traceMany(o, d, {}, settings_.firstRayPackets ? TraceMode::Packets : TraceMode::Single, results);
     else
       scene_.traceMany(o, d, leaving, TraceMode::Single, results);
+    // The states that go on move to the front of the block (in order); those that end go to
+    // their paths' places, for the tallies.
     size_t goingOn = 0;
     for (size_t k = 0; k < m; ++k) {
-      const uint32_t i = wf.rays[k0 + k].path;
-      PathState& st = wf.paths[i];
-      if (!step(st, results[k], group, nullptr)) continue;
-      wf.goOn[k0 + goingOn] = {st.o, st.d, st.lastPrim, i};
+      PathState& st = states[k];
+      if (!step(st, results[k], group, nullptr)) {
+        wf.paths[st.path] = st;
+        continue;
+      }
       if (orderByOrigin_) wf.goOnCells[k0 + goingOn] = wf.order.cellOf(st.o);
+      if (goingOn != k) states[goingOn] = st;
       ++goingOn;
     }
     wf.goOnCount[b] = goingOn;
@@ -281,8 +295,10 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
   }
   tbb::parallel_for(size_t(0), nBlocks, [&](size_t b) {
     for (size_t j = 0; j < wf.goOnCount[b]; ++j)
-      wf.rays[places.empty() ? start[b] + j : places[start[b] + j]] = wf.goOn[b * kBlock + j];
+      wf.from[places.empty() ? start[b] + j : places[start[b] + j]] = uint32_t(b * kBlock + j);
   });
+  gatherStates(wf.live, {wf.from.data(), wf.nRays}, wf.next);
+  std::swap(wf.live, wf.next);
 }
 
 void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath,
@@ -290,8 +306,10 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
   const size_t nl = groups_[size_t(group)].size();
   growTo(wf.paths, count);
   growTo(wf.weights, 2 * count * nl);  // each path sets its weights before it reads them
-  growTo(wf.rays, count);
+  growTo(wf.live, count);
+  growTo(wf.next, count);
   growTo(wf.cells, count);
+  growTo(wf.from, count);
   wf.nRays = count;
   if (orderByOrigin_) wf.order.prepare(count, scene_.sizeX(), scene_.sizeY());
   auto blocks = [&](auto&& body) {
@@ -301,20 +319,22 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
   };
   blocks([&](uint64_t j) {
     wf.paths[j] = startPath(tile, incidenceBin, exact, firstPath + j, group, &wf.weights[2 * j * nl]);
+    wf.paths[j].path = uint32_t(j);
     if (orderByOrigin_) wf.cells[j] = wf.order.cellOf(wf.paths[j].o);
   });
-  std::span<const uint32_t> places;
-  if (orderByOrigin_) places = wf.order.places({wf.cells.data(), count});
-  blocks([&](uint64_t j) {
-    wf.rays[places.empty() ? j : places[j]] = {wf.paths[j].o, wf.paths[j].d, -1, uint32_t(j)};
-  });
+  if (orderByOrigin_) {
+    const std::span<const uint32_t> places = wf.order.places({wf.cells.data(), count});
+    blocks([&](uint64_t j) { wf.from[places[j]] = uint32_t(j); });
+    gatherStates(wf.paths, {wf.from.data(), count}, wf.live);
+  } else {
+    std::copy_n(wf.paths.begin(), count, wf.live.begin());
+  }
   // The first rays are near-parallel (one incidence bin): in origin order they go to Embree as
   // packets that share the tree's nodes down to its leaves.
   for (bool first = true; wf.nRays > 0; first = false) traceRound(group, first, wf);
   // The tallies in path order within each chunk: the same sums as path by path.
   tbb::parallel_for(size_t(0), chunks.size(), [&](size_t c) {
     const uint64_t j1 = std::min(count, (c + 1) * kPathChunk);
-    chunks[c].events.reserve(j1 - c * kPathChunk);
     for (uint64_t j = c * kPathChunk; j < j1; ++j) commit(wf.paths[j], group, chunks[c]);
   });
 }

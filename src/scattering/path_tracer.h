@@ -87,7 +87,8 @@ class PathTracer : public GeometricEstimator {
  private:
   // A path's state between rays: its random numbers, incidence, next ray, medium, depth, weights
   // (one per wavelength of its group, in a buffer the caller owns) and, once it has ended, how.
-  // Two cache lines: a wavefront holds a few hundred thousand and visits them out of order.
+  // Two cache lines: a wavefront holds a few hundred thousand and moves them, each round, into the
+  // order their rays are traced in.
   struct alignas(64) PathState {
     PathState() : s(0, 0, 0) {}
     explicit PathState(const Sampler& sampler) : s(sampler) {}
@@ -103,9 +104,10 @@ class PathTracer : public GeometricEstimator {
     double* w = nullptr;
     bool inUpper = true;
     enum class End : uint8_t { Exited, Truncated, Leaked, Missed } end = End::Exited;
+    uint32_t path = 0;  // its place in the batch of paths advanced together
   };
-  static_assert(sizeof(PathState) ==
-                128);  // A path's first state; w holds its 2 nl weights (PathState::w); wi, if asked, its incidence.
+  static_assert(sizeof(PathState) == 128);
+  // A path's first state; w holds its 2 nl weights (PathState::w); wi, if asked, its incidence.
   PathState startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, double* w,
                       Vec3* wi = nullptr) const;
   // The path meets the result of its ray: true when it goes on (its next ray set), false when it

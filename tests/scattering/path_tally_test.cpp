@@ -1,11 +1,13 @@
 // The deterministic Monte Carlo tallies: over several batches (whose merge overlaps the next
 // batch's paths), with any number of threads, the sums are those of one serial loop over the paths
-// in order; progress reaches every path; a progress callback that throws abandons the tile.
+// in order; progress reaches every path; a progress callback that throws abandons the tile; chunks
+// kept from an earlier run start empty.
 #include "scattering/path_tally.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <atomic>
 #include <cmath>
 #include <stdexcept>
 #include <vector>
@@ -77,6 +79,49 @@ TEST(PathTally, BatchedParallelSumsEqualASerialLoopInPathOrder) {
                     sum[(size_t(c) * 2 + l) * nB + b] / (double(plan.paths) * grid.projectedSolidAngle(b)))
               << threads << " threads, bin " << b;
         }
+  }
+}
+
+// runPaths keeps its chunks' storage from run to run: a run after one with more wavelengths, more
+// chunks and other tallies starts from empty chunks of its own size.
+TEST(PathTally, ChunksKeptFromRunToRunStartEmpty) {
+  const DirectionGrid grid(ThetaPhiGrid{4, 8});
+  const int nB = grid.binCount();
+  size_t nLambda = 0;
+  std::atomic<int> wrongSize{0};
+  auto traceTruncating = [&](uint64_t path, int group, PathChunk& out) {
+    if (out.truncated.size() != nLambda || out.missed.size() != nLambda) ++wrongSize;
+    const SyntheticPath p = syntheticPath(path, group, nB);
+    out.tally(p.bin, p.component, group, p.w, out.truncated.size());
+    for (size_t l = 0; l < out.truncated.size(); ++l) out.truncated[l] += p.w[l];
+    ++out.rays;
+  };
+  PathTallyPlan small = planOf(grid, 1, 1000);
+  small.components = {Component::Coherent, Component::Multiple};
+  // The reference: the small plan's paths in order.
+  std::vector<double> sum(size_t(2) * nB, 0.0);
+  double truncated = 0;
+  for (uint64_t i = 0; i < small.paths; ++i) {
+    const SyntheticPath p = syntheticPath(i, 0, nB);
+    sum[size_t(p.component == Component::Multiple) * nB + p.bin] += p.w[0];
+    truncated += p.w[0];
+  }
+  PathTallyPlan large = planOf(grid, 2, 2 * 256 * 1024);
+  large.components = {Component::Coherent, Component::Multiple};
+  for (int pass = 0; pass < 2; ++pass) {
+    nLambda = 2;
+    runPaths(large, traceTruncating, {});
+    nLambda = 1;
+    const TileResult r = runPaths(small, traceTruncating, {});
+    EXPECT_EQ(wrongSize.load(), 0);
+    EXPECT_EQ(r.rays, small.paths);
+    ASSERT_EQ(r.truncated.size(), 1u);
+    EXPECT_EQ(r.truncated[0], truncated / double(small.paths));
+    for (int c = 0; c < 2; ++c)
+      for (int b = 0; b < nB; ++b)
+        ASSERT_EQ(r.at(c == 0 ? Component::Coherent : Component::Multiple, 0, b),
+                  sum[size_t(c) * nB + b] / (double(small.paths) * grid.projectedSolidAngle(b)))
+            << "pass " << pass << ", bin " << b;
   }
 }
 
