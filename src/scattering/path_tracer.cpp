@@ -1,7 +1,9 @@
 #include "scattering/path_tracer.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <limits>
 #include <mutex>
 
 #include <tbb/blocked_range.h>
@@ -194,8 +196,12 @@ struct PathTracer::Wavefront {
   // traced (by origin when the tracer orders them): a block reads and steps its states in
   // sequence instead of fetching each from a place of its path.
   Buffer<PathState> live, next;
-  Buffer<PathState> paths;  // by path within the batch: its first state, then its last
-  Buffer<double> weights;   // per path: its 2 nl weights (PathState::w)
+  // The paths' first states, by path within the batch; once they are live, the paths' last
+  // states, in the order they ended: endedAt[i] is path i's place.
+  Buffer<PathState> paths;
+  Buffer<uint32_t> endedAt;
+  std::atomic<uint32_t> nEnded{0};
+  Buffer<double> weights;  // per path: its 2 nl weights (PathState::w)
   size_t nRays = 0;
   // A round's states that go on stay in their block, the first goOnCount[b] of block b, with
   // their origins' cells; from[j] is the live state that becomes the next round's j-th.
@@ -263,17 +269,30 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
       // they arrive while Embree works.
       if (stepWeighs) __builtin_prefetch(&wf.weights[2 * size_t(states[k].path) * nl]);
     }
-    if (firstRays)
-      scene_.traceMany(o, d, {}, settings_.firstRayPackets ? TraceMode::Packets : TraceMode::Single, results);
-    else
-      scene_.traceMany(o, d, leaving, TraceMode::Single, results);
-    // The states that go on move to the front of the block (in order); those that end go to
-    // their paths' places, for the tallies.
+    // Packets of 16 neighbours: the first rays are near-parallel, and in origin order many later
+    // rays are too (those leaving one flat stretch of surface). Later rays in their paths' order
+    // (a small scene) are not.
+    const bool packets = settings_.packets && (firstRays || orderByOrigin_);
+    scene_.traceMany(o, d, firstRays ? std::span<const int>{} : std::span<const int>(leaving),
+                     packets ? TraceMode::Packets : TraceMode::Single, results);
+    thread_local std::vector<uint8_t> goesOn;
+    goesOn.resize(m);
+    size_t ending = 0;
+    for (size_t k = 0; k < m; ++k) {
+      goesOn[k] = step(states[k], results[k], group, nullptr);
+      ending += !goesOn[k];
+    }
+    // The states that go on move to the front of the block (in order). Those that end are kept
+    // together for the tallies, at places taken from a shared counter, with each path's place
+    // noted: written to their paths' own places, scattered over the batch, each would wait for
+    // its lines. The places depend on the threads' timing; the tallies, read by path, do not.
+    uint32_t endedAt = wf.nEnded.fetch_add(uint32_t(ending), std::memory_order_relaxed);
     size_t goingOn = 0;
     for (size_t k = 0; k < m; ++k) {
-      PathState& st = states[k];
-      if (!step(st, results[k], group, nullptr)) {
-        wf.paths[st.path] = st;
+      const PathState& st = states[k];
+      if (!goesOn[k]) {
+        wf.endedAt[st.path] = endedAt;
+        wf.paths[endedAt++] = st;
         continue;
       }
       if (orderByOrigin_) wf.goOnCells[k0 + goingOn] = wf.order.cellOf(st.o);
@@ -310,7 +329,9 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
   growTo(wf.next, count);
   growTo(wf.cells, count);
   growTo(wf.from, count);
+  growTo(wf.endedAt, count);
   wf.nRays = count;
+  wf.nEnded = 0;
   if (orderByOrigin_) wf.order.prepare(count, scene_.sizeX(), scene_.sizeY());
   auto blocks = [&](auto&& body) {
     tbb::parallel_for(tbb::blocked_range<uint64_t>(0, count, 1024), [&](const tbb::blocked_range<uint64_t>& r) {
@@ -320,6 +341,7 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
   blocks([&](uint64_t j) {
     wf.paths[j] = startPath(tile, incidenceBin, exact, firstPath + j, group, &wf.weights[2 * j * nl]);
     wf.paths[j].path = uint32_t(j);
+    wf.endedAt[j] = std::numeric_limits<uint32_t>::max();
     if (orderByOrigin_) wf.cells[j] = wf.order.cellOf(wf.paths[j].o);
   });
   if (orderByOrigin_) {
@@ -329,13 +351,21 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
   } else {
     std::copy_n(wf.paths.begin(), count, wf.live.begin());
   }
-  // The first rays are near-parallel (one incidence bin): in origin order they go to Embree as
-  // packets that share the tree's nodes down to its leaves.
   for (bool first = true; wf.nRays > 0; first = false) traceRound(group, first, wf);
-  // The tallies in path order within each chunk: the same sums as path by path.
+  // The tallies in path order within each chunk: the same sums as path by path. A path that did
+  // not end (its batch abandoned) has no last state and is not tallied.
+  const uint32_t nEnded = wf.nEnded.load();
   tbb::parallel_for(size_t(0), chunks.size(), [&](size_t c) {
+    constexpr uint64_t kAhead = 16;
     const uint64_t j1 = std::min(count, (c + 1) * kPathChunk);
-    for (uint64_t j = c * kPathChunk; j < j1; ++j) commit(wf.paths[j], group, chunks[c]);
+    for (uint64_t j = c * kPathChunk; j < j1; ++j) {
+      if (j + kAhead < j1 && wf.endedAt[j + kAhead] < nEnded) {
+        const char* ahead = reinterpret_cast<const char*>(&wf.paths[wf.endedAt[j + kAhead]]);
+        __builtin_prefetch(ahead);
+        __builtin_prefetch(ahead + 64);
+      }
+      if (wf.endedAt[j] < nEnded) commit(wf.paths[wf.endedAt[j]], group, chunks[c]);
+    }
   });
 }
 

@@ -15,8 +15,8 @@
 //
 // Speed: the paths of a batch (runPaths) advance together, one ray each per round, and each round's
 // rays are traced in the order of their origins (geometry/ray_order.h), so that the rays a thread
-// traces in a row meet the same part of Embree's tree while it is in the cache; the first rays,
-// near-parallel, go as packets of 16.
+// traces in a row meet the same part of Embree's tree while it is in the cache, as packets of 16
+// neighbours; a path's state moves with its ray.
 //
 // Determinism: path j of tile t uses Sampler(seed, t, j, group), whatever the order its rays are
 // traced in; the paths' tallies are made in path order in fixed chunks merged in chunk order, so
@@ -47,9 +47,9 @@ struct PathTracerSettings {
   int maxDepth = 100;
   uint64_t seed = 1;
   bool tallyGeoMasked = false;
-  // The first rays of a batch go to Embree as packets of 16 neighbours (false: one by one; the
+  // Rays go to Embree as packets of 16 neighbours in origin order (false: one by one; the
   // benchmark compares the two). Either way each ray gets the same hit.
-  bool firstRayPackets = true;
+  bool packets = true;
 };
 
 class PathTracer : public GeometricEstimator {

@@ -229,20 +229,23 @@ TEST(Determinism, WavefrontRunEqualsPathByPathReplay) {
 
 // A tile of more paths than one batch (runPaths: 256 chunks of 1024), run twice by one tracer
 // (the second run reuses the first's wavefront buffers, the second batch is smaller than the
-// first): both equal the replayed paths to the last bit.
+// first): both equal the replayed paths to the last bit, with the rays as packets and one by one.
 TEST(Determinism, WavefrontRunOverSeveralBatchesEqualsReplay) {
-  PathTracerSettings s;
-  s.paths = 256 * 1024 + 1500;
-  Scenario sc(makeGaussian(10, 10, 0.4, 1.0, 48, 48, 11), material("Al"), ThetaPhiGrid{6, 12}, {0.45, 0.65}, s);
-  ASSERT_TRUE(sc.tracer->ordersByOrigin());
-  const int bin = sc.grid.binOfAngles(40, 0);
-  uint64_t rays = 0;
-  const auto expected = replayedTallies(sc, 5, bin, s.paths, std::nullopt, 2, &rays);
-  for (int run = 0; run < 2; ++run) {
-    const TileResult r = sc.tracer->run(5, 0, bin);
-    EXPECT_EQ(r.rays, rays);
-    EXPECT_EQ(r.value[int(Component::Coherent)], expected[0]) << "run " << run;
-    EXPECT_EQ(r.value[int(Component::Multiple)], expected[1]) << "run " << run;
+  for (const bool packets : {true, false}) {
+    PathTracerSettings s;
+    s.paths = 256 * 1024 + 1500;
+    s.packets = packets;
+    Scenario sc(makeGaussian(10, 10, 0.4, 1.0, 48, 48, 11), material("Al"), ThetaPhiGrid{6, 12}, {0.45, 0.65}, s);
+    ASSERT_TRUE(sc.tracer->ordersByOrigin());
+    const int bin = sc.grid.binOfAngles(40, 0);
+    uint64_t rays = 0;
+    const auto expected = replayedTallies(sc, 5, bin, s.paths, std::nullopt, 2, &rays);
+    for (int run = 0; run < 2; ++run) {
+      const TileResult r = sc.tracer->run(5, 0, bin);
+      EXPECT_EQ(r.rays, rays);
+      EXPECT_EQ(r.value[int(Component::Coherent)], expected[0]) << "run " << run << ", packets " << packets;
+      EXPECT_EQ(r.value[int(Component::Multiple)], expected[1]) << "run " << run << ", packets " << packets;
+    }
   }
 }
 
