@@ -7,8 +7,8 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <mutex>
 
+#include "core/spare_pool.h"
 #include "core/stop.h"
 
 namespace mbsdf {
@@ -54,45 +54,13 @@ size_t eventsPerPath(const PathTallyPlan& plan) {
 }
 
 // Chunk storage kept between runs: a batch's chunks hold some 10 MB of tallies, and allocating
-// them for every tile costs thousands of page faults and the copies of growing vectors. A run takes
-// two sets (the batch it merges and the one computed meanwhile) and gives them back.
-class ChunkPool {
- public:
-  std::vector<PathChunk> take() {
-    std::lock_guard lock(mutex_);
-    if (spare_.empty()) return {};
-    std::vector<PathChunk> v = std::move(spare_.back());
-    spare_.pop_back();
-    return v;
-  }
-  void giveBack(std::vector<PathChunk>&& v) {
-    std::lock_guard lock(mutex_);
-    spare_.push_back(std::move(v));
-  }
-
- private:
-  std::mutex mutex_;
-  std::vector<std::vector<PathChunk>> spare_;
-};
-
-ChunkPool& chunkPool() {
-  static ChunkPool pool;
+// them for every tile costs thousands of page faults and the copies of growing vectors. A run
+// leases two sets (the batch it merges and the one computed meanwhile); a batch uses the first
+// chunks of a set, and a smaller batch leaves the others' storage for the next.
+SparePool<std::vector<PathChunk>>& chunkPool() {
+  static SparePool<std::vector<PathChunk>> pool;
   return pool;
 }
-
-// Two sets of chunks from the pool, given back when the run ends (also when it is abandoned). A
-// batch uses the first chunks of a set; a smaller batch leaves the others' storage for the next.
-struct PooledChunks {
-  std::vector<PathChunk> current = chunkPool().take(), next = chunkPool().take();
-  size_t currentUsed = 0, nextUsed = 0;
-  PooledChunks() = default;
-  PooledChunks(const PooledChunks&) = delete;
-  PooledChunks& operator=(const PooledChunks&) = delete;
-  ~PooledChunks() {
-    chunkPool().giveBack(std::move(current));
-    chunkPool().giveBack(std::move(next));
-  }
-};
 
 }  // namespace
 
@@ -135,7 +103,7 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
       batches.push_back({g, c0, std::min(nChunks, c0 + kChunksPerBatch)});
 
   auto compute = [&](const Batch& b, std::vector<PathChunk>& set, size_t& used) {
-    // The chunks' storage is kept from batch to batch and from run to run (ChunkPool).
+    // The chunks' storage is kept from batch to batch and from run to run (chunkPool).
     used = b.c1 - b.c0;
     if (set.size() < used) set.resize(used, PathChunk(nL));
     const std::span<PathChunk> chunks(set.data(), used);
@@ -174,14 +142,15 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
   // The merge is serial (its order makes the sums independent of the threads): it runs on this
   // thread while the other threads compute the next batch, so that many threads per rank do not
   // wait for it (about 5 ns per path, a tenth of a walk's path on 8 threads).
-  PooledChunks pooled;
-  if (!batches.empty()) compute(batches[0], pooled.current, pooled.currentUsed);
+  SparePool<std::vector<PathChunk>>::Lease current(chunkPool()), next(chunkPool());
+  size_t currentUsed = 0, nextUsed = 0;
+  if (!batches.empty()) compute(batches[0], *current, currentUsed);
   for (size_t i = 0; i < batches.size(); ++i) {
     throwIfStopped();
     tbb::task_group ahead;
-    if (i + 1 < batches.size()) ahead.run([&] { compute(batches[i + 1], pooled.next, pooled.nextUsed); });
+    if (i + 1 < batches.size()) ahead.run([&] { compute(batches[i + 1], *next, nextUsed); });
     try {
-      merge({pooled.current.data(), pooled.currentUsed});
+      merge({current->data(), currentUsed});
       if (progress) progress(uint64_t(batches[i].group) * N + std::min(N, batches[i].c1 * kPathChunk));
     } catch (...) {
       ahead.cancel();
@@ -189,8 +158,8 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
       throw;
     }
     ahead.wait();
-    std::swap(pooled.current, pooled.next);
-    std::swap(pooled.currentUsed, pooled.nextUsed);
+    std::swap(*current, *next);
+    std::swap(currentUsed, nextUsed);
   }
   const double dN = double(N);
   for (Component c : plan.components) {

@@ -4,7 +4,6 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
-#include <mutex>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -212,6 +211,15 @@ struct PathTracer::Wavefront {
 
 PathTracer::~PathTracer() = default;
 
+// Asks for both cache lines of a path state ahead of its use.
+template <typename State>
+static void prefetchState(const State& st) {
+  static_assert(sizeof(State) == 128);
+  const char* p = reinterpret_cast<const char*>(&st);
+  __builtin_prefetch(p);
+  __builtin_prefetch(p + 64);
+}
+
 template <typename T, typename A>
 static void growTo(std::vector<T, A>& v, size_t n) {
   if (v.size() < n) v.resize(n);
@@ -226,11 +234,7 @@ static void gatherStates(const Buf& live, std::span<const uint32_t> from, Buf& n
   const size_t n = from.size();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t j = r.begin(); j < r.end(); ++j) {
-      if (j + kAhead < r.end()) {
-        const char* ahead = reinterpret_cast<const char*>(&live[from[j + kAhead]]);
-        __builtin_prefetch(ahead);
-        __builtin_prefetch(ahead + 64);
-      }
+      if (j + kAhead < r.end()) prefetchState(live[from[j + kAhead]]);
       next[j] = live[from[j]];
     }
   });
@@ -359,11 +363,7 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
     constexpr uint64_t kAhead = 16;
     const uint64_t j1 = std::min(count, (c + 1) * kPathChunk);
     for (uint64_t j = c * kPathChunk; j < j1; ++j) {
-      if (j + kAhead < j1 && wf.endedAt[j + kAhead] < nEnded) {
-        const char* ahead = reinterpret_cast<const char*>(&wf.paths[wf.endedAt[j + kAhead]]);
-        __builtin_prefetch(ahead);
-        __builtin_prefetch(ahead + 64);
-      }
+      if (j + kAhead < j1 && wf.endedAt[j + kAhead] < nEnded) prefetchState(wf.paths[wf.endedAt[j + kAhead]]);
       if (wf.endedAt[j] < nEnded) commit(wf.paths[wf.endedAt[j]], group, chunks[c]);
     }
   });
@@ -383,29 +383,14 @@ TileResult PathTracer::run(const TileRequest& q, const std::function<void(uint64
                      q.firstPath,
                      {Component::Coherent, Component::Multiple}};
   if (settings_.tallyGeoMasked) plan.components.push_back(Component::GeoMasked);
-  // The wavefront's buffers (a few hundred bytes per path of a batch) are taken from the tracer's
-  // spares and given back, so that a run of many tiles does not fault their pages in again.
-  std::unique_ptr<Wavefront> wf;
-  {
-    std::lock_guard lock(spareMutex_);
-    if (!spare_.empty()) {
-      wf = std::move(spare_.back());
-      spare_.pop_back();
-    }
-  }
-  if (!wf) wf = std::make_unique<Wavefront>();
-  struct GiveBack {
-    const PathTracer& tracer;
-    std::unique_ptr<Wavefront>& wf;
-    ~GiveBack() {
-      std::lock_guard lock(tracer.spareMutex_);
-      tracer.spare_.push_back(std::move(wf));
-    }
-  } giveBack{*this, wf};
+  // The wavefront's buffers (a few hundred bytes per path of a batch) are leased from the tracer's
+  // spares, so that a run of many tiles does not fault their pages in again.
+  SparePool<std::unique_ptr<Wavefront>>::Lease wf(spareWavefronts_);
+  if (!*wf) *wf = std::make_unique<Wavefront>();
   return runPaths(
       plan,
       [&](uint64_t p0, uint64_t n, int g, std::span<PathChunk> chunks) {
-        traceBatch(tile, incidenceBin, exactDirection, p0, n, g, chunks, *wf);
+        traceBatch(tile, incidenceBin, exactDirection, p0, n, g, chunks, **wf);
       },
       progress);
 }

@@ -25,12 +25,12 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <span>
 #include <vector>
 
 #include "core/direction_grid.h"
+#include "core/spare_pool.h"
 #include "core/rng.h"
 #include "geometry/embree_scene.h"
 #include "optics/fresnel_table.h"
@@ -118,7 +118,7 @@ class PathTracer : public GeometricEstimator {
   // One path, its first ray traced alone (replay).
   void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, PathChunk& out,
                  PathRecord* rec) const;
-  // The buffers of a batch of paths advanced together, kept from batch to batch of one tile.
+  // The buffers of a batch of paths advanced together, kept from batch to batch and run to run.
   struct Wavefront;
   // Paths firstPath … firstPath + count − 1 advanced together, one ray each per round, each round's
   // rays traced in the order of their origins (a wavefront; geometry/ray_order.h): the same
@@ -140,8 +140,7 @@ class PathTracer : public GeometricEstimator {
   PathTracerSettings settings_;
   static constexpr size_t kOrderByOriginMinTriangles = 4096;
   bool orderByOrigin_;  // each round's rays traced in the order of their origins
-  mutable std::mutex spareMutex_;
-  mutable std::vector<std::unique_ptr<Wavefront>> spare_;  // buffers of finished runs, for the next
+  mutable SparePool<std::unique_ptr<Wavefront>> spareWavefronts_;  // buffers of finished runs, for the next
 };
 
 }  // namespace mbsdf
