@@ -215,6 +215,8 @@ struct TimedTiles {
     waveSeconds += waveTerm;
     tileSeconds += r.seconds;
     ++done;
+    spdlog::debug("tile {}: {:.3f} s (path tracing {:.3f} s, scalar diffraction {:.3f} s)", t, r.seconds, paths,
+                  waveTerm);
     return r;
   }
 };

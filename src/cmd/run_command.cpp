@@ -16,6 +16,7 @@
 
 #include "cluster/mpi_session.h"
 #include "cluster/runner.h"
+#include "cmd/allocator.h"
 #include "cmd/command.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -145,8 +146,8 @@ int runCommand(int argc, char** argv, RunArgs a) {
     const double planned = elapsed();
     spdlog::debug(
         "start-up: MPI {:.3f} s, job file and geometry {:.3f} s, output checks and log files {:.3f} s, effects "
-        "pilots {:.3f} s ({:.3f} s since the program started)",
-        mpiReady, jobReady - mpiReady, outputChecked - jobReady, planned - outputChecked, planned);
+        "pilots {:.3f} s ({:.3f} s since the program started); memory allocator {}",
+        mpiReady, jobReady - mpiReady, outputChecked - jobReady, planned - outputChecked, planned, allocatorNote());
     opt.outputPath = out;
     opt.threads = a.threads;
     opt.resume = a.resume;

@@ -142,7 +142,11 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
   // The merge is serial (its order makes the sums independent of the threads): it runs on this
   // thread while the other threads compute the next batch, so that many threads per rank do not
   // wait for it (about 5 ns per path, a tenth of a walk's path on 8 threads).
-  SparePool<std::vector<PathChunk>>::Lease current(chunkPool()), next(chunkPool());
+  // The two sets trade roles by pointer: a run of one batch gives its filled set back last, so
+  // that the next run (the pool gives the last set back first) takes it again, not the empty one.
+  SparePool<std::vector<PathChunk>>::Lease first(chunkPool()), second(chunkPool());
+  std::vector<PathChunk>* current = &*first;
+  std::vector<PathChunk>* next = &*second;
   size_t currentUsed = 0, nextUsed = 0;
   if (!batches.empty()) compute(batches[0], *current, currentUsed);
   for (size_t i = 0; i < batches.size(); ++i) {
@@ -158,7 +162,7 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
       throw;
     }
     ahead.wait();
-    std::swap(*current, *next);
+    std::swap(current, next);
     std::swap(currentUsed, nextUsed);
   }
   const double dN = double(N);

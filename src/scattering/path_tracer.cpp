@@ -138,17 +138,17 @@ bool PathTracer::step(PathState& st, const TraceResult& tr, int group, PathRecor
   return false;
 }
 
-void PathTracer::commit(const PathState& st, int group, PathChunk& out) const {
+void PathTracer::commit(const PathEnd& e, const double* w, int group, PathChunk& out) const {
   const std::vector<int>& lambdas = groups_[size_t(group)];
   const size_t nl = lambdas.size();
-  out.rays += uint64_t(st.rays);
-  if (st.geoMaskedBin >= 0) out.tally(st.geoMaskedBin, Component::GeoMasked, group, st.w + nl, nl);
+  out.rays += uint64_t(e.rays);
+  if (e.geoMaskedBin >= 0) out.tally(e.geoMaskedBin, Component::GeoMasked, group, w + nl, nl);
   auto addTo = [&](std::vector<double>& v) {
-    for (size_t k = 0; k < nl; ++k) v[size_t(lambdas[k])] += st.w[k];
+    for (size_t k = 0; k < nl; ++k) v[size_t(lambdas[k])] += w[k];
   };
-  switch (st.end) {
+  switch (e.end) {
     case PathState::End::Exited:
-      out.tally(st.exitBin, st.depth == 1 ? Component::Coherent : Component::Multiple, group, st.w, nl);
+      out.tally(e.exitBin, e.coherent ? Component::Coherent : Component::Multiple, group, w, nl);
       break;
     case PathState::End::Truncated:
       addTo(out.truncated);
@@ -178,7 +178,7 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
     if (!step(st, tr, group, rec)) break;
     tr = scene_.trace(st.o, st.d, st.lastPrim);
   }
-  commit(st, group, out);
+  commit(endOf(st), st.w, group, out);
   if (rec) {
     rec->depth = st.depth;
     rec->weight.assign(w.begin(), w.begin() + std::ptrdiff_t(nl));
@@ -195,9 +195,9 @@ struct PathTracer::Wavefront {
   // traced (by origin when the tracer orders them): a block reads and steps its states in
   // sequence instead of fetching each from a place of its path.
   Buffer<PathState> live, next;
-  // The paths' first states, by path within the batch; once they are live, the paths' last
-  // states, in the order they ended: endedAt[i] is path i's place.
-  Buffer<PathState> paths;
+  // What the ended paths leave for their tallies, in the order they ended: endedAt[i] is path i's
+  // place.
+  Buffer<PathEnd> ended;
   Buffer<uint32_t> endedAt;
   std::atomic<uint32_t> nEnded{0};
   Buffer<double> weights;  // per path: its 2 nl weights (PathState::w)
@@ -246,7 +246,6 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
   // order changes no number.
   constexpr size_t kBlock = 512;
   const size_t n = wf.nRays, nBlocks = (n + kBlock - 1) / kBlock;
-  const size_t nl = groups_[size_t(group)].size();
   // Whether step() reads a path's weights (a real conductor's Fresnel factor, the geo_masked copy).
   const bool stepWeighs = (conductor_ && !perfectConductor_) || settings_.tallyGeoMasked;
   // The next round's rays are fewer: cells for n rays are as fine as they need, or finer.
@@ -271,7 +270,7 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
       leaving[k] = states[k].lastPrim;
       // The weights, spread over the batch's, are read after the rays are traced: fetched now,
       // they arrive while Embree works.
-      if (stepWeighs) __builtin_prefetch(&wf.weights[2 * size_t(states[k].path) * nl]);
+      if (stepWeighs) __builtin_prefetch(&wf.weights[size_t(states[k].path) * weightsPerPath(group)]);
     }
     // Packets of 16 neighbours: the first rays are near-parallel, and in origin order many later
     // rays are too (those leaving one flat stretch of surface). Later rays in their paths' order
@@ -286,17 +285,17 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
       goesOn[k] = step(states[k], results[k], group, nullptr);
       ending += !goesOn[k];
     }
-    // The states that go on move to the front of the block (in order). Those that end are kept
-    // together for the tallies, at places taken from a shared counter, with each path's place
-    // noted: written to their paths' own places, scattered over the batch, each would wait for
-    // its lines. The places depend on the threads' timing; the tallies, read by path, do not.
+    // The states that go on move to the front of the block (in order). What those that end leave
+    // for the tallies is kept together, at places taken from a shared counter, with each path's
+    // place noted: written to their paths' own places, scattered over the batch, each would wait
+    // for its line. The places depend on the threads' timing; the tallies, read by path, do not.
     uint32_t endedAt = wf.nEnded.fetch_add(uint32_t(ending), std::memory_order_relaxed);
     size_t goingOn = 0;
     for (size_t k = 0; k < m; ++k) {
       const PathState& st = states[k];
       if (!goesOn[k]) {
         wf.endedAt[st.path] = endedAt;
-        wf.paths[endedAt++] = st;
+        wf.ended[endedAt++] = endOf(st);
         continue;
       }
       if (orderByOrigin_) wf.goOnCells[k0 + goingOn] = wf.order.cellOf(st.o);
@@ -326,9 +325,9 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
 
 void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath,
                             uint64_t count, int group, std::span<PathChunk> chunks, Wavefront& wf) const {
-  const size_t nl = groups_[size_t(group)].size();
-  growTo(wf.paths, count);
-  growTo(wf.weights, 2 * count * nl);  // each path sets its weights before it reads them
+  growTo(wf.ended, count);
+  const size_t nw = weightsPerPath(group);
+  growTo(wf.weights, count * nw);  // each path sets its weights before it reads them
   growTo(wf.live, count);
   growTo(wf.next, count);
   growTo(wf.cells, count);
@@ -342,29 +341,30 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
       for (uint64_t j = r.begin(); j < r.end(); ++j) body(j);
     });
   };
+  // The first states by path, in `next` (free until the first round's end), then in origin order
+  // in `live`; or straight in `live` when the rays stay in their paths' order.
+  auto& first = orderByOrigin_ ? wf.next : wf.live;
   blocks([&](uint64_t j) {
-    wf.paths[j] = startPath(tile, incidenceBin, exact, firstPath + j, group, &wf.weights[2 * j * nl]);
-    wf.paths[j].path = uint32_t(j);
+    first[j] = startPath(tile, incidenceBin, exact, firstPath + j, group, &wf.weights[j * nw]);
+    first[j].path = uint32_t(j);
     wf.endedAt[j] = std::numeric_limits<uint32_t>::max();
-    if (orderByOrigin_) wf.cells[j] = wf.order.cellOf(wf.paths[j].o);
+    if (orderByOrigin_) wf.cells[j] = wf.order.cellOf(first[j].o);
   });
   if (orderByOrigin_) {
     const std::span<const uint32_t> places = wf.order.places({wf.cells.data(), count});
     blocks([&](uint64_t j) { wf.from[places[j]] = uint32_t(j); });
-    gatherStates(wf.paths, {wf.from.data(), count}, wf.live);
-  } else {
-    std::copy_n(wf.paths.begin(), count, wf.live.begin());
+    gatherStates(wf.next, {wf.from.data(), count}, wf.live);
   }
   for (bool first = true; wf.nRays > 0; first = false) traceRound(group, first, wf);
   // The tallies in path order within each chunk: the same sums as path by path. A path that did
-  // not end (its batch abandoned) has no last state and is not tallied.
+  // not end (its batch abandoned) has left nothing and is not tallied.
   const uint32_t nEnded = wf.nEnded.load();
   tbb::parallel_for(size_t(0), chunks.size(), [&](size_t c) {
     constexpr uint64_t kAhead = 16;
     const uint64_t j1 = std::min(count, (c + 1) * kPathChunk);
     for (uint64_t j = c * kPathChunk; j < j1; ++j) {
-      if (j + kAhead < j1 && wf.endedAt[j + kAhead] < nEnded) prefetchState(wf.paths[wf.endedAt[j + kAhead]]);
-      if (wf.endedAt[j] < nEnded) commit(wf.paths[wf.endedAt[j]], group, chunks[c]);
+      if (j + kAhead < j1 && wf.endedAt[j + kAhead] < nEnded) __builtin_prefetch(&wf.ended[wf.endedAt[j + kAhead]]);
+      if (wf.endedAt[j] < nEnded) commit(wf.ended[wf.endedAt[j]], &wf.weights[j * nw], group, chunks[c]);
     }
   });
 }

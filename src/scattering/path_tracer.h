@@ -99,22 +99,36 @@ class PathTracer : public GeometricEstimator {
     int geoMaskedBin = -1;
     int exitBin = -1;
     Vec3 o, d;
-    // Its weights, one per wavelength of its group (w[0, nl)), then those when the geo_masked
-    // direction was tallied (w[nl, 2 nl)), in a buffer the caller owns.
+    // Its weights, one per wavelength of its group (w[0, nl)), then, when geo_masked is tallied,
+    // those when its direction was tallied (w[nl, 2 nl)), in a buffer the caller owns.
     double* w = nullptr;
     bool inUpper = true;
     enum class End : uint8_t { Exited, Truncated, Leaked, Missed } end = End::Exited;
     uint32_t path = 0;  // its place in the batch of paths advanced together
   };
   static_assert(sizeof(PathState) == 128);
-  // A path's first state; w holds its 2 nl weights (PathState::w); wi, if asked, its incidence.
+  // What an ended path leaves for its tallies (commit), an eighth of its state: a wavefront keeps
+  // one per path of its batch until the batch is tallied.
+  struct PathEnd {
+    int32_t rays = 0;
+    int32_t exitBin = -1;
+    int32_t geoMaskedBin = -1;
+    PathState::End end = PathState::End::Exited;
+    bool coherent = false;  // exited after one hit
+  };
+  static_assert(sizeof(PathEnd) == 16);
+  static PathEnd endOf(const PathState& st) { return {st.rays, st.exitBin, st.geoMaskedBin, st.end, st.depth == 1}; }
+  // The weights a path of the group carries: one per wavelength, twice when the geo_masked copy is
+  // tallied (PathState::w).
+  size_t weightsPerPath(int group) const { return (settings_.tallyGeoMasked ? 2 : 1) * groups_[size_t(group)].size(); }
+  // A path's first state; w holds its weightsPerPath weights; wi, if asked, its incidence.
   PathState startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, double* w,
                       Vec3* wi = nullptr) const;
   // The path meets the result of its ray: true when it goes on (its next ray set), false when it
   // has ended (how, recorded in the state).
   bool step(PathState& st, const TraceResult& tr, int group, PathRecord* rec) const;
-  // The ended path's tallies.
-  void commit(const PathState& st, int group, PathChunk& out) const;
+  // The ended path's tallies; w: its weights (PathState::w).
+  void commit(const PathEnd& e, const double* w, int group, PathChunk& out) const;
   // One path, its first ray traced alone (replay).
   void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, PathChunk& out,
                  PathRecord* rec) const;

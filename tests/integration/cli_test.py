@@ -37,7 +37,14 @@ def test_quickstart_job():
     run(["run", "quickstart.toml", "-o", "q.h5"], mpi=2, timeout=600)
     info = json.loads(run(["info", "q.h5", "--json"]).stdout)
     assert info["complete"], info
-    print("quickstart: complete;", info["done_count"], "slices")
+    # One process with debug logging: the start-up breakdown names the memory allocator the program
+    # was built with (jemalloc on transparent huge pages), and each tile's time is logged.
+    p = run(["run", "quickstart.toml", "-o", "q1.h5", "-v"], timeout=600)
+    text = p.stdout + p.stderr
+    assert "memory allocator jemalloc (transparent huge pages: always)" in text, text[-3000:]
+    tiles = re.findall(r"tile (\d+): ([0-9.]+) s \(path tracing ([0-9.]+) s", text)
+    assert sorted(int(t) for t, _, _ in tiles) == [0, 1, 2, 3], text[-3000:]
+    print("quickstart: complete;", info["done_count"], "slices; one process:", ", ".join(f"tile {t} {s} s" for t, s, _ in tiles))
 
 
 def test_determinism():
