@@ -2,7 +2,7 @@
 // (madvise(MADV_HUGEPAGE), Linux): a buffer of tens of MB then costs a few dozen page faults when
 // first touched instead of thousands, and its random accesses few TLB misses. Where the kernel
 // gives none (transparent huge pages set to "never"), the memory is ordinary pages. Used by the
-// path tracer's wavefront (scattering/path_tracer.cpp), a few hundred bytes per path of a batch.
+// path tracer's wavefront (scattering/path_tracer.cpp), some 160 bytes per path of a batch.
 #pragma once
 #include <sys/mman.h>
 

@@ -29,6 +29,19 @@ class Sampler {
     have_ = 0;
   }
   uint32_t dimension() const { return ctr_.v[3]; }
+  // Where the sampler stands, in five bytes: the block it draws next, and whether the second
+  // number of the block before it is still to be drawn. resume() continues from there a sampler
+  // made with the same seed, tile, sample and stream: it draws the numbers this one would draw next.
+  uint32_t nextBlock() const { return ctr_.v[3]; }
+  bool secondLeft() const { return have_ == 1; }
+  void resume(uint32_t nextBlock, bool secondLeft) {
+    ctr_.v[3] = secondLeft ? nextBlock - 1 : nextBlock;
+    have_ = 0;
+    if (secondLeft) {
+      refill();
+      have_ = 1;
+    }
+  }
 
  private:
   void refill() {

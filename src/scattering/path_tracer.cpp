@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -45,43 +46,46 @@ static Vec3 pathOrigin(const PeriodicScene& scene, const Vec3& wi, double px, do
 
 PathTracer::PathState PathTracer::startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path,
                                             int group, double* w, Vec3* wi) const {
-  PathState st(Sampler(settings_.seed, uint32_t(tile), path, uint32_t(group)));
-  const DirectionSample incidence = pathIncidence(grid_, incidenceBin, exact, st.s);
-  const double px = (st.s.get1D() - 0.5) * scene_.sizeX(), py = (st.s.get1D() - 0.5) * scene_.sizeY();
+  Sampler s(settings_.seed, uint32_t(tile), path, uint32_t(group));
+  const DirectionSample incidence = pathIncidence(grid_, incidenceBin, exact, s);
+  const double px = (s.get1D() - 0.5) * scene_.sizeX(), py = (s.get1D() - 0.5) * scene_.sizeY();
+  PathState st;
   st.o = pathOrigin(scene_, incidence.w, px, py);
   st.d = -incidence.w;
   st.inUpper = incidence.w.z >= 0;
-  st.w = w;
+  st.nextBlock = s.nextBlock();
+  st.secondLeft = s.secondLeft();
   for (size_t k = 0; k < groups_[size_t(group)].size(); ++k) w[k] = incidence.weight;
   if (wi) *wi = incidence.w;
   return st;
 }
 
-bool PathTracer::step(PathState& st, const TraceResult& tr, int group, PathRecord* rec) const {
-  const std::vector<int>& lambdas = groups_[size_t(group)];
+bool PathTracer::step(PathState& st, const TraceResult& tr, const PathContext& ctx, PathEnd& ended,
+                      PathRecord* rec) const {
+  const std::vector<int>& lambdas = groups_[size_t(ctx.group)];
   const size_t nl = lambdas.size();
-  double* wp = st.w;
-  ++st.rays;
-  if (tr.kind == TraceResult::Kind::Hit) {
+  double* wp = ctx.weightsOf(st.path);
+  // Every ray before this one met a surface (a ray that meets none ends its path): this is ray
+  // depth + 1, and a path that ends on a surface has traced as many rays as it met surfaces.
+  const bool hit = tr.kind == TraceResult::Kind::Hit;
+  auto end = [&](PathEnd::Kind kind) {
+    ended = {int32_t(st.depth) + (hit ? 0 : 1), -1, kind, st.depth == 1};
+    return false;
+  };
+  if (hit) {
     if (rec) rec->vertices.push_back(tr.p);
     ++st.depth;
     // docs/physics.md §4 step 6: the specular direction leaving the first hit is blocked.
     if (st.depth == 2 && settings_.tallyGeoMasked) {
-      st.geoMaskedBin = grid_.binOf(st.d);
+      ctx.geoMaskedBins[st.path] = grid_.binOf(st.d);
       std::copy(wp, wp + nl, wp + nl);
     }
-    if (st.depth > settings_.maxDepth) {
-      st.end = PathState::End::Truncated;
-      return false;
-    }
+    if (st.depth > uint32_t(settings_.maxDepth)) return end(PathEnd::Kind::Truncated);
     const double cosi = -dot(st.d, tr.n);
     const bool hitFromOutside = cosi > 0;
-    if (hitFromOutside != st.inUpper) {
+    if (hitFromOutside != bool(st.inUpper)) {
       // The ray met the back of a surface: holes or inconsistent winding. Follow the geometry.
-      if (conductor_) {
-        st.end = PathState::End::Leaked;
-        return false;
-      }
+      if (conductor_) return end(PathEnd::Kind::Leaked);
       st.inUpper = hitFromOutside;
     }
     const Vec3 nl_ = hitFromOutside ? tr.n : -tr.n;
@@ -98,7 +102,11 @@ bool PathTracer::step(PathState& st, const TraceResult& tr, int group, PathRecor
       const double etaI = hitFromOutside ? n1 : n2, etaT = hitFromOutside ? n2 : n1;
       const double F = fresnelReflectance(absCos, etaI, Complex(etaT, 0));
       Vec3 wt;
-      const double u = st.s.get1D();
+      Sampler s(settings_.seed, uint32_t(ctx.tile), ctx.firstPath + st.path, uint32_t(ctx.group));
+      s.resume(st.nextBlock, st.secondLeft);
+      const double u = s.get1D();
+      st.nextBlock = s.nextBlock();
+      st.secondLeft = s.secondLeft();
       if (u < F || !refract(wo, nl_, etaI / etaT, &wt)) {
         d = reflect(wo, nl_);
       } else {
@@ -108,55 +116,46 @@ bool PathTracer::step(PathState& st, const TraceResult& tr, int group, PathRecor
     }
     st.d = normalize(d);
     st.o = tr.p + (dot(st.d, tr.n) > 0 ? tr.n : -tr.n) * scene_.rayEpsilon();
-    st.lastPrim = int(tr.prim);
+    st.lastPrim = int32_t(tr.prim);
     if (rec) rec->rays.push_back({st.o, st.d, st.lastPrim});
     return true;
   }
-  if (tr.kind == TraceResult::Kind::TooManyWraps) {
-    st.end = PathState::End::Truncated;
-    return false;
-  }
-  if (st.depth == 0) {
-    // Primary ray met nothing: finite patch or a hole.
-    st.end = PathState::End::Missed;
-    return false;
-  }
+  if (tr.kind == TraceResult::Kind::TooManyWraps) return end(PathEnd::Kind::Truncated);
+  // Primary ray met nothing: finite patch or a hole.
+  if (st.depth == 0) return end(PathEnd::Kind::Missed);
   const bool down = tr.kind == TraceResult::Kind::EscapedDown, up = tr.kind == TraceResult::Kind::EscapedUp;
   // On a periodic (infinite) surface a ray can only leave upward in the upper medium or downward
   // in the lower one; anything else crossed the surface through a hole. A finite patch can be
   // left in any direction from either side.
-  if (scene_.periodic() && ((up && !st.inUpper) || (down && st.inUpper))) {
-    st.end = PathState::End::Leaked;
-    return false;
-  }
-  st.exitBin = grid_.binOf(st.d);
-  st.end = PathState::End::Exited;
+  if (scene_.periodic() && ((up && !st.inUpper) || (down && st.inUpper))) return end(PathEnd::Kind::Leaked);
+  end(PathEnd::Kind::Exited);
+  ended.exitBin = grid_.binOf(st.d);
   if (rec) {
-    rec->exitBin = st.exitBin;
+    rec->exitBin = ended.exitBin;
     rec->wo = st.d;
   }
   return false;
 }
 
-void PathTracer::commit(const PathEnd& e, const double* w, int group, PathChunk& out) const {
+void PathTracer::commit(const PathEnd& e, const double* w, int geoMaskedBin, int group, PathChunk& out) const {
   const std::vector<int>& lambdas = groups_[size_t(group)];
   const size_t nl = lambdas.size();
   out.rays += uint64_t(e.rays);
-  if (e.geoMaskedBin >= 0) out.tally(e.geoMaskedBin, Component::GeoMasked, group, w + nl, nl);
+  if (geoMaskedBin >= 0) out.tally(geoMaskedBin, Component::GeoMasked, group, w + nl, nl);
   auto addTo = [&](std::vector<double>& v) {
     for (size_t k = 0; k < nl; ++k) v[size_t(lambdas[k])] += w[k];
   };
-  switch (e.end) {
-    case PathState::End::Exited:
+  switch (e.kind) {
+    case PathEnd::Kind::Exited:
       out.tally(e.exitBin, e.coherent ? Component::Coherent : Component::Multiple, group, w, nl);
       break;
-    case PathState::End::Truncated:
+    case PathEnd::Kind::Truncated:
       addTo(out.truncated);
       break;
-    case PathState::End::Leaked:
+    case PathEnd::Kind::Leaked:
       addTo(out.leaked);
       break;
-    case PathState::End::Missed:
+    case PathEnd::Kind::Missed:
       addTo(out.missed);
       break;
   }
@@ -165,7 +164,9 @@ void PathTracer::commit(const PathEnd& e, const double* w, int group, PathChunk&
 void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group,
                            PathChunk& out, PathRecord* rec) const {
   const size_t nl = groups_[size_t(group)].size();
-  std::vector<double> w(2 * nl);
+  std::vector<double> w(weightsPerPath(group));
+  int32_t geoMaskedBin = -1;
+  const PathContext ctx{tile, group, path, w.data(), w.size(), &geoMaskedBin};
   Vec3 wi;
   PathState st = startPath(tile, incidenceBin, exact, path, group, w.data(), &wi);
   if (rec) {
@@ -173,14 +174,12 @@ void PathTracer::tracePath(int tile, int incidenceBin, const std::optional<Vec3>
     rec->wi = wi;
     rec->rays.push_back({st.o, st.d, -1});
   }
+  PathEnd ended;
   TraceResult tr = scene_.trace(st.o, st.d);
-  while (true) {
-    if (!step(st, tr, group, rec)) break;
-    tr = scene_.trace(st.o, st.d, st.lastPrim);
-  }
-  commit(endOf(st), st.w, group, out);
+  while (step(st, tr, ctx, ended, rec)) tr = scene_.trace(st.o, st.d, st.lastPrim);
+  commit(ended, w.data(), geoMaskedBin, group, out);
   if (rec) {
-    rec->depth = st.depth;
+    rec->depth = int(st.depth);
     rec->weight.assign(w.begin(), w.begin() + std::ptrdiff_t(nl));
   }
 }
@@ -200,7 +199,8 @@ struct PathTracer::Wavefront {
   Buffer<PathEnd> ended;
   Buffer<uint32_t> endedAt;
   std::atomic<uint32_t> nEnded{0};
-  Buffer<double> weights;  // per path: its 2 nl weights (PathState::w)
+  Buffer<double> weights;         // per path: its weights (PathContext)
+  Buffer<int32_t> geoMaskedBins;  // per path, when geo_masked is tallied (PathContext)
   size_t nRays = 0;
   // A round's states that go on stay in their block, the first goOnCount[b] of block b, with
   // their origins' cells; from[j] is the live state that becomes the next round's j-th.
@@ -210,15 +210,6 @@ struct PathTracer::Wavefront {
 };
 
 PathTracer::~PathTracer() = default;
-
-// Asks for both cache lines of a path state ahead of its use.
-template <typename State>
-static void prefetchState(const State& st) {
-  static_assert(sizeof(State) == 128);
-  const char* p = reinterpret_cast<const char*>(&st);
-  __builtin_prefetch(p);
-  __builtin_prefetch(p + 64);
-}
 
 template <typename T, typename A>
 static void growTo(std::vector<T, A>& v, size_t n) {
@@ -234,13 +225,13 @@ static void gatherStates(const Buf& live, std::span<const uint32_t> from, Buf& n
   const size_t n = from.size();
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kGrain), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t j = r.begin(); j < r.end(); ++j) {
-      if (j + kAhead < r.end()) prefetchState(live[from[j + kAhead]]);
+      if (j + kAhead < r.end()) __builtin_prefetch(&live[from[j + kAhead]]);
       next[j] = live[from[j]];
     }
   });
 }
 
-void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
+void PathTracer::traceRound(const PathContext& ctx, bool firstRays, Wavefront& wf) const {
   // Blocks of rays, each traced and stepped by one thread: in origin order, the paths whose rays
   // neighbour in the scene are advanced together. Each path draws its own random numbers, so the
   // order changes no number.
@@ -270,7 +261,7 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
       leaving[k] = states[k].lastPrim;
       // The weights, spread over the batch's, are read after the rays are traced: fetched now,
       // they arrive while Embree works.
-      if (stepWeighs) __builtin_prefetch(&wf.weights[size_t(states[k].path) * weightsPerPath(group)]);
+      if (stepWeighs) __builtin_prefetch(ctx.weightsOf(states[k].path));
     }
     // Packets of 16 neighbours: the first rays are near-parallel, and in origin order many later
     // rays are too (those leaving one flat stretch of surface). Later rays in their paths' order
@@ -279,10 +270,12 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
     scene_.traceMany(o, d, firstRays ? std::span<const int>{} : std::span<const int>(leaving),
                      packets ? TraceMode::Packets : TraceMode::Single, results);
     thread_local std::vector<uint8_t> goesOn;
+    thread_local std::vector<PathEnd> ends;
     goesOn.resize(m);
+    ends.resize(m);
     size_t ending = 0;
     for (size_t k = 0; k < m; ++k) {
-      goesOn[k] = step(states[k], results[k], group, nullptr);
+      goesOn[k] = step(states[k], results[k], ctx, ends[k], nullptr);
       ending += !goesOn[k];
     }
     // The states that go on move to the front of the block (in order). What those that end leave
@@ -295,7 +288,7 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
       const PathState& st = states[k];
       if (!goesOn[k]) {
         wf.endedAt[st.path] = endedAt;
-        wf.ended[endedAt++] = endOf(st);
+        wf.ended[endedAt++] = ends[k];
         continue;
       }
       if (orderByOrigin_) wf.goOnCells[k0 + goingOn] = wf.order.cellOf(st.o);
@@ -325,9 +318,12 @@ void PathTracer::traceRound(int group, bool firstRays, Wavefront& wf) const {
 
 void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath,
                             uint64_t count, int group, std::span<PathChunk> chunks, Wavefront& wf) const {
+  if (count > kMaxBatchPaths) throw std::logic_error("PathTracer: a batch of more paths than a state can number");
   growTo(wf.ended, count);
   const size_t nw = weightsPerPath(group);
   growTo(wf.weights, count * nw);  // each path sets its weights before it reads them
+  if (settings_.tallyGeoMasked) growTo(wf.geoMaskedBins, count);
+  const PathContext ctx{tile, group, firstPath, wf.weights.data(), nw, wf.geoMaskedBins.data()};
   growTo(wf.live, count);
   growTo(wf.next, count);
   growTo(wf.cells, count);
@@ -348,6 +344,7 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
     first[j] = startPath(tile, incidenceBin, exact, firstPath + j, group, &wf.weights[j * nw]);
     first[j].path = uint32_t(j);
     wf.endedAt[j] = std::numeric_limits<uint32_t>::max();
+    if (settings_.tallyGeoMasked) wf.geoMaskedBins[j] = -1;
     if (orderByOrigin_) wf.cells[j] = wf.order.cellOf(first[j].o);
   });
   if (orderByOrigin_) {
@@ -355,7 +352,7 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
     blocks([&](uint64_t j) { wf.from[places[j]] = uint32_t(j); });
     gatherStates(wf.next, {wf.from.data(), count}, wf.live);
   }
-  for (bool first = true; wf.nRays > 0; first = false) traceRound(group, first, wf);
+  for (bool first = true; wf.nRays > 0; first = false) traceRound(ctx, first, wf);
   // The tallies in path order within each chunk: the same sums as path by path. A path that did
   // not end (its batch abandoned) has left nothing and is not tallied.
   const uint32_t nEnded = wf.nEnded.load();
@@ -364,7 +361,9 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
     const uint64_t j1 = std::min(count, (c + 1) * kPathChunk);
     for (uint64_t j = c * kPathChunk; j < j1; ++j) {
       if (j + kAhead < j1 && wf.endedAt[j + kAhead] < nEnded) __builtin_prefetch(&wf.ended[wf.endedAt[j + kAhead]]);
-      if (wf.endedAt[j] < nEnded) commit(wf.ended[wf.endedAt[j]], &wf.weights[j * nw], group, chunks[c]);
+      if (wf.endedAt[j] >= nEnded) continue;
+      commit(wf.ended[wf.endedAt[j]], ctx.weightsOf(uint32_t(j)), settings_.tallyGeoMasked ? wf.geoMaskedBins[j] : -1,
+             group, chunks[c]);
     }
   });
 }
@@ -383,7 +382,7 @@ TileResult PathTracer::run(const TileRequest& q, const std::function<void(uint64
                      q.firstPath,
                      {Component::Coherent, Component::Multiple}};
   if (settings_.tallyGeoMasked) plan.components.push_back(Component::GeoMasked);
-  // The wavefront's buffers (a few hundred bytes per path of a batch) are leased from the tracer's
+  // The wavefront's buffers (some 160 bytes per path of a batch) are leased from the tracer's
   // spares, so that a run of many tiles does not fault their pages in again.
   SparePool<std::unique_ptr<Wavefront>>::Lease wf(spareWavefronts_);
   if (!*wf) *wf = std::make_unique<Wavefront>();

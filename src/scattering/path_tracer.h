@@ -85,50 +85,52 @@ class PathTracer : public GeometricEstimator {
                     std::optional<Vec3> exactDirection = std::nullopt) const;
 
  private:
-  // A path's state between rays: its random numbers, incidence, next ray, medium, depth, weights
-  // (one per wavelength of its group, in a buffer the caller owns) and, once it has ended, how.
-  // Two cache lines: a wavefront holds a few hundred thousand and moves them, each round, into the
-  // order their rays are traced in.
+  // A path's state between rays: its next ray, the triangle that ray leaves, its medium, depth,
+  // place in its batch and where its random numbers stand. One cache line: a wavefront holds a few
+  // hundred thousand and moves them, each round, into the order their rays are traced in. What
+  // the state does not hold is the path's context (PathContext): its sampler's seed, tile, index
+  // and stream, its weights and its geo_masked bin, by its place in the batch.
   struct alignas(64) PathState {
-    PathState() : s(0, 0, 0) {}
-    explicit PathState(const Sampler& sampler) : s(sampler) {}
-    Sampler s;
-    int depth = 0;
-    int rays = 0;       // rays traced so far
-    int lastPrim = -1;  // the triangle the next ray leaves
-    int geoMaskedBin = -1;
-    int exitBin = -1;
     Vec3 o, d;
-    // Its weights, one per wavelength of its group (w[0, nl)), then, when geo_masked is tallied,
-    // those when its direction was tallied (w[nl, 2 nl)), in a buffer the caller owns.
-    double* w = nullptr;
-    bool inUpper = true;
-    enum class End : uint8_t { Exited, Truncated, Leaked, Missed } end = End::Exited;
-    uint32_t path = 0;  // its place in the batch of paths advanced together
+    int32_t lastPrim = -1;   // the triangle the next ray leaves
+    uint32_t depth = 0;      // surfaces met so far (every ray before the last met one)
+    uint32_t nextBlock = 0;  // its sampler's position (Sampler::resume)
+    uint32_t path : 24 = 0;  // its place in the batch of paths advanced together
+    uint32_t secondLeft : 1 = 0;
+    uint32_t inUpper : 1 = 1;
   };
-  static_assert(sizeof(PathState) == 128);
-  // What an ended path leaves for its tallies (commit), an eighth of its state: a wavefront keeps
-  // one per path of its batch until the batch is tallied.
+  static_assert(sizeof(PathState) == 64);
+  static constexpr uint64_t kMaxBatchPaths = uint64_t(1) << 24;  // PathState::path
+  // How an ended path ended, and what it leaves for its tallies (commit).
   struct PathEnd {
-    int32_t rays = 0;
+    enum class Kind : uint8_t { Exited, Truncated, Leaked, Missed };
+    int32_t rays = 0;  // rays traced
     int32_t exitBin = -1;
-    int32_t geoMaskedBin = -1;
-    PathState::End end = PathState::End::Exited;
+    Kind kind = Kind::Exited;
     bool coherent = false;  // exited after one hit
   };
-  static_assert(sizeof(PathEnd) == 16);
-  static PathEnd endOf(const PathState& st) { return {st.rays, st.exitBin, st.geoMaskedBin, st.end, st.depth == 1}; }
-  // The weights a path of the group carries: one per wavelength, twice when the geo_masked copy is
-  // tallied (PathState::w).
+  static_assert(sizeof(PathEnd) == 12);
+  // What the paths of a batch share, and what each keeps by its place in the batch.
+  struct PathContext {
+    int tile = 0, group = 0;
+    uint64_t firstPath = 0;     // the tile's index of the batch's path 0
+    double* weights = nullptr;  // per path: weightsPerPath weights (PathState::path's row)
+    size_t weightsPerPath = 0;
+    int32_t* geoMaskedBins = nullptr;  // per path, when geo_masked is tallied: the bin it tallied, or -1
+    double* weightsOf(uint32_t path) const { return weights + size_t(path) * weightsPerPath; }
+  };
+  // The weights a path of the group carries: one per wavelength (w[0, nl)), then, when geo_masked
+  // is tallied, those when its direction was tallied (w[nl, 2 nl)).
   size_t weightsPerPath(int group) const { return (settings_.tallyGeoMasked ? 2 : 1) * groups_[size_t(group)].size(); }
-  // A path's first state; w holds its weightsPerPath weights; wi, if asked, its incidence.
+  // The first state of the tile's path `path`; w: its weightsPerPath weights; wi, if asked, its
+  // incidence. The caller sets its place in the batch.
   PathState startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, double* w,
                       Vec3* wi = nullptr) const;
   // The path meets the result of its ray: true when it goes on (its next ray set), false when it
-  // has ended (how, recorded in the state).
-  bool step(PathState& st, const TraceResult& tr, int group, PathRecord* rec) const;
-  // The ended path's tallies; w: its weights (PathState::w).
-  void commit(const PathEnd& e, const double* w, int group, PathChunk& out) const;
+  // has ended (how, in `ended`).
+  bool step(PathState& st, const TraceResult& tr, const PathContext& ctx, PathEnd& ended, PathRecord* rec) const;
+  // The ended path's tallies; w: its weights; geoMaskedBin: the bin its geo_masked copy went to, or -1.
+  void commit(const PathEnd& e, const double* w, int geoMaskedBin, int group, PathChunk& out) const;
   // One path, its first ray traced alone (replay).
   void tracePath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, PathChunk& out,
                  PathRecord* rec) const;
@@ -141,7 +143,7 @@ class PathTracer : public GeometricEstimator {
                   int group, std::span<PathChunk> chunks, Wavefront& wf) const;
   // One round of the wavefront: traces its rays in origin order and steps their paths; the paths
   // that go on are its next rays.
-  void traceRound(int group, bool firstRays, Wavefront& wf) const;
+  void traceRound(const PathContext& ctx, bool firstRays, Wavefront& wf) const;
 
   const PeriodicScene& scene_;
   const Material& material_;
