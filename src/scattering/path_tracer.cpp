@@ -46,7 +46,7 @@ static Vec3 pathOrigin(const PeriodicScene& scene, const Vec3& wi, double px, do
 
 PathTracer::PathState PathTracer::startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path,
                                             int group, double* w, Vec3* wi) const {
-  Sampler s(settings_.seed, uint32_t(tile), path, uint32_t(group));
+  Sampler s = pathSampler(tile, path, group);
   const DirectionSample incidence = pathIncidence(grid_, incidenceBin, exact, s);
   const double px = (s.get1D() - 0.5) * scene_.sizeX(), py = (s.get1D() - 0.5) * scene_.sizeY();
   PathState st;
@@ -102,7 +102,7 @@ bool PathTracer::step(PathState& st, const TraceResult& tr, const PathContext& c
       const double etaI = hitFromOutside ? n1 : n2, etaT = hitFromOutside ? n2 : n1;
       const double F = fresnelReflectance(absCos, etaI, Complex(etaT, 0));
       Vec3 wt;
-      Sampler s(settings_.seed, uint32_t(ctx.tile), ctx.firstPath + st.path, uint32_t(ctx.group));
+      Sampler s = pathSampler(ctx.tile, ctx.firstPath + st.path, ctx.group);
       s.resume(st.nextBlock, st.secondLeft);
       const double u = s.get1D();
       st.nextBlock = s.nextBlock();

@@ -122,6 +122,11 @@ class PathTracer : public GeometricEstimator {
   // The weights a path of the group carries: one per wavelength (w[0, nl)), then, when geo_masked
   // is tallied, those when its direction was tallied (w[nl, 2 nl)).
   size_t weightsPerPath(int group) const { return (settings_.tallyGeoMasked ? 2 : 1) * groups_[size_t(group)].size(); }
+  // The random numbers of the tile's path `path` in a wavelength group, whatever order its rays
+  // are traced in.
+  Sampler pathSampler(int tile, uint64_t path, int group) const {
+    return Sampler(settings_.seed, uint32_t(tile), path, uint32_t(group));
+  }
   // The first state of the tile's path `path`; w: its weightsPerPath weights; wi, if asked, its
   // incidence. The caller sets its place in the batch.
   PathState startPath(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, double* w,
