@@ -564,22 +564,28 @@ void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
 
 }  // namespace
 
+RunSetup::RunSetup(const Job& job, const PilotResults& pilots, Clock::time_point started)
+    : grid(job.gridLayout), tiles(job, grid, pilots), seconds(since(started)) {}
+
 RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& options) {
   const auto t0 = Clock::now();
   std::optional<tbb::global_control> threads;
   if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
 
   const std::string outPath = options.outputPath.empty() ? job.outputPath : options.outputPath;
-  DirectionGrid grid(job.gridLayout);
+  std::shared_ptr<const RunSetup> setup = options.setup;
+  if (!setup) setup = std::make_shared<const RunSetup>(job, options.pilots);
+  const DirectionGrid& grid = setup->grid;
   // What a tile is (job/tile_computer.h); this file only hands tiles out and writes them.
-  const TileComputer tiles(job, grid, options.pilots);
+  const TileComputer& tiles = setup->tiles;
   if (std::string shortfall = memoryShortfall(job, tiles.wave()); mpi.anyRank(!shortfall.empty())) {
     RunSummary refused;
     refused.exit = ExitCode::BadInput;
     refused.error = shortfall.empty() ? "another rank's node has too little memory for the job" : shortfall;
     return refused;
   }
-  spdlog::debug("start-up: the tile computer (scenes, facet tables, wave estimator) {:.3f} s", since(t0));
+  spdlog::debug("start-up: the tile computer (scenes, facet tables, wave estimator) {:.3f} s{}", setup->seconds,
+                options.setupDuringMpiStart ? ", while MPI started" : "");
   if (mpi.rank() == 0) logJobHeader(job, grid, tiles, mpi.size());
 
   TimedTiles own{job, tiles};

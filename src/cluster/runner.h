@@ -11,16 +11,32 @@
 // abandoned at their next batch). A clean stop closes the partial file and returns stoppedEarly;
 // the same command with --resume completes it.
 #pragma once
+#include <chrono>
 #include <map>
+#include <memory>
 #include <string>
 
 #include "core/error.h"
 #include "cluster/mpi_session.h"
 #include "job/job.h"
+#include "core/direction_grid.h"
 #include "job/effects_planner.h"
+#include "job/tile_computer.h"
 #include "scattering/tile_result.h"
 
 namespace mbsdf {
+
+// What a run builds before its first tile without any other rank: the job's direction grid and
+// its tile computer (scenes, facet tables, wave estimator). `run` builds it on a second thread
+// while MPI starts (a small job's whole compute is of MPI start-up's order); runJob builds it when
+// it is not given. It refers to the job, which must outlive it unchanged.
+struct RunSetup {
+  RunSetup(const Job& job, const PilotResults& pilots,
+           std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now());
+  DirectionGrid grid;
+  TileComputer tiles;
+  double seconds = 0;  // how long building it took
+};
 
 struct RunOptions {
   std::string outputPath;  // overrides the job's [output] path when not empty
@@ -30,6 +46,10 @@ struct RunOptions {
   // What the effects planner's pilots computed on this rank (planEffects): paths and wave terms of
   // tiles it need not compute again.
   PilotResults pilots;
+  // Built beforehand for this job and these pilots (else runJob builds it), and whether that was
+  // while MPI started (for the start-up log line).
+  std::shared_ptr<const RunSetup> setup;
+  bool setupDuringMpiStart = false;
 };
 
 struct RunSummary {

@@ -1,18 +1,24 @@
 // `microbsdf run JOB.toml [-o OUT.h5] [--threads N] [--log-dir DIR] [--resume] [--max-hours H] [-v]`,
-// under mpirun or srun for several ranks: every rank loads the job; rank 0 checks the output
-// location and takes its lock before any compute, runs the effects planner's pilots, then all ranks
-// run the tiles (cluster/runner.h). Foreseeable failures end every rank with the same exit code and
-// one message; only an unexpected one aborts the job.
+// under mpirun or srun for several ranks: every rank loads the job (while MPI starts, when it can:
+// EarlyStart); rank 0 checks the output location and takes its lock before any tile, runs the
+// effects planner's pilots, then all ranks run the tiles (cluster/runner.h). Foreseeable failures
+// end every rank with the same exit code and one message; only an unexpected one aborts the job.
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <exception>
 #include <filesystem>
 #include <iostream>
 #include <optional>
 #include <sstream>
+#include <thread>
 
 #include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+#include <toml++/toml.h>
 
 #include "cluster/mpi_session.h"
 #include "cluster/runner.h"
@@ -52,11 +58,9 @@ std::string failure(ExitCode c, const std::string& msg) {
 // components = "auto": rank 0 runs the effects planner's pilots, every rank applies the same plan;
 // rank 0 keeps what the pilots computed in *kept. Returns the exit code when a stop arrived during
 // the pilots.
-std::optional<int> planComponents(MpiSession& mpi, Job& job, int threads, PilotResults* kept) {
+std::optional<int> planComponents(MpiSession& mpi, Job& job, PilotResults* kept) {
   std::string planText, stopped;
   if (mpi.rank() == 0) {
-    std::optional<tbb::global_control> limit;
-    if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
     try {
       const EffectsPlan p = planEffects(job, {}, kept);
       for (std::istringstream lines(formatEffects(p)); std::getline(lines, planText);) spdlog::info("{}", planText);
@@ -71,6 +75,68 @@ std::optional<int> planComponents(MpiSession& mpi, Job& job, int threads, PilotR
   return std::nullopt;
 }
 
+// Reads the job: the job, or why it could not be read.
+void readJob(const std::string& jobPath, std::optional<Job>& job, std::string& error) {
+  try {
+    job = loadJob(jobPath);
+  } catch (const InputError& e) {
+    error = e.what();
+  } catch (const std::exception& e) {
+    error = jobPath + ": " + e.what();
+  }
+}
+
+// Whether the job's geometry is made from its parameters, not read from a file. The libraries that
+// read files (libzip's dates, OpenSSL's configuration, OpenEXR, HDF5) read environment variables,
+// which MPI_Init sets meanwhile: glibc's getenv and setenv are not safe together.
+bool geometryFromParameters(const std::string& jobPath) {
+  try {
+    const toml::table t = toml::parse_file(jobPath);
+    const std::optional<std::string> kind = t["geometry"]["kind"].value<std::string>();
+    return kind && *kind != "mesh" && *kind != "heightfield";
+  } catch (const std::exception&) {
+    return false;  // read after MPI has started, which reports what is wrong with it
+  }
+}
+
+// What a rank does while its main thread starts MPI (0.25 s for one process here, as long as a
+// small job's tiles), on a thread of its own: read the job when its geometry is made from
+// parameters, and, when no effects pilots are to decide its components and MPI is still starting,
+// build its tile computer and the first tile's buffers. Nothing here talks to MPI or reads the
+// environment; its log lines wait in a DeferredLog until the rank's logging is set up.
+struct EarlyStart {
+  bool read = false;  // whether the job was read here (else the main thread reads it)
+  std::optional<Job> job;
+  std::string error;  // why the job could not be read
+  std::shared_ptr<const RunSetup> setup;
+  std::exception_ptr setupError;  // rethrown where runJob would have thrown it
+  double jobSeconds = 0;
+  std::atomic<bool> mpiStarted{false};
+
+  // Runs in `arena` (initialized by the main thread: see runCommand).
+  void run(const std::string& jobPath, tbb::task_arena& arena) {
+    arena.execute([&] { prepare(jobPath); });
+  }
+
+ private:
+  void prepare(const std::string& jobPath) {
+    if (!geometryFromParameters(jobPath)) return;
+    const auto t0 = std::chrono::steady_clock::now();
+    readJob(jobPath, job, error);
+    read = true;
+    jobSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    // Once MPI has started, the rest is left to runJob, on all of the rank's cores.
+    if (!job || job->autoComponents || mpiStarted) return;
+    try {
+      auto s = std::make_shared<RunSetup>(*job, PilotResults{});
+      if (!mpiStarted) s->tiles.reserveBuffers();
+      setup = std::move(s);
+    } catch (...) {
+      setupError = std::current_exception();
+    }
+  }
+};
+
 int runCommand(int argc, char** argv, RunArgs a) {
   // The whole run as this process sees it (MPI start-up, the job's geometry, the effects pilots,
   // the tiles, the file): what `plan`'s wall-time estimate predicts (scripts/bench-plan).
@@ -78,20 +144,38 @@ int runCommand(int argc, char** argv, RunArgs a) {
   // Where a small job's start-up goes (logged at debug level once the pilots are done): seconds
   // since the program started at each step.
   auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); };
+  // --threads holds for the whole command: the job's geometry, the pilots, the tiles.
+  std::optional<tbb::global_control> threads;
+  if (a.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
+  // The preparing thread works in an arena made here, before MPI starts, for two reasons. TBB
+  // counts the cores it may use once, from the process's CPU mask, when first asked: asked on the
+  // preparing thread, it could read the mask while MPI's hardware discovery has pinned this thread
+  // to one core after another, and run the whole job on one core. And TBB reads its environment
+  // variables when it starts, which must not overlap MPI_Init setting its own (glibc's getenv and
+  // setenv are not safe together). The arena leaves one core to MPI's start: parallel work whose
+  // threads share the cores with it waits on them (the quickstart's tile computer took 8 times
+  // longer).
+  const int cores = tbb::this_task_arena::max_concurrency();
+  tbb::task_arena preparingArena(std::max(1, (a.threads > 0 ? std::min(a.threads, cores) : cores) - 1));
+  preparingArena.initialize();
+  DeferredLog early;
+  EarlyStart pre;
+  std::jthread preparing([&] { pre.run(a.jobPath, preparingArena); });
   MpiSession mpi(&argc, &argv);
+  pre.mpiStarted = true;
   const double mpiReady = elapsed();
   installStopHandlers();
+  preparing.join();
   setupLogging(mpi.rank(), "", "", a.verbose);
+  early.replay();
   auto agree = [&](const std::string& outcome) { return agreeOnRankZero(mpi, outcome); };
-  std::optional<Job> job;
-  std::string error;
-  try {
-    job = loadJob(a.jobPath);
-  } catch (const InputError& e) {
-    error = e.what();
-  } catch (const std::exception& e) {
-    error = std::string(a.jobPath) + ": " + e.what();
+  if (!pre.read) {
+    const double t0 = elapsed();
+    readJob(a.jobPath, pre.job, pre.error);
+    pre.jobSeconds = elapsed() - t0;
   }
+  std::optional<Job>& job = pre.job;
+  std::string error = pre.error;
   // Fail together: every rank exits non-zero, one message from rank 0, no hang.
   if (mpi.anyRank(!error.empty())) {
     if (mpi.rank() == 0) spdlog::error("{}", error.empty() ? "another rank could not read the job" : error);
@@ -142,16 +226,21 @@ int runCommand(int argc, char** argv, RunArgs a) {
     RunOptions opt;
     const double outputChecked = elapsed();
     if (job->autoComponents)
-      if (auto code = planComponents(mpi, *job, a.threads, &opt.pilots)) return *code;
+      if (auto code = planComponents(mpi, *job, &opt.pilots)) return *code;
     const double planned = elapsed();
     spdlog::debug(
-        "start-up: MPI {:.3f} s, job file and geometry {:.3f} s, output checks and log files {:.3f} s, effects "
-        "pilots {:.3f} s ({:.3f} s since the program started); memory allocator {}",
-        mpiReady, jobReady - mpiReady, outputChecked - jobReady, planned - outputChecked, planned, allocatorNote());
+        "start-up: MPI {:.3f} s; job file and geometry {:.3f} s{}{}; {:.3f} s after MPI to the job; output checks and "
+        "log files {:.3f} s, effects pilots {:.3f} s ({:.3f} s since the program started); memory allocator {}",
+        mpiReady, pre.jobSeconds, pre.read ? " while MPI started" : "",
+        pre.setup ? fmt::format(", the tile computer {:.3f} s while MPI started", pre.setup->seconds) : "",
+        jobReady - mpiReady, outputChecked - jobReady, planned - outputChecked, planned, allocatorNote());
     opt.outputPath = out;
     opt.threads = a.threads;
     opt.resume = a.resume;
     opt.maxHours = a.maxHours;
+    if (pre.setupError) std::rethrow_exception(pre.setupError);
+    opt.setup = pre.setup;
+    opt.setupDuringMpiStart = pre.setup != nullptr;
     RunSummary s = runJob(*job, mpi, opt);
     if (s.exit != ExitCode::Ok) {
       if (mpi.rank() == 0) spdlog::error("{}", s.error.empty() ? "run failed" : s.error);

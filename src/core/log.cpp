@@ -1,5 +1,7 @@
 #include "core/log.h"
 
+#include <spdlog/details/log_msg_buffer.h>
+#include <spdlog/sinks/base_sink.h>
 #include <spdlog/sinks/basic_file_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -8,6 +10,7 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <vector>
 
 #include "core/error.h"
 #include "core/stop.h"
@@ -17,6 +20,26 @@ namespace {
 std::mutex gLogFailureMutex;
 std::string gLogFailure;
 }  // namespace
+
+// Keeps every line at every level; the logger they are replayed through filters them.
+struct DeferredLog::Holder : spdlog::sinks::base_sink<std::mutex> {
+  std::vector<spdlog::details::log_msg_buffer> lines;
+
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override { lines.emplace_back(msg); }
+  void flush_() override {}
+};
+
+DeferredLog::DeferredLog() : holder_(std::make_shared<Holder>()) {
+  auto logger = std::make_shared<spdlog::logger>("microbsdf", holder_);
+  logger->set_level(spdlog::level::trace);
+  spdlog::set_default_logger(logger);
+}
+
+void DeferredLog::replay() const {
+  for (const auto& line : holder_->lines)
+    spdlog::default_logger_raw()->log(line.time, line.source, line.level, line.payload);
+}
 
 std::string logWriteFailure() {
   std::lock_guard<std::mutex> lock(gLogFailureMutex);

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -12,6 +13,19 @@ namespace mbsdf {
 // Sets the default spdlog logger. logDir empty: console only (rank 0) / nothing (other ranks).
 // Throws InputError naming the folder when the log file cannot be created there.
 void setupLogging(int rank, const std::string& logDir, const std::string& stem, bool verbose);
+
+// The log lines of work done before logging is set up (`run` loads the job while MPI starts, before
+// it knows its rank): from construction they are held instead of logged, and replay() logs them
+// through the default logger set since, with the times they were made at.
+class DeferredLog {
+ public:
+  DeferredLog();
+  void replay() const;
+
+ private:
+  struct Holder;
+  std::shared_ptr<Holder> holder_;
+};
 
 // The first failed write or flush of a log file since setupLogging ("" if none). Every log line is
 // flushed, so a full disk shows here at the next line; the runner checks it between tiles and

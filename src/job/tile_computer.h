@@ -46,6 +46,8 @@ class TileComputer {
     return compute(tileRequestOf(job_, t), progress, pathSeconds, waveSeconds, waveProgress);
   }
 
+  // Makes the working buffers of the job's first tile now (GeometricEstimator::reserveBuffers).
+  void reserveBuffers() const { transport_.reserveBuffers(); }
   const GeometricTransport& transport() const { return transport_; }
   const WaveEstimator* wave() const { return wave_.get(); }
   // The reciprocal bin pairs when the job halves its wave term by reciprocity, else none.

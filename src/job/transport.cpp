@@ -54,6 +54,10 @@ bool GeometricTransport::deterministic() const {
   return facets_ && singleScattering_ == Job::SingleScatteringMode::Facets;
 }
 
+void GeometricTransport::reserveBuffers() const {
+  if (!deterministic()) paths_->reserveBuffers();
+}
+
 std::string GeometricTransport::describe() const {
   if (flakes_) return "microflake random walk, " + flakes_->describe();
   if (facets_)

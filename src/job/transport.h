@@ -34,6 +34,7 @@ class GeometricTransport : public GeometricEstimator {
   TileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress) const override;
   // Whether every tile comes from the facet sum.
   bool deterministic() const override;
+  void reserveBuffers() const override;
   // The path tracer or the microflake walk, or for a tile the facet sum computes, that: a
   // deterministic estimator has nothing to add in later rounds (progressive sampling asks with
   // firstPath > 0), so those always go to the paths.

@@ -24,6 +24,9 @@ class GeometricEstimator {
   virtual TileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress) const = 0;
   // Whether a result carries no sampling noise (more rounds would add nothing).
   virtual bool deterministic() const = 0;
+  // Makes, and touches, the working buffers a tile of the estimator's own path count will use,
+  // so that the first tile does not fault their pages in (`run` does this while MPI starts).
+  virtual void reserveBuffers() const {}
 
   // The same request in positional form.
   TileResult run(int tile, int incidenceIndex, int incidenceBin, std::optional<Vec3> exactDirection = std::nullopt,

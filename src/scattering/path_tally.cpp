@@ -62,7 +62,35 @@ SparePool<std::vector<PathChunk>>& chunkPool() {
   return pool;
 }
 
+// A batch's chunks of `set`, emptied and with room for their paths' tallies.
+std::span<PathChunk> prepareChunks(const PathTallyPlan& plan, int group, uint64_t c0, uint64_t c1,
+                                   std::vector<PathChunk>& set) {
+  const int nL = plan.nLambda;
+  const size_t used = c1 - c0;
+  if (set.size() < used) set.resize(used, PathChunk(nL));
+  const std::span<PathChunk> chunks(set.data(), used);
+  const uint64_t p0 = c0 * kPathChunk, p1 = std::min(plan.paths, c1 * kPathChunk);
+  for (size_t i = 0; i < chunks.size(); ++i) {
+    chunks[i].clear(nL);
+    chunks[i].reserve(std::min(kPathChunk, p1 - p0 - i * kPathChunk), eventsPerPath(plan),
+                      plan.groups[size_t(group)].size());
+  }
+  return chunks;
+}
+
 }  // namespace
+
+void reservePathChunks(const PathTallyPlan& plan) {
+  if (plan.groups.empty() || plan.paths == 0) return;
+  SparePool<std::vector<PathChunk>>::Lease set(chunkPool());
+  const uint64_t nChunks = std::min(kPathChunksPerBatch, (plan.paths + kPathChunk - 1) / kPathChunk);
+  for (PathChunk& c : prepareChunks(plan, 0, 0, nChunks, *set)) {
+    // Reserved storage is only mapped; writing it once faults its pages in.
+    c.events.resize(c.events.capacity());
+    c.weights.resize(c.weights.capacity());
+    c.clear(plan.nLambda);
+  }
+}
 
 TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
                     const std::function<void(uint64_t)>& progress) {
@@ -91,7 +119,6 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
   r.leaked.assign(nL, 0.0);
   r.missed.assign(nL, 0.0);
 
-  constexpr uint64_t kChunksPerBatch = 256;
   struct Batch {
     int group;
     uint64_t c0, c1;  // chunks [c0, c1) of the group
@@ -99,20 +126,14 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
   std::vector<Batch> batches;
   const uint64_t nChunks = (N + kPathChunk - 1) / kPathChunk;
   for (int g = 0; g < int(plan.groups.size()); ++g)
-    for (uint64_t c0 = 0; c0 < nChunks; c0 += kChunksPerBatch)
-      batches.push_back({g, c0, std::min(nChunks, c0 + kChunksPerBatch)});
+    for (uint64_t c0 = 0; c0 < nChunks; c0 += kPathChunksPerBatch)
+      batches.push_back({g, c0, std::min(nChunks, c0 + kPathChunksPerBatch)});
 
   auto compute = [&](const Batch& b, std::vector<PathChunk>& set, size_t& used) {
     // The chunks' storage is kept from batch to batch and from run to run (chunkPool).
     used = b.c1 - b.c0;
-    if (set.size() < used) set.resize(used, PathChunk(nL));
-    const std::span<PathChunk> chunks(set.data(), used);
+    const std::span<PathChunk> chunks = prepareChunks(plan, b.group, b.c0, b.c1, set);
     const uint64_t p0 = b.c0 * kPathChunk, p1 = std::min(N, b.c1 * kPathChunk);
-    for (size_t i = 0; i < chunks.size(); ++i) {
-      chunks[i].clear(nL);
-      chunks[i].reserve(std::min(kPathChunk, p1 - p0 - i * kPathChunk), eventsPerPath(plan),
-                        plan.groups[size_t(b.group)].size());
-    }
     trace(plan.firstPath + p0, p1 - p0, b.group, chunks);
   };
   // Merge in chunk order: identical sums for any number of threads.

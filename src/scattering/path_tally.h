@@ -79,6 +79,12 @@ using PathBatchFunction =
 TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
                     const std::function<void(uint64_t)>& progress);
 
+// Paths per batch of runPaths: the chunks a PathBatchFunction gets at once (at most).
+inline constexpr uint64_t kPathChunksPerBatch = 256;
+// Makes runPaths' tally storage for the plan's first batch now, its pages touched, so that the
+// run's first batch does not fault them in (kept until a run takes them).
+void reservePathChunks(const PathTallyPlan& plan);
+
 // A path's incidence: cosine-distributed in its bin from the sampler's first block (two numbers,
 // the azimuth's first), or the exact direction, which skips that block, so that the rest of the
 // path draws the same numbers either way.

@@ -316,22 +316,27 @@ void PathTracer::traceRound(const PathContext& ctx, bool firstRays, Wavefront& w
   std::swap(wf.live, wf.next);
 }
 
-void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath,
-                            uint64_t count, int group, std::span<PathChunk> chunks, Wavefront& wf) const {
+void PathTracer::fit(Wavefront& wf, uint64_t count, size_t weightsPerPath) const {
   if (count > kMaxBatchPaths) throw std::logic_error("PathTracer: a batch of more paths than a state can number");
   growTo(wf.ended, count);
-  const size_t nw = weightsPerPath(group);
-  growTo(wf.weights, count * nw);  // each path sets its weights before it reads them
+  growTo(wf.weights, count * weightsPerPath);  // each path sets its weights before it reads them
   if (settings_.tallyGeoMasked) growTo(wf.geoMaskedBins, count);
-  const PathContext ctx{tile, group, firstPath, wf.weights.data(), nw, wf.geoMaskedBins.data()};
   growTo(wf.live, count);
   growTo(wf.next, count);
   growTo(wf.cells, count);
   growTo(wf.from, count);
   growTo(wf.endedAt, count);
+  growTo(wf.goOnCells, count);
+  if (orderByOrigin_) wf.order.prepare(count, scene_.sizeX(), scene_.sizeY());
+}
+
+void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t firstPath,
+                            uint64_t count, int group, std::span<PathChunk> chunks, Wavefront& wf) const {
+  const size_t nw = weightsPerPath(group);
+  fit(wf, count, nw);
+  const PathContext ctx{tile, group, firstPath, wf.weights.data(), nw, wf.geoMaskedBins.data()};
   wf.nRays = count;
   wf.nEnded = 0;
-  if (orderByOrigin_) wf.order.prepare(count, scene_.sizeX(), scene_.sizeY());
   auto blocks = [&](auto&& body) {
     tbb::parallel_for(tbb::blocked_range<uint64_t>(0, count, 1024), [&](const tbb::blocked_range<uint64_t>& r) {
       for (uint64_t j = r.begin(); j < r.end(); ++j) body(j);
@@ -368,13 +373,10 @@ void PathTracer::traceBatch(int tile, int incidenceBin, const std::optional<Vec3
   });
 }
 
-TileResult PathTracer::run(const TileRequest& q, const std::function<void(uint64_t)>& progress) const {
-  const int tile = q.tile, incidenceBin = q.incidenceBin;
-  std::optional<Vec3> exactDirection = q.exactDirection;
-  if (exactDirection) exactDirection = normalize(*exactDirection);
-  PathTallyPlan plan{tile,
+PathTallyPlan PathTracer::tallyPlan(const TileRequest& q) const {
+  PathTallyPlan plan{q.tile,
                      q.incidenceIndex,
-                     incidenceBin,
+                     q.incidenceBin,
                      &grid_,
                      int(lambda_um_.size()),
                      groups_,
@@ -382,6 +384,24 @@ TileResult PathTracer::run(const TileRequest& q, const std::function<void(uint64
                      q.firstPath,
                      {Component::Coherent, Component::Multiple}};
   if (settings_.tallyGeoMasked) plan.components.push_back(Component::GeoMasked);
+  return plan;
+}
+
+void PathTracer::reserveBuffers() const {
+  const PathTallyPlan plan = tallyPlan({});
+  size_t nw = 0;
+  for (int g = 0; g < int(groups_.size()); ++g) nw = std::max(nw, weightsPerPath(g));
+  SparePool<std::unique_ptr<Wavefront>>::Lease wf(spareWavefronts_);
+  if (!*wf) *wf = std::make_unique<Wavefront>();
+  fit(**wf, std::min(plan.paths, kPathChunksPerBatch * kPathChunk), nw);
+  reservePathChunks(plan);
+}
+
+TileResult PathTracer::run(const TileRequest& q, const std::function<void(uint64_t)>& progress) const {
+  const int tile = q.tile, incidenceBin = q.incidenceBin;
+  std::optional<Vec3> exactDirection = q.exactDirection;
+  if (exactDirection) exactDirection = normalize(*exactDirection);
+  const PathTallyPlan plan = tallyPlan(q);
   // The wavefront's buffers (some 160 bytes per path of a batch) are leased from the tracer's
   // spares, so that a run of many tiles does not fault their pages in again.
   SparePool<std::unique_ptr<Wavefront>>::Lease wf(spareWavefronts_);

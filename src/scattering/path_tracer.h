@@ -63,6 +63,7 @@ class PathTracer : public GeometricEstimator {
   using GeometricEstimator::run;
   TileResult run(const TileRequest& request, const std::function<void(uint64_t)>& progress) const override;
   bool deterministic() const override { return false; }
+  void reserveBuffers() const override;
   // Whether each round's rays are traced in the order of their origins (scenes of 4096 triangles
   // or more), or in their paths' order.
   bool ordersByOrigin() const { return orderByOrigin_; }
@@ -141,6 +142,10 @@ class PathTracer : public GeometricEstimator {
                  PathRecord* rec) const;
   // The buffers of a batch of paths advanced together, kept from batch to batch and run to run.
   struct Wavefront;
+  // wf's buffers grown to hold a batch of `count` paths (of weightsPerPath weights each).
+  void fit(Wavefront& wf, uint64_t count, size_t weightsPerPath) const;
+  // The tallies of the request's paths (runPaths).
+  PathTallyPlan tallyPlan(const TileRequest& request) const;
   // Paths firstPath … firstPath + count − 1 advanced together, one ray each per round, each round's
   // rays traced in the order of their origins (a wavefront; geometry/ray_order.h): the same
   // results as tracePath one by one. Path firstPath + i is tallied into chunks[i / kPathChunk].

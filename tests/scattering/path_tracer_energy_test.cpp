@@ -131,6 +131,39 @@ TEST(Determinism, ThreadCountDoesNotChangeResults) {
   EXPECT_NE(a.value[int(Component::Multiple)], other.value[int(Component::Multiple)]);
 }
 
+// Buffers made ahead of the first tile (reserveBuffers, while MPI starts) are only storage: a
+// tracer whose first run uses them gives the bytes of one that allocates its own, for a conductor
+// whose wavelengths share paths (with geo_masked tallied) and a dielectric traced by wavelength
+// (more paths than one batch, so that later batches reuse what the first left).
+TEST(Determinism, ReservedBuffersChangeNoResult) {
+  struct Case {
+    Material m;
+    bool geoMasked;
+    uint64_t paths;
+  };
+  for (const Case& k : {Case{material("Au"), true, 30000}, Case{material("BK7"), false, 256 * 1024 + 700}}) {
+    PathTracerSettings s;
+    s.paths = k.paths;
+    s.tallyGeoMasked = k.geoMasked;
+    auto scenario = [&] {
+      return Scenario(
+          makeDomeLattice({.size_um = {10, 10}, .spacing_um = {5, 5}, .radii_um = {2, 2, 2}, .resolution_um = 0.25}),
+          k.m, ThetaPhiGrid{10, 20}, {0.45, 0.65}, s);
+    };
+    const Scenario plain = scenario(), reserved = scenario();
+    reserved.tracer->reserveBuffers();
+    for (int tile = 0; tile < 2; ++tile) {
+      const TileResult a = plain.run(50, 20, false, tile), b = reserved.run(50, 20, false, tile);
+      for (Component c : {Component::Coherent, Component::Multiple, Component::GeoMasked}) {
+        EXPECT_EQ(a.value[int(c)], b.value[int(c)]) << k.m.describe() << " tile " << tile;
+        EXPECT_EQ(a.stdError[int(c)], b.stdError[int(c)]) << k.m.describe() << " tile " << tile;
+      }
+      EXPECT_EQ(a.rays, b.rays);
+      EXPECT_EQ(a.truncated, b.truncated);
+    }
+  }
+}
+
 // A failing sample can be replayed: replay() of path j gives the same exit as the batch run.
 TEST(Determinism, ReplayMatchesBatch) {
   PathTracerSettings s;
