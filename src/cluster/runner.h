@@ -16,11 +16,11 @@
 #include <memory>
 #include <string>
 
-#include "core/error.h"
 #include "cluster/mpi_session.h"
-#include "job/job.h"
 #include "core/direction_grid.h"
+#include "core/error.h"
 #include "job/effects_planner.h"
+#include "job/job.h"
 #include "job/tile_computer.h"
 #include "scattering/tile_result.h"
 

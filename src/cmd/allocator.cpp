@@ -27,4 +27,16 @@ std::string allocatorNote() {
   return fmt::format("jemalloc (transparent huge pages: {})", thp);
 }
 
+unsigned currentArena() {
+  unsigned arena = 0;
+  size_t size = sizeof(arena);
+  if (mallctl("thread.arena", &arena, &size, nullptr, 0) != 0) return 0;
+  return arena;
+}
+
+void useArena(unsigned arena) {
+  // A failure leaves the thread on its own arena: slower first touches, nothing else.
+  (void)mallctl("thread.arena", nullptr, nullptr, &arena, sizeof(arena));
+}
+
 }  // namespace mbsdf

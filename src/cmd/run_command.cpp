@@ -103,7 +103,8 @@ bool geometryFromParameters(const std::string& jobPath) {
 // small job's tiles), on a thread of its own: read the job when its geometry is made from
 // parameters, and, when no effects pilots are to decide its components and MPI is still starting,
 // build its tile computer and the first tile's buffers. Nothing here talks to MPI or reads the
-// environment; its log lines wait in a DeferredLog until the rank's logging is set up.
+// environment; its log lines wait in a DeferredLog until the rank's logging is set up, and it
+// allocates from the main thread's arena (cmd/allocator.h useArena).
 struct EarlyStart {
   bool read = false;  // whether the job was read here (else the main thread reads it)
   std::optional<Job> job;
@@ -160,7 +161,10 @@ int runCommand(int argc, char** argv, RunArgs a) {
   preparingArena.initialize();
   DeferredLog early;
   EarlyStart pre;
-  std::jthread preparing([&] { pre.run(a.jobPath, preparingArena); });
+  std::jthread preparing([&, arena = currentArena()] {
+    useArena(arena);
+    pre.run(a.jobPath, preparingArena);
+  });
   MpiSession mpi(&argc, &argv);
   pre.mpiStarted = true;
   const double mpiReady = elapsed();
