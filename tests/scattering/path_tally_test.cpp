@@ -125,37 +125,6 @@ TEST(PathTally, ChunksKeptFromRunToRunStartEmpty) {
   }
 }
 
-// A run of one batch gives back the chunk set it filled so that the next run takes it, storage
-// and all (its pages are not faulted in again); reservePathChunks readies that same set rather
-// than making a second, and the next run takes it, with room for every path's tallies.
-TEST(PathTally, OneBatchRunsReuseTheirChunkStorage) {
-  const DirectionGrid grid(ThetaPhiGrid{4, 8});
-  const int nB = grid.binCount();
-  const PathTallyPlan plan = planOf(grid, 1, 5 * kPathChunk + 17);  // one batch of six chunks
-  std::vector<const PathChunk::Event*> storage;
-  bool roomForAll = true;
-  auto trace = [&](uint64_t p0, uint64_t n, int group, std::span<PathChunk> chunks) {
-    storage.clear();
-    for (const PathChunk& c : chunks) {
-      storage.push_back(c.events.data());
-      roomForAll = roomForAll && c.events.capacity() >= std::min(kPathChunk, n);
-    }
-    for (uint64_t i = 0; i < n; ++i) {
-      const SyntheticPath p = syntheticPath(p0 + i, group, nB);
-      chunks[i / kPathChunk].tally(p.bin, Component::Coherent, group, p.w, 1);
-    }
-  };
-  runPaths(plan, PathBatchFunction(trace), {});
-  const std::vector<const PathChunk::Event*> first = storage;
-  runPaths(plan, PathBatchFunction(trace), {});
-  EXPECT_EQ(storage, first) << "the second run's chunks are not the first run's filled set";
-  reservePathChunks(plan);
-  runPaths(plan, PathBatchFunction(trace), {});
-  EXPECT_EQ(storage, first) << "reservePathChunks made a second set, or the run did not take the one it readied";
-  EXPECT_TRUE(roomForAll);
-  ASSERT_EQ(storage.size(), 6u);
-}
-
 TEST(PathTally, AThrowingProgressAbandonsTheTile) {
   const DirectionGrid grid(ThetaPhiGrid{2, 4});
   const PathTallyPlan plan = planOf(grid, 1, 4 * 256 * 1024);
