@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "geometry/topography_stats.h"
 #include "io/height_map_file.h"
+#include "io/output_target.h"
 #include "job/job.h"
 #include "job/plan.h"
 #include "microflake/ndf.h"
@@ -17,7 +18,18 @@
 namespace mbsdf {
 namespace {
 
-int checkJob(const std::string& jobPath, const std::string& heightsPath) {
+// Each incidence's paths as CSV: with path_allocation = "equal-error" they differ by slice, and a
+// check of a few slices at the job's own budget (scripts/paper-resolution-check) needs them.
+void writeSlicePaths(const std::string& path, const Job& job) {
+  std::string csv = "incidence,bin,theta_deg,phi_deg,paths\n";
+  for (size_t i = 0; i < job.incidence.size(); ++i) {
+    const IncidenceDirection& inc = job.incidence[i];
+    csv += fmt::format("{},{},{:.6g},{:.6g},{}\n", i, inc.bin, inc.theta_deg, inc.phi_deg, job.pathsFor(int(i)));
+  }
+  writeFileAtomically(path, csv);
+}
+
+int checkJob(const std::string& jobPath, const std::string& heightsPath, const std::string& slicePathsPath) {
   Job job = loadJob(jobPath);
   DirectionGrid grid(job.gridLayout);
   std::cout << jobPath << ": ok\n  geometry " << job.geometryKind << ", "
@@ -28,6 +40,7 @@ int checkJob(const std::string& jobPath, const std::string& heightsPath) {
             << (job.statistical ? "" : "\n  surface " + job.closure.describe()) << "\n  material "
             << job.material.describe() << "\n  " << job.lambda_nm.size() << " wavelengths, grid " << grid.kind()
             << " with " << grid.binCount() << " bins, " << job.incidence.size() << " incidence directions\n"
+            << "  " << job.describePaths() << "\n"
             << "  memory about " << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9)
             << " GB per rank before the "
             << "wave estimator's own (`plan` measures it), output up to "
@@ -46,6 +59,10 @@ int checkJob(const std::string& jobPath, const std::string& heightsPath) {
     throw InputError(
         jobPath + ": --heights needs a heightfield geometry ([geometry] kind = \"heightfield\") or [geometry.defects]");
   }
+  if (!slicePathsPath.empty()) {
+    writeSlicePaths(slicePathsPath, job);
+    std::cout << "  each incidence's paths written to " << slicePathsPath << "\n";
+  }
   if (const double avail = availableMemoryBytes(); avail > 0 && memoryBytesPerRank(job, 0) > avail)
     throw InputError(jobPath + ": the job needs about " + fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9) +
                      " GB per rank but this machine has " + fmt::format("{:.3g}", avail / 1e9) +
@@ -58,6 +75,7 @@ int checkJob(const std::string& jobPath, const std::string& heightsPath) {
 Command addCheckCommand(CLI::App& app) {
   auto jobPath = std::make_shared<std::string>();
   auto heightsPath = std::make_shared<std::string>();
+  auto slicePathsPath = std::make_shared<std::string>();
   Command c;
   c.app = app.add_subcommand("check", "validate a job file and print what it describes");
   c.app->add_option("job", *jobPath, "job file (TOML)")->required();
@@ -65,7 +83,10 @@ Command addCheckCommand(CLI::App& app) {
                     "heightfield jobs and [geometry.defects]: write the heights that are meshed (after crop, "
                     "levelling, filling, edges and defects) "
                     "to this HDF5 file");
-  c.run = [jobPath, heightsPath] { return checkJob(*jobPath, *heightsPath); };
+  c.app->add_option("--slice-paths", *slicePathsPath,
+                    "write each incidence's paths (incidence, bin, theta_deg, phi_deg, paths) to this CSV file: "
+                    "with path_allocation = \"equal-error\" they differ by slice");
+  c.run = [jobPath, heightsPath, slicePathsPath] { return checkJob(*jobPath, *heightsPath, *slicePathsPath); };
   return c;
 }
 

@@ -3,6 +3,7 @@
 
 Usage: cli_test.py BUILD_DIR SOURCE_DIR TEST_NAME (see harness.py).
 """
+import csv
 import json
 import re
 import os
@@ -522,7 +523,8 @@ def test_path_allocation():
     the stored errors are honest (mean z² 1 within the estimator's spread); per slice, the L1 the
     stored errors give moves against the same job with the same paths everywhere as the model
     predicts (within 10 %), so that the slices the fold helps least keep their error while the
-    others spend fewer paths; `plan` predicts each pilot slice's L1 within 5 % of the stored errors'."""
+    others spend fewer paths; `check --slice-paths` lists the same counts; `plan` predicts each pilot
+    slice's L1 within 5 % of the stored errors'."""
     job = full_sphere_job
     n_theta, n_phi, paths = 6, 12, 20000
     for name, extra in (("uniform", ""), ("equal", 'path_allocation = "equal-error"'),
@@ -544,6 +546,12 @@ def test_path_allocation():
         samples = e["/stats/samples"][:]
         assert np.all(np.abs(samples - np.ceil(share * paths)) <= 1), (samples, share * paths)
         assert samples.max() == paths and "equal-error" in e.attrs["path_allocation"].decode()
+        # `check --slice-paths` lists the same counts, incidence by incidence.
+        run(["check", "equal.toml", "--slice-paths", "equal-paths.csv"])
+        with open(os.path.join(TMP, "equal-paths.csv")) as f:
+            listed = list(csv.DictReader(f))
+        assert [int(r["paths"]) for r in listed] == samples.tolist(), "check --slice-paths"
+        assert [int(r["bin"]) for r in listed] == e["/incidence/bin"][:].astype(int).tolist()
         print("paths per ring:", samples[::n_phi], f"mean {samples.mean() / paths:.3f} of paths_per_slice")
         for comp in ("coherent", "multiple"):
             fe, se = mh.table(e, comp), mh.table(e, comp, error=True)
