@@ -30,6 +30,7 @@ void writeSlicePaths(const std::string& path, const Job& job) {
 }
 
 int checkJob(const std::string& jobPath, const std::string& heightsPath, const std::string& slicePathsPath) {
+  if (!slicePathsPath.empty()) checkOutputPath(slicePathsPath);  // an unusable location is named at once
   Job job = loadJob(jobPath);
   DirectionGrid grid(job.gridLayout);
   std::cout << jobPath << ": ok\n  geometry " << job.geometryKind << ", "

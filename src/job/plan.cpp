@@ -791,7 +791,8 @@ std::string fmtL1(const nlohmann::json& l1) {
     o += fmt::format(" (the largest slice's; path_allocation = \"equal-error\", {:.3g} on average)",
                      l1["path_allocation"]["mean_paths_per_slice"].get<double>());
   o += "\n                (Σ|f − E f| Ω⊥ / Σ|f| Ω⊥ of each component's slice, the accuracy study's measure, "
-       "expected from its bins' errors; the worst pilot and wavelength)\n";
+       "expected from its bins' errors at the pilots' paths and four times them; the worst pilot and "
+       "wavelength)\n";
   for (const auto& t : l1["targets"]) {
     o += fmt::format("  for {:>4} in every component: paths_per_slice = {}, ", pct(t["rel_l1"].get<double>()),
                      t["paths_per_slice"].dump());

@@ -315,7 +315,7 @@ def test_readonly_folders():
 def test_output_is_folder():
     """An output path that is a folder fails before any compute (no pilot, no tile, no lock or partial
     file left), without MPI_ABORT. The job's components are "auto": a late check would show the
-    effects planner's pilots in the log."""
+    effects planner's pilots in the log. The same for `check --slice-paths`."""
     os.makedirs(os.path.join(TMP, "adir"))
     job = small_job(os.path.join(TMP, "job.toml"), extra='[effects]\ncomponents = "auto"\n')
     for mpi in (0, 2):
@@ -325,6 +325,9 @@ def test_output_is_folder():
         assert os.listdir(os.path.join(TMP, "adir")) == [], os.listdir(os.path.join(TMP, "adir"))
         assert not [f for f in os.listdir(TMP) if f.startswith("adir.")], os.listdir(TMP)
         print(f"output is a folder, {mpi or 1} rank(s): exit 2 before any pilot or tile")
+    # `check --slice-paths` names the folder before it reads the job.
+    expect(["check", job, "--slice-paths", "adir"], EXIT_BAD_INPUT, "output adir is a folder")
+    assert os.listdir(os.path.join(TMP, "adir")) == [], os.listdir(os.path.join(TMP, "adir"))
 
 
 def test_pilot_signal():
