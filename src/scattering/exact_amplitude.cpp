@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <functional>
 
 #include "scattering/triangle_fourier.h"
 #include "scattering/visibility_table.h"
@@ -20,6 +19,8 @@ constexpr int kSubOffset[kExactMaxDepth + 1] = {0, 0, 16, 80};  // first sub-poi
 struct FacetVisibility {
   const WaveContext& ctx;
   const VisibilityTable* table;
+  const VisibilityTable::Cell& exitCell;  // the table's cell of ω_G
+  bool tableAnswers;                      // whether the table answers for this facet at exitCell
   const std::vector<uint8_t>& lit;
   ShadowCache& shadow;
   const OrderDirection& ord;
@@ -35,10 +36,8 @@ struct FacetVisibility {
   int firstLevel(const Vec3& x, int k) const {
     if (!((lit[t] >> k) & 1)) return 0;
     if (exitClear) return 1;
-    if (table)
-      if (const auto e = ord.transmission ? table->escapes(t, k, -m, ord.wo, !fromAbove)
-                                          : table->escapes(t, k, m, ord.wo, fromAbove))
-        return *e ? 1 : 2;
+    if (tableAnswers)
+      if (const auto e = table->escapes(exitCell, t, k)) return *e ? 1 : 2;
     const ExitVisibility v = visibleExit(ctx.scene, x, m, ord.wo, t, fromAbove, ord.transmission, rays);
     return v == ExitVisibility::Visible ? 1 : 2;
   }
@@ -81,11 +80,18 @@ struct FacetVisibility {
 };
 }  // namespace
 
-std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
-                                         const SlopeBound& slope, const Vec3& wi, bool fromAbove, uint64_t* rays) {
+IncidenceFacets incidenceFacets(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
+                                const SlopeBound& slope, const Vec3& wi, bool fromAbove, const Media& media,
+                                uint64_t* rays) {
   const Microgeometry& g = ctx.geometry;
-  std::vector<uint8_t> lit(g.triangles.size(), 0);
+  const size_t F = cell.facets.size();
+  IncidenceFacets out;
+  out.lit.assign(g.triangles.size(), 0);
+  out.m.resize(F);
+  out.fresnel.resize(ctx.lambda_um.size() * F);
+  std::vector<uint8_t>& lit = out.lit;
   const bool clear = slope.clear(wi);  // above a heightfield's steepest slope: every facing point is lit
+  const VisibilityTable::Cell litCell = table ? table->cellOf(wi, fromAbove) : VisibilityTable::Cell{};
   std::atomic<uint64_t> count{0};
   tbb::parallel_for(size_t(0), cell.facets.size(), [&](size_t f) {
     const size_t t = cell.facets[f];
@@ -93,6 +99,9 @@ std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCe
     if (dot(n, n) == 0) return;
     const Vec3 m = fromAbove ? normalize(n) : -normalize(n);
     if (dot(m, wi) <= 0) return;
+    out.m[f] = m;
+    for (size_t l = 0; l < ctx.lambda_um.size(); ++l)
+      out.fresnel[l * F + f] = media.fresnel(int(l), dot(m, wi), fromAbove);
     if (clear) {
       lit[t] = 0xF;
       return;
@@ -100,22 +109,26 @@ std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCe
     const auto& tri = g.triangles[t];
     const auto pts = firstLevelPoints(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]]);
     uint8_t bits = 0;
+    const bool tableAnswers = table && table->answers(litCell, uint32_t(t), m);
     for (int k = 0; k < 4; ++k) {
-      const std::optional<bool> known = table ? table->escapes(uint32_t(t), k, m, wi, fromAbove) : std::nullopt;
+      const std::optional<bool> known = tableAnswers ? table->escapes(litCell, uint32_t(t), k) : std::nullopt;
       if (!known) ++count;
       if (known ? *known : escapes(ctx.scene, pts[size_t(k)], m, wi, unsigned(t), fromAbove)) bits |= uint8_t(1 << k);
     }
     lit[t] = bits;
   });
   *rays += count.load();
-  return lit;
+  return out;
 }
 
 void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
                     const SlopeBound& slope, const OrderDirection& ord, const Vec3& wi, bool fromAbove,
-                    const Media& media, bool masked, const std::vector<uint8_t>& lit, ShadowCache& shadow, Complex* H,
+                    const Media& media, bool masked, const IncidenceFacets& facets, ShadowCache& shadow, Complex* H,
                     uint64_t* rays) {
   const Microgeometry& g = ctx.geometry;
+  const std::vector<uint8_t>& lit = facets.lit;
+  // The reverse path's integrand takes its Fresnel factor at ω_G (wave::integrandAt).
+  const bool reverse = ord.transmission && media.reverseTransmission(ord.lambda, fromAbove);
   const int l = ord.lambda;
   const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
   const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
@@ -126,19 +139,24 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
   // facet that faces it.
   const bool litClear = slope.clear(wi);
   const bool exitClear = ((ord.wo.z > 0) == (fromAbove != ord.transmission)) && slope.clear(ord.wo);
+  const VisibilityTable::Cell exitCell =
+      table && !exitClear ? table->cellOf(ord.wo, ord.transmission ? !fromAbove : fromAbove) : VisibilityTable::Cell{};
   for (size_t slot = 0; slot < cell.facets.size(); ++slot) {
     const uint32_t t = cell.facets[slot];
     const auto& tri = g.triangles[t];
-    const Vec3 n = g.triangleNormal(t);
-    if (dot(n, n) == 0) continue;  // degenerate: no area
-    const Vec3 m = fromAbove ? normalize(n) : -normalize(n);
-    const double cosLocal = dot(m, wi);
-    if (cosLocal <= 0 || lit[t] == 0) continue;  // back-facing to the light, or shadowed at every first-level point
+    // Degenerate (no area), back-facing to the light, or shadowed at every first-level point.
+    if (lit[t] == 0) continue;
+    const Vec3& m = facets.m[slot];
     const double mo = dot(m, ord.wo);
     if (ord.transmission ? mo >= 0 : mo <= 0) continue;  // back-facing to the order direction
     // g (s, p) of the facet: the integrand without its phase.
-    const KirchhoffValue g0 = integrandAt(media, l, Vec3{0, 0, 0}, m, wi, ord.wo, k0, fromAbove, ord.transmission);
-    const FacetVisibility vis{ctx, table, lit, shadow, ord, wi, fromAbove, litClear, exitClear, t, slot, m, rays};
+    const KirchhoffValue g0 =
+        reverse ? integrandAt(media, l, Vec3{0, 0, 0}, m, wi, ord.wo, k0, fromAbove, true)
+                : kirchhoffIntegrand(Vec3{0, 0, 0}, m, wi, ord.wo, k0, nI, nO,
+                                     facets.fresnel[size_t(l) * cell.facets.size() + slot], ord.transmission);
+    const bool tableAnswers = table && table->answers(exitCell, t, ord.transmission ? -m : m);
+    const FacetVisibility vis{ctx,      table,     exitCell, tableAnswers, lit, shadow, ord, wi, fromAbove,
+                              litClear, exitClear, t,        slot,         m,   rays};
     auto add = [&](const Vec3& a, const Vec3& b, const Vec3& c, int st) {
       if (st == 0 || (st == 2 && !masked)) return;
       const Complex f = triangleFourier(a, b, c, q);
@@ -149,33 +167,34 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
     // where they disagree, the four children's points decided together. A child at the deepest
     // level takes its centroid's state, so only that point is asked there.
     // `path`: the sub-element's index among the 4^depth of its depth.
-    std::function<void(const Vec3&, const Vec3&, const Vec3&, int, size_t, const int*)> element =
-        [&](const Vec3& a, const Vec3& b, const Vec3& c, int depth, size_t path, const int* st) {
-          if ((st[1] == st[0] && st[2] == st[0] && st[3] == st[0]) || depth == kExactMaxDepth) {
-            add(a, b, c, st[0]);
-            return;
-          }
-          const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
-          const std::array<std::array<Vec3, 3>, 4> child = {{{a, ab, ca}, {ab, b, bc}, {ca, bc, c}, {ab, bc, ca}}};
-          const int perChild = depth + 1 == kExactMaxDepth ? 1 : 4;
-          std::array<Vec3, 16> x;
-          std::array<size_t, 16> sub;
-          int count = 0;
-          for (size_t ch = 0; ch < 4; ++ch) {
-            const auto pts = firstLevelPoints(child[ch][0], child[ch][1], child[ch][2]);
-            for (int k = 0; k < perChild; ++k) {
-              x[size_t(count)] = pts[size_t(k)];
-              sub[size_t(count++)] = size_t(kSubOffset[depth + 1]) + (path * 4 + ch) * 4 + size_t(k);
-            }
-          }
-          std::array<int, 16> packed, childStates;
-          vis.subElements(x.data(), sub.data(), count, packed.data());
-          for (size_t ch = 0; ch < 4; ++ch)
-            for (int k = 0; k < 4; ++k)
-              childStates[4 * ch + size_t(k)] = packed[ch * size_t(perChild) + size_t(std::min(k, perChild - 1))];
-          for (size_t ch = 0; ch < 4; ++ch)
-            element(child[ch][0], child[ch][1], child[ch][2], depth + 1, path * 4 + ch, &childStates[4 * ch]);
-        };
+    // (A generic lambda that takes itself: a std::function here was built for every facet and order.)
+    auto element = [&](const auto& self, const Vec3& a, const Vec3& b, const Vec3& c, int depth, size_t path,
+                       const int* st) -> void {
+      if ((st[1] == st[0] && st[2] == st[0] && st[3] == st[0]) || depth == kExactMaxDepth) {
+        add(a, b, c, st[0]);
+        return;
+      }
+      const Vec3 ab = (a + b) * 0.5, bc = (b + c) * 0.5, ca = (c + a) * 0.5;
+      const std::array<std::array<Vec3, 3>, 4> child = {{{a, ab, ca}, {ab, b, bc}, {ca, bc, c}, {ab, bc, ca}}};
+      const int perChild = depth + 1 == kExactMaxDepth ? 1 : 4;
+      std::array<Vec3, 16> x;
+      std::array<size_t, 16> sub;
+      int count = 0;
+      for (size_t ch = 0; ch < 4; ++ch) {
+        const auto pts = firstLevelPoints(child[ch][0], child[ch][1], child[ch][2]);
+        for (int k = 0; k < perChild; ++k) {
+          x[size_t(count)] = pts[size_t(k)];
+          sub[size_t(count++)] = size_t(kSubOffset[depth + 1]) + (path * 4 + ch) * 4 + size_t(k);
+        }
+      }
+      std::array<int, 16> packed, childStates;
+      vis.subElements(x.data(), sub.data(), count, packed.data());
+      for (size_t ch = 0; ch < 4; ++ch)
+        for (int k = 0; k < 4; ++k)
+          childStates[4 * ch + size_t(k)] = packed[ch * size_t(perChild) + size_t(std::min(k, perChild - 1))];
+      for (size_t ch = 0; ch < 4; ++ch)
+        self(self, child[ch][0], child[ch][1], child[ch][2], depth + 1, path * 4 + ch, &childStates[4 * ch]);
+    };
     const auto pts = firstLevelPoints(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]]);
     // Points 1–3 only while they agree with the centroid: the first that differs decides the split.
     int st0[4] = {vis.firstLevel(pts[0], 0), 0, 0, 0};
@@ -184,7 +203,10 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
       st0[k] = agree ? vis.firstLevel(pts[size_t(k)], k) : st0[0];
       agree = agree && st0[k] == st0[0];
     }
-    element(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0, 0, st0);
+    if (st0[1] == st0[0] && st0[2] == st0[0] && st0[3] == st0[0])
+      add(g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], st0[0]);  // the common case: no split
+    else
+      element(element, g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0, 0, st0);
   }
   for (int i = 0; i < 4; ++i) H[i] += double(cell.copies()) * Hc[i];
 }

@@ -29,13 +29,24 @@ struct OrderDirection {
   bool transmission;
 };
 
-// Shadowing of the first-level points of every facet towards ωi (bit k: point k is lit; 0 for a
-// facet facing away), computed once per incidence direction and shared by every order and
-// wavelength: the shared visibility table (visibility_table.h) for the rays that do not depend on ωo.
-// Only the facets of `cell` (one cell of a patch that repeats it) are visited; `table` (may be
-// null) answers where it can. Rays cast are added to *rays.
-std::vector<uint8_t> firstLevelShadowing(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
-                                         const SlopeBound& slope, const Vec3& wi, bool fromAbove, uint64_t* rays);
+// What every order and wavelength of one incidence direction shares, found once per direction:
+//  lit      shadowing of the first-level points of every facet towards ωi (by triangle; bit k: point
+//           k is lit; 0 for a facet facing away), the shared visibility table (visibility_table.h)
+//           answering where it can;
+//  m        each lit facet's unit normal towards the incident medium, by slot;
+//  fresnel  the Fresnel amplitudes of each lit facet at its local cosine m·ωi, [λ · facets + slot]:
+//           the forward integrand's only costly part that does not depend on the order (reflection
+//           and transmission into the denser medium; the reverse path's depends on ω_G).
+// Only the facets of `cell` (one cell of a patch that repeats it) are visited; `table` may be null.
+// Rays cast are added to *rays.
+struct IncidenceFacets {
+  std::vector<uint8_t> lit;
+  std::vector<Vec3> m;
+  std::vector<FresnelAmplitudes> fresnel;
+};
+IncidenceFacets incidenceFacets(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
+                                const SlopeBound& slope, const Vec3& wi, bool fromAbove, const Media& media,
+                                uint64_t* rays);
 
 // Shadowing towards ωi of the points below the first level of every facet of the cell (the
 // centroid and inset points of its sub-elements down to kExactMaxDepth: 16 + 64 + 256), found on
@@ -48,12 +59,12 @@ struct ShadowCache {
   std::vector<std::atomic<uint8_t>> state;
 };
 
-// Ĥ_G for one order: H[0..1] += visible s, p; H[2..3] += masked s, p (only with `masked`). `lit`:
-// firstLevelShadowing for this ωi (deeper points cast their own shadow rays). The order lies on
-// the reciprocal lattice of `cell`, so the patch's sum is nx ny times the cell's (lattice_cell.h).
+// Ĥ_G for one order: H[0..1] += visible s, p; H[2..3] += masked s, p (only with `masked`). `facets`:
+// incidenceFacets for this ωi (deeper points cast their own shadow rays). The order lies on the
+// reciprocal lattice of `cell`, so the patch's sum is nx ny times the cell's (lattice_cell.h).
 void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const VisibilityTable* table,
                     const SlopeBound& slope, const OrderDirection& ord, const Vec3& wi, bool fromAbove,
-                    const Media& media, bool masked, const std::vector<uint8_t>& lit, ShadowCache& shadow, Complex* H,
+                    const Media& media, bool masked, const IncidenceFacets& facets, ShadowCache& shadow, Complex* H,
                     uint64_t* rays);
 
 }  // namespace mbsdf::wave

@@ -448,14 +448,14 @@ uint64_t deterministicAmplitudes(const WaveContext& ctx, OrderAmplitudes amplitu
   for (size_t o = 0; o < nO; ++o) anyFacetSum = anyFacetSum || facetSum(o);
   if (!anyFacetSum) return rays;
   const VisibilityTable* table = visibilityTable();
-  const std::vector<uint8_t> lit = wave::firstLevelShadowing(ctx, cell, table, slope, wi, fromAbove, &rays);
+  const wave::IncidenceFacets facets = wave::incidenceFacets(ctx, cell, table, slope, wi, fromAbove, media, &rays);
   std::vector<uint64_t> orderRays(nO, 0);
   wave::ShadowCache shadow(cell.facets.size());
   tbb::parallel_for(size_t(0), nO, [&](size_t o) {
     if (stopRequested() || !facetSum(o)) return;
     for (int c = 0; c < 4; ++c) H[4 * o + c] = 0;
     wave::exactAmplitude(ctx, cell, table, slope, {orders[o].lambda, orders[o].wo, orders[o].transmission}, wi,
-                         fromAbove, media, masked, lit, shadow, &H[4 * o], &orderRays[o]);
+                         fromAbove, media, masked, facets, shadow, &H[4 * o], &orderRays[o]);
   });
   for (uint64_t v : orderRays) rays += v;
   return rays;
