@@ -59,8 +59,10 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
     // A steep flight up through a smooth medium escapes unless its exponential number is below
     // σ's bound times the depth (about 1e-20): decided without σ's exponential and erfc, and
     // whenever decided so, the exact flight below escapes too (a margin covers its rounding).
+    // The exponential number −log(1 − u) is at least u, so u alone decides all but the flights
+    // with u below ~1e-20, and those take the exact flight, which gives the same exit: no logarithm.
     const double bound = dist_.steepUpwardSigmaBound(d);
-    const bool certainEscape = bound >= 0 && -std::log1p(-u) * d.z >= bound * -z * (1 + 1e-9);
+    const bool certainEscape = bound >= 0 && u * d.z >= bound * -z * (1 + 1e-9);
     const double zNext = certainEscape ? 0.0 : z + dist_.freePath(d, u) * d.z;
     if (d.z > 0 && !(zNext < 0)) {  // depth >= 1: the first flight is downward
       const Vec3 wo = upper ? d : -d;
