@@ -113,18 +113,25 @@ int exactThetaPhiBin(const ThetaPhiGrid& g, const Vec3& w) {
 // edge by more than that they give the exact rule's bin; directions closer to an edge (including
 // those exactly on one, such as an incidence on a ring edge) and non-finite ones take the exact
 // rule, so every direction lands where the exact rule puts it.
-int fastThetaPhiBin(const ThetaPhiGrid& g, const Vec3& w) {
-  using detail::kApproxAngleError;
+// `w` may be a direction that is unit only to within kUnitLength2 in |w|² (what normalize() makes):
+// the exact rule sees normalize(w), whose θ differs from w's by at most √(2 δz) ≈ 6.2e-8 (at the
+// pole, acos being ½-Hölder; δz ≤ 1.9e-15) and whose φ differs by rounding only, so the margin
+// grows by kUnitAngleError; a direction the polynomials cannot place takes the rule on normalize(w)
+// (on w itself when `normalised` says w is that already).
+constexpr double kUnitLength2 = 0x1p-48;
+constexpr double kUnitAngleError = 1e-7;
+int fastThetaPhiBin(const ThetaPhiGrid& g, const Vec3& w, bool normalised) {
+  const double err = detail::kApproxAngleError + kUnitAngleError;
   const double thetaScale = g.nTheta / (0.5 * kPi), phiScale = g.nPhi / (2 * kPi);
-  const int t = floorAwayFromEdges(detail::approxAcos(std::abs(w.z)) * thetaScale, kApproxAngleError * thetaScale);
+  const int t = floorAwayFromEdges(detail::approxAcos(std::abs(w.z)) * thetaScale, err * thetaScale);
   const double ax = std::abs(w.x), ay = std::abs(w.y), big = std::max(ax, ay);
-  if (t < 0 || t >= g.nTheta || !(big > 0)) return exactThetaPhiBin(g, w);
+  if (t < 0 || t >= g.nTheta || !(big > 0)) return exactThetaPhiBin(g, normalised ? w : normalize(w));
   // Angle in the first quadrant by the octant's arctangent, then the quadrant of (x, y).
   const double at = detail::approxAtan(std::min(ax, ay) / big);
   const double a = ay > ax ? 0.5 * kPi - at : at;
   const double phi = w.x >= 0 ? (w.y >= 0 ? a : 2 * kPi - a) : (w.y >= 0 ? kPi - a : kPi + a);
-  const int p = floorAwayFromEdges(phi * phiScale, kApproxAngleError * phiScale);
-  if (p < 0 || p >= g.nPhi) return exactThetaPhiBin(g, w);
+  const int p = floorAwayFromEdges(phi * phiScale, err * phiScale);
+  if (p < 0 || p >= g.nPhi) return exactThetaPhiBin(g, normalised ? w : normalize(w));
   return t * g.nPhi + p;
 }
 
@@ -188,9 +195,12 @@ std::string DirectionGrid::kind() const {
 }
 
 int DirectionGrid::binOf(const Vec3& wIn) const {
-  Vec3 w = normalize(wIn);
+  // A direction already unit (as the walk and the tracer pass theirs) skips the square root and the
+  // division on the way to its θ–φ bin: fastThetaPhiBin's margin covers normalising it again.
+  const bool asGiven = std::holds_alternative<ThetaPhiGrid>(layout_) && std::abs(dot(wIn, wIn) - 1) <= kUnitLength2;
+  const Vec3 w = asGiven ? wIn : normalize(wIn);
   int hemi = w.z >= 0 ? 0 : 1;
-  int local = std::visit(Overloaded{[&](const ThetaPhiGrid& g) { return fastThetaPhiBin(g, w); },
+  int local = std::visit(Overloaded{[&](const ThetaPhiGrid& g) { return fastThetaPhiBin(g, w, !asGiven); },
                                     [&](const DiskGrid& g) {
                                       int i = std::clamp(int((w.x + 1) * 0.5 * g.width), 0, g.width - 1);
                                       int j = std::clamp(int((w.y + 1) * 0.5 * g.height), 0, g.height - 1);

@@ -130,6 +130,13 @@ TEST(DirectionGrid, FastBinSearchFollowsTheGridsRule) {
             ws.push_back({w.x, w.y, -w.z});
           }
         }
+    // Directions a caller did not normalise (the rule's bin is normalize(w)'s): scaled, and off unit
+    // length by a little more than the fast path takes as given.
+    const size_t given = ws.size();
+    for (size_t i = 0; i < given; i += 3) {
+      ws.push_back(ws[i] * 1.7);
+      ws.push_back(ws[i] * (1 + 1e-13));
+    }
     for (const Vec3& w : ws)
       ASSERT_EQ(g.binOf(w), ruleBin(layout, w))
           << layout.nTheta << "x" << layout.nPhi << " w = (" << w.x << ", " << w.y << ", " << w.z << ")";
