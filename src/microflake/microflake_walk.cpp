@@ -20,8 +20,15 @@ MicroflakeWalk::MicroflakeWalk(const MicroflakeDistribution& dist, const Materia
                              settings_.flakes == FlakeKind::Diffuse || material_.directionsIndependentOfLambda());
 }
 
-void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group,
-                          PathChunk& out, PathRecord* rec) const {
+std::optional<MicroflakeWalk::FirstCollision> MicroflakeWalk::firstCollision(const std::optional<Vec3>& exact) const {
+  if (!exact) return std::nullopt;
+  // The first flight's direction in the local frame of the side the light comes from (walk below).
+  const Vec3 d = exact->z >= 0 ? -*exact : *exact;
+  return FirstCollision{dist_.sigma(d), dist_.visibleFrom(-d)};
+}
+
+void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>& exact, const FirstCollision* first,
+                          uint64_t path, int group, PathChunk& out, PathRecord* rec) const {
   const std::vector<int>& lambdas = groups_[group];
   const size_t nl = lambdas.size();
   Sampler s(settings_.seed, uint32_t(tile), path, uint32_t(group));
@@ -63,7 +70,11 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
     // with u below ~1e-20, and those take the exact flight, which gives the same exit: no logarithm.
     const double bound = dist_.steepUpwardSigmaBound(d);
     const bool certainEscape = bound >= 0 && u * d.z >= bound * -z * (1 + 1e-9);
-    const double zNext = certainEscape ? 0.0 : z + dist_.freePath(d, u) * d.z;
+    // (σ only when the flight is not decided already: the steep one's costs an exponential and an erfc.)
+    auto flight = [&] {
+      return depth == 0 && first ? MicroflakeDistribution::freePathAt(first->sigma, u) : dist_.freePath(d, u);
+    };
+    const double zNext = certainEscape ? 0.0 : z + flight() * d.z;
     if (d.z > 0 && !(zNext < 0)) {  // depth >= 1: the first flight is downward
       const Vec3 wo = upper ? d : -d;
       const int bin = grid_.binOf(wo);
@@ -93,7 +104,7 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
       for (size_t k = 0; k < nl; ++k) wp[k] /= survive;
     }
     const Vec3 v = -d;  // towards where the light came from
-    std::optional<Vec3> m = dist_.sampleVisible(v, s);
+    std::optional<Vec3> m = depth == 1 && first ? dist_.sampleVisible(first->visible, s) : dist_.sampleVisible(v, s);
     if (!m) {
       addTo(out.truncated);
       break;
@@ -144,8 +155,11 @@ TileResult MicroflakeWalk::run(const TileRequest& q, const std::function<void(ui
                            q.paths > 0 ? q.paths : settings_.paths,
                            q.firstPath,
                            {Component::Coherent, Component::Multiple}};
+  const std::optional<FirstCollision> first = firstCollision(exactDirection);
+  const FirstCollision* firstPtr = first ? &*first : nullptr;
   return runPaths(
-      plan, [&](uint64_t p, int g, PathChunk& c) { walk(tile, incidenceBin, exactDirection, p, g, c, nullptr); },
+      plan,
+      [&](uint64_t p, int g, PathChunk& c) { walk(tile, incidenceBin, exactDirection, firstPtr, p, g, c, nullptr); },
       progress);
 }
 
@@ -154,7 +168,8 @@ MicroflakeWalk::PathRecord MicroflakeWalk::replay(int tile, int incidenceBin, ui
   PathChunk c(int(lambda_um_.size()));
   PathRecord rec;
   if (exactDirection) exactDirection = normalize(*exactDirection);
-  walk(tile, incidenceBin, exactDirection, path, group, c, &rec);
+  const std::optional<FirstCollision> first = firstCollision(exactDirection);
+  walk(tile, incidenceBin, exactDirection, first ? &*first : nullptr, path, group, c, &rec);
   return rec;
 }
 

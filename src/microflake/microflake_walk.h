@@ -63,8 +63,16 @@ class MicroflakeWalk : public GeometricEstimator {
                     std::optional<Vec3> exactDirection = std::nullopt) const;
 
  private:
-  void walk(int tile, int incidenceBin, const std::optional<Vec3>& exact, uint64_t path, int group, PathChunk& out,
-            PathRecord* rec) const;
+  // What every path of a collimated incidence shares: its first flight's extinction and what its
+  // first collision's visible normal needs of the incidence, computed once per tile instead of
+  // once per path (the same values, so the same paths).
+  struct FirstCollision {
+    double sigma = 0;
+    MicroflakeDistribution::VisibleFrom visible;
+  };
+  std::optional<FirstCollision> firstCollision(const std::optional<Vec3>& exact) const;
+  void walk(int tile, int incidenceBin, const std::optional<Vec3>& exact, const FirstCollision* first, uint64_t path,
+            int group, PathChunk& out, PathRecord* rec) const;
   const MicroflakeDistribution& dist_;
   const Material& material_;
   std::vector<double> lambda_um_;

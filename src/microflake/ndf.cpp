@@ -244,22 +244,35 @@ double MicroflakeDistribution::steepUpwardSigmaBound(const Vec3& d) const {
   return d.z > 6.5 * q ? 2e-20 * d.z : -1;
 }
 
-double MicroflakeDistribution::freePath(const Vec3& d, double u) const {
-  const double s = sigma(d);
-  if (!(s > 0)) return std::numeric_limits<double>::infinity();
-  return -std::log1p(-u) / s;
+double MicroflakeDistribution::freePathAt(double sigma, double u) {
+  if (!(sigma > 0)) return std::numeric_limits<double>::infinity();
+  return -std::log1p(-u) / sigma;
 }
 
-std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler& s) const {
-  auto beckmann = [&](double ax, double ay) -> std::optional<Vec3> {
+MicroflakeDistribution::VisibleFrom MicroflakeDistribution::visibleFrom(const Vec3& v) const {
+  VisibleFrom f;
+  f.v = v;
+  if (const auto* n = std::get_if<BeckmannNdf>(&ndf_)) {
     // Slope space (Heitz & d'Eon 2014): D(m)⟨v,m⟩dm = P22(s) max(0, v_z − v_x s_x − v_y s_y) ds. After
     // stretching to α = 1 and rotating v' = (αx v_x, αy v_y) onto +x, the weight is
     // max(0, v_z − r s∥) with r = |v'| and the isotropic P22_11 factorises into P2(s∥) P(s⊥).
-    const double vx = ax * v.x, vy = ay * v.y;
-    const double r = std::sqrt(vx * vx + vy * vy);
-    const double cphi = r > 0 ? vx / r : 1.0, sphi = r > 0 ? vy / r : 0.0;
+    const double vx = n->alphaX * v.x, vy = n->alphaY * v.y;
+    f.r = std::sqrt(vx * vx + vy * vy);
+    f.cosPhi = f.r > 0 ? vx / f.r : 1.0;
+    f.sinPhi = f.r > 0 ? vy / f.r : 0.0;
     // Envelope |v_z| + r|s∥|: a mixture of P2 and |s|P2 (E|s| = 1/√π for Beckmann).
-    const double pFirst = std::abs(v.z) / (std::abs(v.z) + r / kSqrtPi);
+    f.pFirst = std::abs(v.z) / (std::abs(v.z) + f.r / kSqrtPi);
+  } else if (const auto* g = std::get_if<GgxNdf>(&ndf_)) {
+    f.vStretched = normalize(Vec3{g->alphaX * v.x, g->alphaY * v.y, v.z});
+  }
+  return f;
+}
+
+std::optional<Vec3> MicroflakeDistribution::sampleVisible(const VisibleFrom& from, Sampler& s) const {
+  const Vec3& v = from.v;
+  auto beckmann = [&](double ax, double ay) -> std::optional<Vec3> {
+    // The weight max(0, v_z − r s∥) in the stretched frame rotated by (cphi, sphi) (visibleFrom).
+    const double r = from.r, cphi = from.cosPhi, sphi = from.sinPhi, pFirst = from.pFirst;
     // s⊥ ~ N(0, 1/2) independent of s∥: when s∥ came from P2 by Box–Muller, the pair's other
     // deviate is one (acceptance looks at s∥ and u3 only), which saves a logarithm and a cosine.
     double sPar = 0, sPerp = std::numeric_limits<double>::quiet_NaN();
@@ -292,7 +305,7 @@ std::optional<Vec3> MicroflakeDistribution::sampleVisible(const Vec3& v, Sampler
   // the horizon too (the cap shrinks). Two numbers and no rejection, where the slope-space route
   // spent four Gaussian deviates on s⊥ alone.
   auto ggx = [&](double ax, double ay) -> std::optional<Vec3> {
-    const Vec3 vStd = normalize(Vec3{ax * v.x, ay * v.y, v.z});
+    const Vec3& vStd = from.vStretched;
     const double phi = 2 * kPi * s.get1D();
     const double z = (1 - s.get1D()) * (1 + vStd.z) - vStd.z;
     const double sinTheta = safeSqrt(1 - z * z);

@@ -76,13 +76,25 @@ class MicroflakeDistribution {
   // Extinction coefficient σ(d) for travel direction d (unit).
   double sigma(const Vec3& d) const;
   // Free path along d for a uniform number u (Dupuy et al. 2016, Eq. 10); +inf when σ(d) = 0.
-  double freePath(const Vec3& d, double u) const;
+  double freePath(const Vec3& d, double u) const { return freePathAt(sigma(d), u); }
+  // The same where σ(d) is known (the walk's first flight, along the incidence for every path).
+  static double freePathAt(double sigma, double u);
   // A cheap upper bound on σ(d) for a steep upward flight through a smooth Beckmann medium, where
   // σ is tiny and its exact value costs an exponential and an erfc; negative when there is none.
   double steepUpwardSigmaBound(const Vec3& d) const;
   // A normal with density ⟨v, m⟩ D(m) / σ(−v) (Dupuy et al. 2016, Eq. 6 with v = −d, the direction the light
   // came from). Empty only if the rejection loop hits its cap (reported as truncated).
-  std::optional<Vec3> sampleVisible(const Vec3& v, Sampler& s) const;
+  std::optional<Vec3> sampleVisible(const Vec3& v, Sampler& s) const { return sampleVisible(visibleFrom(v), s); }
+  // What sampling a visible normal computes from v alone, before it draws a number: prepared once
+  // where many samples share v (the walk's first collision, whose v is the incidence), with the
+  // same values, so the samples are the same to the bit.
+  struct VisibleFrom {
+    Vec3 v;
+    double r = 0, cosPhi = 1, sinPhi = 0, pFirst = 1;  // Beckmann: the stretched v on +x, the envelope's mixture
+    Vec3 vStretched;                                   // GGX: v stretched to α = 1
+  };
+  VisibleFrom visibleFrom(const Vec3& v) const;
+  std::optional<Vec3> sampleVisible(const VisibleFrom& from, Sampler& s) const;
 
  private:
   double sigmaUpHeightfield(const Vec3& d) const;  // Λ(d) d_z for d_z >= 0
