@@ -59,33 +59,48 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
   }
   Vec3 d = upper ? -wi.w : wi.w;  // travel direction in the local frame (downward)
   double z = 0;                   // depth in the local medium (z <= 0)
+  // The first flight of a collimated incidence goes down to the depth z₁ = log(1 − u₁) d_z / σ₁,
+  // which only the next flight needs, and that one, the exit flight of most short walks, usually
+  // escapes whatever z₁ is within a bound: z₁ waits as its number (firstU) until it is needed.
+  const double firstDz = d.z;
+  double firstU = -1;
+  auto settleDepth = [&] {
+    if (firstU < 0) return;
+    z = 0.0 + MicroflakeDistribution::freePathAt(first->sigma, firstU) * firstDz;  // the flight below, exactly
+    firstU = -1;
+  };
   int depth = 0;
   while (true) {
     // Free flight (Dupuy et al. 2016, Eqs. 9–11); escape through z = 0 when travelling upward.
     const double u = s.get1D();
-    // A steep flight up through a smooth medium escapes unless its exponential number is below
-    // σ's bound times the depth (about 1e-20): decided without σ's exponential and erfc, and
-    // whenever decided so, the exact flight below escapes too (a margin covers its rounding).
-    // The exponential number −log(1 − u) is at least u, so u alone decides all but the flights
-    // with u below ~1e-20, and those take the exact flight, which gives the same exit: no logarithm.
-    const double bound = dist_.steepUpwardSigmaBound(d);
-    const bool certainEscape = bound >= 0 && u * d.z >= bound * -z * (1 + 1e-9);
-    // (σ only when the flight is not decided already: the steep one's costs an exponential and an erfc.)
-    auto flight = [&] {
-      return depth == 0 && first ? MicroflakeDistribution::freePathAt(first->sigma, u) : dist_.freePath(d, u);
-    };
-    const double zNext = certainEscape ? 0.0 : z + flight() * d.z;
-    if (d.z > 0 && !(zNext < 0)) {  // depth >= 1: the first flight is downward
-      const Vec3 wo = upper ? d : -d;
-      const int bin = grid_.binOf(wo);
-      out.tally(bin, depth == 1 ? Component::Coherent : Component::Multiple, group, wp, nl);
-      if (rec) {
-        rec->wo = wo;
-        rec->exitBin = bin;
+    if (depth == 0 && first && first->sigma >= 1e-300) {
+      firstU = u;  // a finite depth (u < 1, σ₁ not tiny): no escape, no truncation
+    } else {
+      // An upward flight escapes if its exponential number −log(1 − u) >= u reaches σ(d)/d_z times
+      // the depth, and −z <= u₁/(1 − u₁) |d_z,1| / σ₁ while z₁ waits: decided so with an upper bound of
+      // σ (upwardSigmaBound), without logarithms and σ's square roots or erfc, all but a few flights
+      // escape; whenever decided so, the exact flight below escapes too (a margin covers its rounding).
+      const double bound = dist_.upwardSigmaBound(d);
+      const double zMax = firstU >= 0 ? firstU / (1 - firstU) * -firstDz / first->sigma : -z;
+      const bool certainEscape = bound >= 0 && u * d.z >= bound * zMax * (1 + 1e-9);
+      if (!certainEscape) settleDepth();
+      // (σ only when the flight is not decided already.)
+      auto flight = [&] {
+        return depth == 0 && first ? MicroflakeDistribution::freePathAt(first->sigma, u) : dist_.freePath(d, u);
+      };
+      const double zNext = certainEscape ? 0.0 : z + flight() * d.z;
+      if (d.z > 0 && !(zNext < 0)) {  // depth >= 1: the first flight is downward
+        const Vec3 wo = upper ? d : -d;
+        const int bin = grid_.binOf(wo);
+        out.tally(bin, depth == 1 ? Component::Coherent : Component::Multiple, group, wp, nl);
+        if (rec) {
+          rec->wo = wo;
+          rec->exitBin = bin;
+        }
+        break;
       }
-      break;
+      z = zNext;
     }
-    z = zNext;
     if (!std::isfinite(z)) {  // horizontal flight with σ = 0 cannot occur for a valid NDF; be safe
       addTo(out.truncated);
       break;
@@ -132,6 +147,7 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
         // Continue on the other side (Heitz et al. 2016): point-reflected frame, flipped height.
         upper = !upper;
         d = -wt;
+        settleDepth();
         z = std::log(-std::expm1(z));
       }
     }

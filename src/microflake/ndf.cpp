@@ -235,9 +235,15 @@ double MicroflakeDistribution::sigma(const Vec3& d) const {
   return -d.z + sigmaUpHeightfield(-d);  // Dupuy et al. 2016, Eq. 19: (1 + Λ(−d)) |d_z|
 }
 
-double MicroflakeDistribution::steepUpwardSigmaBound(const Vec3& d) const {
+double MicroflakeDistribution::upwardSigmaBound(const Vec3& d) const {
+  if (!(d.z > 0)) return -1;
+  if (const auto* g = std::get_if<GgxNdf>(&ndf_)) {
+    // σ = q² / (2 (d_z + √(d_z² + q²))) (sigmaUpHeightfield) <= q² / (4 d_z).
+    const double q2 = g->alphaX * g->alphaX * d.x * d.x + g->alphaY * g->alphaY * d.y * d.y;
+    return q2 / (4 * d.z);
+  }
   const auto* b = std::get_if<BeckmannNdf>(&ndf_);
-  if (!b || !(d.z > 0)) return -1;
+  if (!b) return -1;
   // σ(d) = Λ(d) d_z <= q e^{−ν²} / (2√π) with q = d_z / ν (the erfc term is subtracted); for
   // ν >= 6.5 that is at most 1.95e-20 d_z.
   const double q = stretchedSin(*b, d);

@@ -79,9 +79,10 @@ class MicroflakeDistribution {
   double freePath(const Vec3& d, double u) const { return freePathAt(sigma(d), u); }
   // The same where σ(d) is known (the walk's first flight, along the incidence for every path).
   static double freePathAt(double sigma, double u);
-  // A cheap upper bound on σ(d) for a steep upward flight through a smooth Beckmann medium, where
-  // σ is tiny and its exact value costs an exponential and an erfc; negative when there is none.
-  double steepUpwardSigmaBound(const Vec3& d) const;
+  // A cheap upper bound on σ(d) for an upward flight (d_z > 0), with which the walk decides most
+  // escapes without σ itself: GGX q²/(4 d_z) (no square roots); a steep flight through a smooth
+  // Beckmann medium 2e-20 d_z (σ costs an exponential and an erfc there). Negative when there is none.
+  double upwardSigmaBound(const Vec3& d) const;
   // A normal with density ⟨v, m⟩ D(m) / σ(−v) (Dupuy et al. 2016, Eq. 6 with v = −d, the direction the light
   // came from). Empty only if the rejection loop hits its cap (reported as truncated).
   std::optional<Vec3> sampleVisible(const Vec3& v, Sampler& s) const { return sampleVisible(visibleFrom(v), s); }

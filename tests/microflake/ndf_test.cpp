@@ -109,14 +109,34 @@ TEST(Ndf, SteepBeckmannExtinctionIsTheCosineDownAndBoundedUp) {
         ASSERT_LT(dist.lambda(up) * up.z, std::ldexp(up.z, -54)) << "nu " << nu;
         // The walk's bound on the upward flight's σ, with which it decides certain escapes.
         if (nu > 6.5 * (1 + 1e-9)) {
-          ASSERT_GE(dist.steepUpwardSigmaBound(up), dist.sigma(up)) << "nu " << nu;
+          ASSERT_GE(dist.upwardSigmaBound(up), dist.sigma(up)) << "nu " << nu;
         }
-        ASSERT_LT(dist.steepUpwardSigmaBound(d), 0.0);
+        ASSERT_LT(dist.upwardSigmaBound(d), 0.0);
       }
     for (double nu = 0.01; nu < 6.4; nu *= 1.05) {  // no bound below ν = 6.5
       const Vec3 up = sphericalDirection(std::atan(1 / (ndf.alphaX * nu)), 0.0);
-      ASSERT_LT(dist.steepUpwardSigmaBound(up), 0.0) << "nu " << nu;
+      ASSERT_LT(dist.upwardSigmaBound(up), 0.0) << "nu " << nu;
     }
+  }
+}
+
+// The walk's upper bound on an upward GGX flight's σ, q²/(4 d_z), with which it decides certain
+// escapes: above σ (to rounding, which the walk's margin of 1e-9 covers) from the vertical down to
+// grazing flights, for isotropic and anisotropic α and every azimuth; none for downward flights.
+TEST(Ndf, GgxUpwardExtinctionBound) {
+  for (const GgxNdf ndf : {GgxNdf{0.01, 0.01}, GgxNdf{0.3, 0.3}, GgxNdf{2.0, 2.0}, GgxNdf{0.05, 0.8}}) {
+    MicroflakeDistribution dist(ndf);
+    for (double phi = 0; phi < 2 * kPi; phi += 0.37)
+      for (double cosTheta = 1; cosTheta > 1e-12; cosTheta *= 0.8) {
+        const Vec3 up = sphericalDirection(std::acos(cosTheta), phi);
+        const double bound = dist.upwardSigmaBound(up), sigma = dist.sigma(up);
+        ASSERT_GE(bound * (1 + 1e-12), sigma) << "alpha " << ndf.alphaX << "/" << ndf.alphaY << " cos " << cosTheta;
+        // Tight where σ is small (steep flights of a smooth surface), where the walk meets it.
+        if (sigma < 1e-3 * up.z) {
+          ASSERT_LE(bound, 1.01 * sigma) << "cos " << cosTheta;
+        }
+        ASSERT_LT(dist.upwardSigmaBound(-up), 0.0);
+      }
   }
 }
 
