@@ -1,6 +1,7 @@
 #include "core/overloaded.h"
 #include "core/direction_grid.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -135,6 +136,52 @@ int fastThetaPhiBin(const ThetaPhiGrid& g, const Vec3& w, bool normalised) {
   return t * g.nPhi + p;
 }
 
+// The bin search by table (DirectionGrid::thetaPhiBin): |z| in kThetaCells cells, and per octant of
+// the azimuth the ratio r = min(|x|, |y|) / max(|x|, |y|) in kPhiCells cells (powers of two, so that
+// a coordinate's cell index is exact). A cell's entry is the rule's bin for every direction that
+// can look it up, when that is one bin: the rule sees normalize(w), whose |z| and ratio lie within
+// kCellSlack of the coordinate looked up (normalising again, the ratio's division), and its own
+// angle within a few ulps of the true angle, which is monotone in the cell's coordinate; so the true
+// angles at the cell's ends widened by kCellSlack, in bin units, and a margin of 1e-9 + 1e-14 n bins
+// for both roundings bound what the rule can give. Cells an edge crosses hold kNoCellBin and their
+// directions take the polynomials (fastThetaPhiBin).
+constexpr int kThetaCells = 4096, kPhiCells = 1024;
+constexpr double kCellSlack = 1e-14;
+constexpr uint16_t kNoCellBin = 0xffff;
+
+uint16_t cellBin(double x0, double x1, int n) {
+  const double margin = 1e-9 + 1e-14 * n;
+  const int lo = std::clamp(int(std::floor(std::min(x0, x1) - margin)), 0, n - 1);
+  const int hi = std::clamp(int(std::floor(std::max(x0, x1) + margin)), 0, n - 1);
+  return lo == hi ? uint16_t(lo) : kNoCellBin;
+}
+
+// The azimuth of a direction in octant o (bit 0: x < 0, bit 1: y < 0, bit 2: |y| > |x|) whose
+// ratio has the arctangent a, as fastThetaPhiBin composes it.
+double octantPhi(int o, double a) {
+  const double b = (o & 4) ? 0.5 * kPi - a : a;
+  return !(o & 1) ? (!(o & 2) ? b : 2 * kPi - b) : (!(o & 2) ? kPi - b : kPi + b);
+}
+
+std::vector<uint16_t> thetaCells(const ThetaPhiGrid& g) {
+  std::vector<uint16_t> cells(kThetaCells + 1);
+  auto x = [&](double z) { return std::acos(std::clamp(z, -1.0, 1.0)) / (0.5 * kPi) * g.nTheta; };
+  for (int k = 0; k <= kThetaCells; ++k)
+    cells[size_t(k)] =
+        cellBin(x(double(k) / kThetaCells - kCellSlack), x(double(k + 1) / kThetaCells + kCellSlack), g.nTheta);
+  return cells;
+}
+
+std::vector<uint16_t> phiCells(const ThetaPhiGrid& g) {
+  std::vector<uint16_t> cells(8 * size_t(kPhiCells + 1));
+  auto x = [&](int o, double r) { return octantPhi(o, std::atan(r)) / (2 * kPi) * g.nPhi; };
+  for (int o = 0; o < 8; ++o)
+    for (int k = 0; k <= kPhiCells; ++k)
+      cells[size_t(o) * (kPhiCells + 1) + size_t(k)] =
+          cellBin(x(o, double(k) / kPhiCells - kCellSlack), x(o, double(k + 1) / kPhiCells + kCellSlack), g.nPhi);
+  return cells;
+}
+
 }  // namespace
 
 namespace detail {
@@ -175,6 +222,10 @@ DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
                               omegaProj_[t * g.nPhi + p] = op;
                             }
                           }
+                          if (g.nTheta < kNoCellBin && g.nPhi < kNoCellBin) {
+                            thetaCells_ = thetaCells(g);
+                            phiCells_ = phiCells(g);
+                          }
                           ringSin_.resize(size_t(g.nTheta) + 1);
                           for (int t = 0; t <= g.nTheta; ++t) ringSin_[size_t(t)] = std::sin(t * 0.5 * kPi / g.nTheta);
                         },
@@ -200,7 +251,7 @@ int DirectionGrid::binOf(const Vec3& wIn) const {
   const bool asGiven = std::holds_alternative<ThetaPhiGrid>(layout_) && std::abs(dot(wIn, wIn) - 1) <= kUnitLength2;
   const Vec3 w = asGiven ? wIn : normalize(wIn);
   int hemi = w.z >= 0 ? 0 : 1;
-  int local = std::visit(Overloaded{[&](const ThetaPhiGrid& g) { return fastThetaPhiBin(g, w, !asGiven); },
+  int local = std::visit(Overloaded{[&](const ThetaPhiGrid& g) { return thetaPhiBin(g, w, !asGiven); },
                                     [&](const DiskGrid& g) {
                                       int i = std::clamp(int((w.x + 1) * 0.5 * g.width), 0, g.width - 1);
                                       int j = std::clamp(int((w.y + 1) * 0.5 * g.height), 0, g.height - 1);
@@ -208,6 +259,19 @@ int DirectionGrid::binOf(const Vec3& wIn) const {
                                     }},
                          layout_);
   return hemi * perHemisphere_ + local;
+}
+
+// By the cells' tables where both coordinates' cells lie inside one bin (all but a few per cent of
+// directions; about a third of the polynomials' cost), otherwise by the polynomials.
+int DirectionGrid::thetaPhiBin(const ThetaPhiGrid& g, const Vec3& w, bool normalised) const {
+  const double az = std::abs(w.z), ax = std::abs(w.x), ay = std::abs(w.y), big = std::max(ax, ay);
+  if (!thetaCells_.empty() && az <= 1.5 && big > 0) {  // (not for NaN)
+    const uint16_t t = thetaCells_[size_t(std::min(kThetaCells, int(az * kThetaCells)))];
+    const int o = int(w.x < 0) | int(w.y < 0) << 1 | int(ay > ax) << 2;
+    const uint16_t p = phiCells_[size_t(o) * (kPhiCells + 1) + size_t(std::min(ax, ay) / big * kPhiCells)];
+    if (t != kNoCellBin && p != kNoCellBin) return int(t) * g.nPhi + int(p);
+  }
+  return fastThetaPhiBin(g, w, normalised);
 }
 
 bool DirectionGrid::atPoleOrHorizon(int bin) const {

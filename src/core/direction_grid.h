@@ -78,6 +78,11 @@ class DirectionGrid {
   std::vector<double> omega_, omegaProj_;
   std::vector<double> diskCentre_;  // disk layout: (x, y) centroid of pixel ∩ unit disk
   std::vector<double> ringSin_;     // theta-phi layout: sin of the ring edges, t · (π/2) / n_theta
+  // Theta-phi layout: the ring of every cell of |z|, and the azimuth bin of every octant's cell of
+  // the ratio min(|x|, |y|) / max(|x|, |y|), where a cell lies inside one (0xffff where an edge
+  // crosses it; direction_grid.cpp, thetaPhiBin). Empty for grids too fine for 16-bit bin numbers.
+  std::vector<uint16_t> thetaCells_, phiCells_;
+  int thetaPhiBin(const ThetaPhiGrid& g, const Vec3& w, bool normalised) const;
 };
 
 namespace detail {

@@ -130,6 +130,24 @@ TEST(DirectionGrid, FastBinSearchFollowsTheGridsRule) {
             ws.push_back({w.x, w.y, -w.z});
           }
         }
+    // A fine lattice of |z| and of the azimuth's ratio min(|x|, |y|) / max(|x|, |y|) in every octant
+    // (steps of 2⁻¹⁴ and 2⁻¹²: the ends of the search's cells among them), exactly and an ulp either side.
+    for (int i = 0; i <= 1 << 14; ++i) {
+      const double z = std::ldexp(double(i), -14), r = safeSqrt(1 - z * z);
+      for (double zz : {std::nextafter(z, 0.0), z, std::nextafter(z, 2.0)}) {
+        ws.push_back({r * 0.6, r * 0.8, zz});
+        ws.push_back({-r * 0.28, r * 0.96, -zz});
+      }
+    }
+    for (int i = 0; i <= 1 << 12; ++i) {
+      const double ratio = std::ldexp(double(i), -12);
+      for (double q : {std::nextafter(ratio, 0.0), ratio, std::nextafter(ratio, 2.0)})
+        for (int o = 0; o < 8; ++o) {
+          const double big = 0.5 / std::sqrt(1 + q * q), small = q * big, z = std::sqrt(0.75);
+          const double ax = (o & 4) ? small : big, ay = (o & 4) ? big : small;
+          ws.push_back({(o & 1) ? -ax : ax, (o & 2) ? -ay : ay, z});
+        }
+    }
     // Directions a caller did not normalise (the rule's bin is normalize(w)'s): scaled, and off unit
     // length by a little more than the fast path takes as given.
     const size_t given = ws.size();
