@@ -62,17 +62,15 @@ void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* o
 
 // A disk grid's pixel measures, computed once per size in a process: the job's parser, the
 // planner, the writer's schema and the runner each build the job's grid, and the rim pixels' fine
-// quadrature costs 0.4 s of one core for 128 x 128.
-struct DiskMeasures {
-  std::vector<double> omega, omegaProj, centre;
-};
-const DiskMeasures& diskMeasures(const DiskGrid& g) {
+// quadrature costs about 0.15 s of one core for 128 x 128. A grid asks for them when its measures
+// are first needed (DirectionGrid::measures).
+const GridMeasures& diskMeasures(const DiskGrid& g) {
   static std::mutex mutex;
-  static std::map<std::pair<int, int>, std::unique_ptr<const DiskMeasures>> cache;
+  static std::map<std::pair<int, int>, std::unique_ptr<const GridMeasures>> cache;
   const std::lock_guard<std::mutex> lock(mutex);
   auto& slot = cache[{g.width, g.height}];
   if (slot) return *slot;
-  auto m = std::make_unique<DiskMeasures>();
+  auto m = std::make_unique<GridMeasures>();
   const size_t n = size_t(g.width) * size_t(g.height);
   m->omega.resize(n);
   m->omegaProj.resize(n);
@@ -209,8 +207,9 @@ DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
                           if (g.nTheta < 1 || g.nPhi < 1 || int64_t(g.nTheta) * g.nPhi > (int64_t(1) << 30))
                             throw std::invalid_argument("grid size must be between 1 and 2^30 bins per hemisphere");
                           perHemisphere_ = g.nTheta * g.nPhi;
-                          omega_.resize(perHemisphere_);
-                          omegaProj_.resize(perHemisphere_);
+                          auto m = std::make_shared<GridMeasures>();
+                          m->omega.resize(size_t(perHemisphere_));
+                          m->omegaProj.resize(size_t(perHemisphere_));
                           double dPhi = 2 * kPi / g.nPhi, dTheta = 0.5 * kPi / g.nTheta;
                           for (int t = 0; t < g.nTheta; ++t) {
                             double t0 = t * dTheta, t1 = (t + 1) * dTheta;
@@ -218,10 +217,12 @@ DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
                             double s0 = std::sin(t0), s1 = std::sin(t1);
                             double op = dPhi * (s1 * s1 - s0 * s0) / 2;  // docs/physics.md §2
                             for (int p = 0; p < g.nPhi; ++p) {
-                              omega_[t * g.nPhi + p] = om;
-                              omegaProj_[t * g.nPhi + p] = op;
+                              m->omega[size_t(t * g.nPhi + p)] = om;
+                              m->omegaProj[size_t(t * g.nPhi + p)] = op;
                             }
                           }
+                          thetaPhiMeasures_ = std::move(m);
+                          measures_.store(thetaPhiMeasures_.get());
                           if (g.nTheta < kNoCellBin && g.nPhi < kNoCellBin) {
                             thetaCells_ = thetaCells(g);
                             phiCells_ = phiCells(g);
@@ -233,10 +234,6 @@ DirectionGrid::DirectionGrid(Layout layout) : layout_(layout) {
                           if (g.width < 1 || g.height < 1 || int64_t(g.width) * g.height > (int64_t(1) << 30))
                             throw std::invalid_argument("grid size must be between 1 and 2^30 bins per hemisphere");
                           perHemisphere_ = g.width * g.height;
-                          const DiskMeasures& m = diskMeasures(g);
-                          omega_ = m.omega;
-                          omegaProj_ = m.omegaProj;
-                          diskCentre_ = m.centre;
                         }},
              layout_);
 }
@@ -290,6 +287,12 @@ bool DirectionGrid::atPoleOrHorizon(int bin) const {
                     layout_);
 }
 
+const GridMeasures& DirectionGrid::diskMeasuresNow() const {
+  const GridMeasures& m = diskMeasures(std::get<DiskGrid>(layout_));
+  measures_.store(&m);
+  return m;
+}
+
 Vec3 DirectionGrid::centre(int bin) const {
   int hemi = bin / perHemisphere_, local = bin % perHemisphere_;
   Vec3 w =
@@ -298,7 +301,8 @@ Vec3 DirectionGrid::centre(int bin) const {
                               return sphericalDirection((t + 0.5) * 0.5 * kPi / g.nTheta, (p + 0.5) * 2 * kPi / g.nPhi);
                             },
                             [&](const DiskGrid&) {
-                              double x = diskCentre_[2 * size_t(local)], y = diskCentre_[2 * size_t(local) + 1];
+                              const std::vector<double>& c = measures().centre;
+                              double x = c[2 * size_t(local)], y = c[2 * size_t(local) + 1];
                               return Vec3{x, y, safeSqrt(1 - x * x - y * y)};
                             }},
                  layout_);
@@ -308,7 +312,7 @@ Vec3 DirectionGrid::centre(int bin) const {
 
 DirectionSample DirectionGrid::sampleUniform(int bin, double u1, double u2) const {
   int hemi = bin / perHemisphere_, local = bin % perHemisphere_;
-  double meanCos = omegaProj_[local] / omega_[local];
+  double meanCos = projectedSolidAngle(local) / solidAngle(local);
   DirectionSample s = std::visit(
       Overloaded{[&](const ThetaPhiGrid& g) {
                    int t = local / g.nPhi, p = local % g.nPhi;
