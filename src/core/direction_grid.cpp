@@ -88,7 +88,7 @@ void diskPixelMeasures(const DiskGrid& g, int i, int j, double* omega, double* o
 
 // A disk grid's pixel measures, computed once per size in a process: the job's parser, the
 // planner, the writer's schema and the runner each build the job's grid, and the rim pixels' fine
-// quadrature costs about 0.15 s of one core for 128 x 128. A grid asks for them when its measures
+// quadrature costs about 0.1 s of one core for 128 x 128. A grid asks for them when its measures
 // are first needed (DirectionGrid::measures).
 const GridMeasures& diskMeasures(const DiskGrid& g) {
   static std::mutex mutex;

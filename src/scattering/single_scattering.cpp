@@ -1,11 +1,13 @@
 #include "scattering/single_scattering.h"
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <tuple>
 
 #include "core/stop.h"
@@ -64,29 +66,37 @@ FacetSingleScattering::FacetSingleScattering(const Microgeometry& g, const Perio
     std::array<long long, 3> key;
     uint32_t t;
   };
-  std::vector<Keyed> keyed;
-  keyed.reserve(g.triangles.size());
+  // The keys in parallel (a degenerate facet, with no area and no light, keeps t = kNone and is
+  // dropped), then a parallel sort: (key, t) is a total order, so any sort gives the same list.
+  constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+  std::vector<Keyed> keyed(g.triangles.size());
   std::vector<double> halfArea(g.triangles.size(), 0.0);
-  for (size_t t = 0; t < g.triangles.size(); ++t) {
-    const Vec3 N = g.triangleNormal(t);
-    const double len = length(N);
-    if (!(len > 0)) continue;  // degenerate: no area, no light
-    const Vec3 n = N * (1.0 / len);
-    keyed.push_back({{std::llround(n.x * 1e12), std::llround(n.y * 1e12), std::llround(n.z * 1e12)}, uint32_t(t)});
-    halfArea[t] = 0.5 * len;
-  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, g.triangles.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t t = r.begin(); t < r.end(); ++t) {
+      const Vec3 N = g.triangleNormal(t);
+      const double len = length(N);
+      if (!(len > 0)) {
+        keyed[t].t = kNone;
+        continue;
+      }
+      const Vec3 n = N * (1.0 / len);
+      keyed[t] = {{std::llround(n.x * 1e12), std::llround(n.y * 1e12), std::llround(n.z * 1e12)}, uint32_t(t)};
+      halfArea[t] = 0.5 * len;
+    }
+  });
+  keyed.erase(std::remove_if(keyed.begin(), keyed.end(), [&](const Keyed& k) { return k.t == kNone; }), keyed.end());
   // Compared element by element: std::array's == and != call memcmp, a library call per
   // comparison of the sort (a twentieth of the fft job's start-up).
   auto sameKey = [](const Keyed& x, const Keyed& y) {
     return x.key[0] == y.key[0] && x.key[1] == y.key[1] && x.key[2] == y.key[2];
   };
-  std::sort(keyed.begin(), keyed.end(), [](const Keyed& x, const Keyed& y) {
+  tbb::parallel_sort(keyed.begin(), keyed.end(), [](const Keyed& x, const Keyed& y) {
     return std::tie(x.key[0], x.key[1], x.key[2], x.t) < std::tie(y.key[0], y.key[1], y.key[2], y.t);
   });
   std::vector<std::pair<uint32_t, size_t>> groups;  // (first facet, where its run starts in keyed)
   for (size_t i = 0; i < keyed.size(); ++i)
     if (i == 0 || !sameKey(keyed[i], keyed[i - 1])) groups.emplace_back(keyed[i].t, i);
-  std::sort(groups.begin(), groups.end());
+  tbb::parallel_sort(groups.begin(), groups.end());  // first facets are distinct: a total order
   planes_.reserve(groups.size());
   planeFacets_.resize(keyed.size());
   planeFacetArea_.resize(keyed.size());
