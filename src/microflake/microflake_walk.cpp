@@ -63,6 +63,7 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
   // which only the next flight needs, and that one, the exit flight of most short walks, usually
   // escapes whatever z₁ is within a bound: z₁ waits as its number (firstU) until it is needed.
   const double firstDz = d.z;
+  const bool hasUpwardBound = dist_.hasUpwardSigmaBound();
   double firstU = -1;
   auto settleDepth = [&] {
     if (firstU < 0) return;
@@ -80,9 +81,14 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
       // the depth, and −z <= u₁/(1 − u₁) |d_z,1| / σ₁ while z₁ waits: decided so with an upper bound of
       // σ (upwardSigmaBound), without logarithms and σ's square roots or erfc, all but a few flights
       // escape; whenever decided so, the exact flight below escapes too (a margin covers its rounding).
-      const double bound = dist_.upwardSigmaBound(d);
-      const double zMax = firstU >= 0 ? firstU / (1 - firstU) * -firstDz / first->sigma : -z;
-      const bool certainEscape = bound >= 0 && u * d.z >= bound * zMax * (1 + 1e-9);
+      // (Asked only where there can be a bound: a long walk of another distribution does not pay
+      // for the question at every flight.)
+      const double bound = hasUpwardBound && d.z > 0 ? dist_.upwardSigmaBound(d) : -1;
+      bool certainEscape = false;
+      if (bound >= 0) {
+        const double zMax = firstU >= 0 ? firstU / (1 - firstU) * -firstDz / first->sigma : -z;
+        certainEscape = u * d.z >= bound * zMax * (1 + 1e-9);
+      }
       if (!certainEscape) settleDepth();
       // (σ only when the flight is not decided already.)
       auto flight = [&] {

@@ -83,6 +83,10 @@ class MicroflakeDistribution {
   // escapes without σ itself: GGX q²/(4 d_z) (no square roots); a steep flight through a smooth
   // Beckmann medium 2e-20 d_z (σ costs an exponential and an erfc there). Negative when there is none.
   double upwardSigmaBound(const Vec3& d) const;
+  // Whether upwardSigmaBound can give one (GGX, Beckmann): the walk asks it only then.
+  bool hasUpwardSigmaBound() const {
+    return std::holds_alternative<GgxNdf>(ndf_) || std::holds_alternative<BeckmannNdf>(ndf_);
+  }
   // A normal with density ⟨v, m⟩ D(m) / σ(−v) (Dupuy et al. 2016, Eq. 6 with v = −d, the direction the light
   // came from). Empty only if the rejection loop hits its cap (reported as truncated).
   std::optional<Vec3> sampleVisible(const Vec3& v, Sampler& s) const { return sampleVisible(visibleFrom(v), s); }
