@@ -84,8 +84,8 @@ class DirectionGrid {
   Layout layout_;
   int perHemisphere_ = 0;
   // The measures: a theta-phi grid's in closed form when it is made; a disk grid's by quadrature
-  // (about 0.1 s of one core for 128 x 128), from the process's cache when first asked, so that making
-  // a grid only to find bins (as reading a job with listed incidences does) costs nothing.
+  // (about 0.1 s of one core for 128 x 128), from the process's cache when first asked, so that
+  // making a grid only to find bins (as reading a job with listed incidences does) costs nothing.
   class MeasuresPtr {  // an atomic pointer that copies its value
    public:
     MeasuresPtr() = default;

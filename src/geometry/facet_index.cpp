@@ -30,31 +30,30 @@ FacetIndex::FacetIndex(const Microgeometry& g) : sizeX_(g.sizeX), sizeY_(g.sizeY
   while (capacity < 2 * facets_.size()) capacity *= 2;
   mask_ = capacity - 1;
   table_.assign(capacity, kEmpty);
-  // The occupants' cells beside the table while it fills: a probe compares them there instead of
-  // fetching each occupant's centroid from anywhere in the mesh's facets.
-  // The facets' cells and home slots first, so that the slots a few facets ahead are fetched while
-  // this one is placed (each is a random place in a table of megabytes: 3/4 of the time went on
-  // waiting for them one by one).
-  std::vector<Key> slotKeys(capacity), keys(facets_.size());
-  std::vector<size_t> home(facets_.size());
-  for (size_t f = 0; f < facets_.size(); ++f) {
-    keys[f] = keyOf(facets_[f].first);
-    home[f] = slotOf(keys[f]);
-  }
+  // The facets' cells first, so that the table's slots a few facets ahead are fetched while this
+  // one is placed (each is a random place in a table of megabytes: 3/4 of the time went on waiting
+  // for them one by one), and a probe compares an occupant's cell from there instead of computing
+  // it again from a centroid fetched from anywhere in the facets. 12 bytes a facet, for the build.
+  std::vector<Key> keys(facets_.size());
+  for (size_t f = 0; f < facets_.size(); ++f) keys[f] = keyOf(facets_[f].first);
   constexpr size_t kAhead = 16;
   for (size_t f = 0; f < facets_.size(); ++f) {
-    if (f + kAhead < facets_.size()) {
-      __builtin_prefetch(&table_[home[f + kAhead]]);
-      __builtin_prefetch(&slotKeys[home[f + kAhead]]);
+    // Two stages: the slot 16 facets ahead, and the cell of the occupant of the slot 8 ahead (its
+    // slot fetched by then).
+    if (f + kAhead < facets_.size()) __builtin_prefetch(&table_[slotOf(keys[f + kAhead])]);
+    if (f + kAhead / 2 < facets_.size()) {
+      const uint32_t occupant = table_[slotOf(keys[f + kAhead / 2])];
+      if (occupant != kEmpty) __builtin_prefetch(&keys[occupant]);
     }
     const Key& k = keys[f];
-    size_t pos = home[f];
+    size_t pos = slotOf(k);
     int same = 0;
-    for (; table_[pos] != kEmpty; pos = (pos + 1) & mask_)
-      same += slotKeys[pos][0] == k[0] && slotKeys[pos][1] == k[1] && slotKeys[pos][2] == k[2];
+    for (; table_[pos] != kEmpty; pos = (pos + 1) & mask_) {
+      const Key& o = keys[table_[pos]];
+      same += o[0] == k[0] && o[1] == k[1] && o[2] == k[2];
+    }
     if (same >= kMaxPerCell) return;
     table_[pos] = uint32_t(f);
-    slotKeys[pos] = k;
   }
   usable_ = true;
 }

@@ -78,11 +78,11 @@ void MicroflakeWalk::walk(int tile, int incidenceBin, const std::optional<Vec3>&
       firstU = u;  // a finite depth (u < 1, σ₁ not tiny): no escape, no truncation
     } else {
       // An upward flight escapes if its exponential number −log(1 − u) >= u reaches σ(d)/d_z times
-      // the depth, and −z <= u₁/(1 − u₁) |d_z,1| / σ₁ while z₁ waits: decided so with an upper bound of
-      // σ (upwardSigmaBound), without logarithms and σ's square roots or erfc, all but a few flights
-      // escape; whenever decided so, the exact flight below escapes too (a margin covers its rounding).
-      // (Asked only where there can be a bound: a long walk of another distribution does not pay
-      // for the question at every flight.)
+      // the depth, and −z <= u₁/(1 − u₁) |d_z,1| / σ₁ while z₁ waits. With an upper bound of σ
+      // (upwardSigmaBound) this decides most exit flights without a logarithm, σ's square roots or
+      // its erfc; whenever it decides so, the exact flight below escapes too (a margin covers its
+      // rounding). (Asked only where there can be a bound: a long walk of another distribution does
+      // not pay for the question at every flight.)
       const double bound = hasUpwardBound && d.z > 0 ? dist_.upwardSigmaBound(d) : -1;
       bool certainEscape = false;
       if (bound >= 0) {
