@@ -133,6 +133,17 @@ int exactThetaPhiBin(const ThetaPhiGrid& g, const Vec3& w) {
   return t * g.nPhi + p;
 }
 
+// The octant of a direction's azimuth (bit 0: x < 0, bit 1: y < 0, bit 2: |y| > |x|), and the
+// azimuth in [0, 2π) of a direction in octant o whose ratio min(|x|, |y|) / max(|x|, |y|) has the
+// arctangent a: the polynomial search and the cell tables compose φ alike.
+int octantOf(const Vec3& w, double ax, double ay) {
+  return int(w.x < 0) | int(w.y < 0) << 1 | int(ay > ax) << 2;
+}
+double octantPhi(int o, double a) {
+  const double b = (o & 4) ? 0.5 * kPi - a : a;
+  return !(o & 1) ? (!(o & 2) ? b : 2 * kPi - b) : (!(o & 2) ? kPi - b : kPi + b);
+}
+
 // The same bin from polynomial angles (about 3x cheaper than acos and atan2, which were a fifth
 // of a short microflake walk): the polynomials are within kApproxAngleError, so away from a bin
 // edge by more than that they give the exact rule's bin; directions closer to an edge (including
@@ -152,9 +163,7 @@ int fastThetaPhiBin(const ThetaPhiGrid& g, const Vec3& w, bool normalised) {
   const double ax = std::abs(w.x), ay = std::abs(w.y), big = std::max(ax, ay);
   if (t < 0 || t >= g.nTheta || !(big > 0)) return exactThetaPhiBin(g, normalised ? w : normalize(w));
   // Angle in the first quadrant by the octant's arctangent, then the quadrant of (x, y).
-  const double at = detail::approxAtan(std::min(ax, ay) / big);
-  const double a = ay > ax ? 0.5 * kPi - at : at;
-  const double phi = w.x >= 0 ? (w.y >= 0 ? a : 2 * kPi - a) : (w.y >= 0 ? kPi - a : kPi + a);
+  const double phi = octantPhi(octantOf(w, ax, ay), detail::approxAtan(std::min(ax, ay) / big));
   const int p = floorAwayFromEdges(phi * phiScale, err * phiScale);
   if (p < 0 || p >= g.nPhi) return exactThetaPhiBin(g, normalised ? w : normalize(w));
   return t * g.nPhi + p;
@@ -178,13 +187,6 @@ uint16_t cellBin(double x0, double x1, int n) {
   const int lo = std::clamp(int(std::floor(std::min(x0, x1) - margin)), 0, n - 1);
   const int hi = std::clamp(int(std::floor(std::max(x0, x1) + margin)), 0, n - 1);
   return lo == hi ? uint16_t(lo) : kNoCellBin;
-}
-
-// The azimuth of a direction in octant o (bit 0: x < 0, bit 1: y < 0, bit 2: |y| > |x|) whose
-// ratio has the arctangent a, as fastThetaPhiBin composes it.
-double octantPhi(int o, double a) {
-  const double b = (o & 4) ? 0.5 * kPi - a : a;
-  return !(o & 1) ? (!(o & 2) ? b : 2 * kPi - b) : (!(o & 2) ? kPi - b : kPi + b);
 }
 
 std::vector<uint16_t> thetaCells(const ThetaPhiGrid& g) {
@@ -290,7 +292,7 @@ int DirectionGrid::thetaPhiBin(const ThetaPhiGrid& g, const Vec3& w, bool normal
   const double az = std::abs(w.z), ax = std::abs(w.x), ay = std::abs(w.y), big = std::max(ax, ay);
   if (!thetaCells_.empty() && az <= 1.5 && big > 0) {  // (not for NaN)
     const uint16_t t = thetaCells_[size_t(std::min(kThetaCells, int(az * kThetaCells)))];
-    const int o = int(w.x < 0) | int(w.y < 0) << 1 | int(ay > ax) << 2;
+    const int o = octantOf(w, ax, ay);
     const uint16_t p = phiCells_[size_t(o) * (kPhiCells + 1) + size_t(std::min(ax, ay) / big * kPhiCells)];
     if (t != kNoCellBin && p != kNoCellBin) return int(t) * g.nPhi + int(p);
   }
