@@ -19,22 +19,24 @@ X3P_TYPES = {"I": np.int16, "L": np.int32, "F": np.float32, "D": np.float64}
 
 
 def x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=None, data_list=None, feature="SUR",
-                 x_axis_type="I", rotation=None):
+                 x_axis_type="I", rotation=None, empty_offset=False, root="ISO5436_2"):
     rotation_xml = "" if rotation is None else "<Rotation>" + "".join(
         f"<r{r + 1}{c + 1}>{rotation[r][c]!r}</r{r + 1}{c + 1}>" for r in range(3) for c in range(3)) + "</Rotation>"
     if data_link is not None:
         record3_data = "<DataLink>" + "".join(f"<{k}>{v}</{k}>" for k, v in data_link) + "</DataLink>"
     else:
         record3_data = "<DataList>" + "".join(f"<Datum>{d}</Datum>" for d in data_list) + "</DataList>"
+    xy_offset = "<Offset/>" if empty_offset else "<Offset>0.0</Offset>"
+    z_offset = "<Offset/>" if empty_offset else f"<Offset>{zoff!r}</Offset>"
     return f"""<?xml version="1.0" encoding="UTF-8"?>
-<p:ISO5436_2 xmlns:p="http://www.opengps.eu/2008/ISO5436_2">
+<p:{root} xmlns:p="http://www.opengps.eu/2008/ISO5436_2">
   <Record1>
     <Revision>ISO5436 - 2000</Revision>
     <FeatureType>{feature}</FeatureType>
     <Axes>
-      <CX><AxisType>{x_axis_type}</AxisType><DataType>D</DataType><Increment>{dx!r}</Increment><Offset>0.0</Offset></CX>
-      <CY><AxisType>I</AxisType><DataType>D</DataType><Increment>{dy!r}</Increment><Offset>0.0</Offset></CY>
-      <CZ><AxisType>A</AxisType><DataType>{ztype}</DataType><Increment>{zinc!r}</Increment><Offset>{zoff!r}</Offset></CZ>{rotation_xml}
+      <CX><AxisType>{x_axis_type}</AxisType><DataType>D</DataType><Increment>{dx!r}</Increment>{xy_offset}</CX>
+      <CY><AxisType>I</AxisType><DataType>D</DataType><Increment>{dy!r}</Increment>{xy_offset}</CY>
+      <CZ><AxisType>A</AxisType><DataType>{ztype}</DataType><Increment>{zinc!r}</Increment>{z_offset}</CZ>{rotation_xml}
     </Axes>
   </Record1>
   <Record2><Date>2026-11-26T12:00:00+00:00</Date><Creator>microbsdf</Creator>
@@ -47,21 +49,27 @@ def x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=None, data_list=No
     {record3_data}
   </Record3>
   <Record4><ChecksumFile>md5checksum.hex</ChecksumFile></Record4>
-</p:ISO5436_2>
+</p:{root}>
 """
 
 
-def write_x3p(path, raw, dx, dy, ztype="D", zinc=1.0, zoff=0.0, valid=None, inline=False, corrupt=None):
+def write_x3p(path, raw, dx, dy, ztype="D", zinc=1.0, zoff=0.0, valid=None, inline=False, corrupt=None,
+              layout=None):
     """raw: the stored values (ny, nx) of ztype; z = zoff + zinc * raw metres. valid: bool (ny, nx)
     written as the valid-points mask. corrupt: None or one of 'xml', 'missing-bin', 'short-bin',
     'main-md5', 'data-md5', 'feature', 'axis', 'rotation' (a damaged or unsupported archive, for the
-    error tests)."""
+    error tests). layout: None (ISO 25178-72) or a layout other software writes: 'folder' (every
+    member under '<stem>/', as R's x3ptools zips a folder), 'empty-offset' (<Offset/> on every axis,
+    i.e. 0), 'root-iso5436' (the root element <ISO5436> without the '_2')."""
     ny, nx = raw.shape
     members = {}
+    xml_style = {"empty_offset": layout == "empty-offset", "root": "ISO5436" if layout == "root-iso5436" else "ISO5436_2"}
+    if layout == "empty-offset":
+        zoff = 0.0
     if inline:
         data_list = ["" if (valid is not None and not valid[j, i]) else repr(float(raw[j, i]))
                      for j in range(ny) for i in range(nx)]
-        xml = x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_list=data_list)
+        xml = x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_list=data_list, **xml_style)
     else:
         data = np.ascontiguousarray(raw.astype(X3P_TYPES[ztype]).astype("<" + np.dtype(X3P_TYPES[ztype]).str[1:]))
         blob = data.tobytes()  # x fastest, then y
@@ -80,17 +88,22 @@ def write_x3p(path, raw, dx, dy, ztype="D", zinc=1.0, zoff=0.0, valid=None, inli
         xml = x3p_main_xml(nx, ny, dx, dy, ztype, zinc, zoff, data_link=link,
                            feature="PRF" if corrupt == "feature" else "SUR",
                            x_axis_type="A" if corrupt == "axis" else "I",
-                           rotation=[[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]] if corrupt == "rotation" else None)
+                           rotation=[[c, -sn, 0.0], [sn, c, 0.0], [0.0, 0.0, 1.0]] if corrupt == "rotation" else None,
+                           **xml_style)
     if corrupt == "xml":
         xml = xml.replace("</Record1>", "</Recrod1>")
     xml_bytes = xml.encode()
     digest = hashlib.md5(xml_bytes).hexdigest() if corrupt != "main-md5" else "f" * 32
+    folder = path.rsplit("/", 1)[-1].rsplit(".", 1)[0] + "/" if layout == "folder" else ""
+
     def member(name):  # a fixed time stamp: the same surface gives the same bytes
-        info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+        info = zipfile.ZipInfo(folder + name, date_time=(1980, 1, 1, 0, 0, 0))
         info.compress_type = zipfile.ZIP_DEFLATED
         return info
 
     with zipfile.ZipFile(path, "w") as z:
+        if folder:
+            z.writestr(zipfile.ZipInfo(folder, date_time=(1980, 1, 1, 0, 0, 0)), b"")
         z.writestr(member("main.xml"), xml_bytes)
         z.writestr(member("md5checksum.hex"), f"{digest} *main.xml\n")
         for name, blob in members.items():

@@ -16,6 +16,9 @@ struct Topography {
   std::vector<double> z_um;     // z_um[j*nx + i]
   std::vector<uint8_t> valid;   // 1 where measured; empty when every point is
   std::string source;           // the file, for messages
+  // What the reader accepted although the format's standard does not allow it (a layout or value
+  // other readers accept), each naming the file: the caller logs them as warnings.
+  std::vector<std::string> warnings;
 
   size_t size() const { return size_t(nx) * size_t(ny); }
   bool isValid(size_t k) const { return valid.empty() || valid[k] != 0; }

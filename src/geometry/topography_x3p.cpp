@@ -5,6 +5,11 @@
 // and CY of type I (increment + offset), CZ of type A with data type I (int16), L (int32), F (float)
 // or D (double), z = offset + increment · value, lengths in metres. Points are stored x fastest;
 // an invalid point is NaN (F, D) or a 0 bit in the mask (least significant bit first, 1 = valid).
+//
+// Files written by other software are read where other readers read them, each with a warning that
+// names the file: main.xml alone in one folder of the archive, an empty <Offset/> (0), a main.xml
+// whose recorded checksum does not match, a root element <ISO5436> without the "_2". A point data or
+// valid-points checksum that does not match is damaged data, and an error.
 #include <openssl/evp.h>
 #include <pugixml.hpp>
 #include <zip.h>
@@ -46,8 +51,23 @@ class X3pArchive {
       throw InputError(path + ": not a readable X3P (ZIP) archive: " + why);
     }
   }
-  bool has(const std::string& member) const { return zip_name_locate(zip_.get(), member.c_str(), 0) >= 0; }
-  std::string read(const std::string& member, size_t maxBytes) const {
+  // Every member's name, in the archive's order.
+  std::vector<std::string> members() const {
+    std::vector<std::string> names;
+    const zip_int64_t n = zip_get_num_entries(zip_.get(), 0);
+    for (zip_int64_t k = 0; k < n; ++k)
+      if (const char* name = zip_get_name(zip_.get(), zip_uint64_t(k), 0)) names.emplace_back(name);
+    return names;
+  }
+  // Members named in main.xml are relative to its folder (x3ptools writes `<name>/main.xml` and
+  // `<name>/bindata/data.bin`); a name found only at the archive's root is taken from there.
+  void setFolder(std::string folder) { folder_ = std::move(folder); }
+  std::string resolve(const std::string& member) const {
+    if (folder_.empty() || zip_name_locate(zip_.get(), (folder_ + member).c_str(), 0) < 0) return member;
+    return folder_ + member;
+  }
+  std::string read(const std::string& relative, size_t maxBytes) const {
+    const std::string member = resolve(relative);
     zip_stat_t st;
     zip_stat_init(&st);
     if (zip_stat(zip_.get(), member.c_str(), 0, &st) != 0)
@@ -65,9 +85,26 @@ class X3pArchive {
   }
 
  private:
-  std::string path_;
+  std::string path_, folder_;
   std::unique_ptr<zip_t, ZipClose> zip_;
 };
+
+// main.xml at the archive's root, as ISO 25178-72 places it, or alone in one folder (archives zipped
+// from a folder, as x3ptools writes them): the folder, with a warning, or "" at the root.
+std::string mainXmlFolder(const std::string& path, const X3pArchive& zip, std::vector<std::string>& warnings) {
+  std::vector<std::string> found;
+  for (const std::string& name : zip.members()) {
+    if (name == "main.xml") return "";
+    if (name.size() > 9 && name.compare(name.size() - 9, 9, "/main.xml") == 0) found.push_back(name);
+  }
+  if (found.empty()) throw InputError(path + ": the archive has no member 'main.xml'");
+  if (found.size() > 1)
+    throw InputError(path + ": the archive has no 'main.xml' at its root but " + std::to_string(found.size()) +
+                     " in folders ('" + found[0] + "', '" + found[1] + "'): which one is the surface is not known");
+  warnings.push_back(path + ": main.xml is in the folder '" + found[0].substr(0, found[0].size() - 8) +
+                     "' of the archive, not at its root (ISO 25178-72); read from there");
+  return found[0].substr(0, found[0].size() - 8);
+}
 
 std::string md5Hex(const std::string& bytes) {
   unsigned char digest[EVP_MAX_MD_SIZE];
@@ -124,7 +161,8 @@ struct Axis {
   char dataType = 'D';
 };
 
-Axis readAxis(const MainXml& xml, const pugi::xml_node& axes, const char* name, const char* wantType) {
+Axis readAxis(const MainXml& xml, const pugi::xml_node& axes, const char* name, const char* wantType,
+              std::vector<std::string>& warnings) {
   const pugi::xml_node a = xml.child(axes, name);
   const std::string type = xml.text(a, "AxisType");
   if (type != wantType)
@@ -132,7 +170,13 @@ Axis readAxis(const MainXml& xml, const pugi::xml_node& axes, const char* name, 
                      (std::string(wantType) == "I" ? " (a regular grid; resample explicit positions first)" : ""));
   Axis axis;
   axis.increment = xml.number(a, "Increment", 1.0);
-  axis.offset = xml.number(a, "Offset", 0.0);
+  // An empty <Offset/> is written by some instruments' software; other readers take it as 0.
+  const pugi::xml_node offset = a.child("Offset");
+  if (offset && trimmed(offset.child_value()).empty()) {
+    warnings.push_back(xml.where(offset) + "axis " + name + " has an empty <Offset>; taken as 0");
+  } else {
+    axis.offset = xml.number(a, "Offset", 0.0);
+  }
   if (a.child("DataType")) {
     const std::string t = xml.text(a, "DataType");
     if (t.size() != 1 || std::string("ILFD").find(t[0]) == std::string::npos)
@@ -259,21 +303,26 @@ void readPoints(const MainXml& xml, const X3pArchive& zip, const pugi::xml_node&
 }
 
 // Record4: the archive's MD5 checksum of main.xml, in a member written like md5sum's output.
-void checkMainChecksum(const MainXml& xml, const X3pArchive& zip, const pugi::xml_node& root) {
+// A mismatch is a warning, as in other readers: main.xml is often edited by hand after the fact, and
+// its parse is checked element by element. The point data's own checksum stays an error.
+void checkMainChecksum(const MainXml& xml, const X3pArchive& zip, const pugi::xml_node& root,
+                       std::vector<std::string>& warnings) {
   const pugi::xml_node record4 = root.child("Record4");
   if (!record4 || !record4.child("ChecksumFile")) return;
   const std::string member = xml.text(record4, "ChecksumFile");
   const std::string sum = zip.read(member, 4096);
   const std::string want = lower(sum.substr(0, std::min<size_t>(32, sum.size())));
   if (want != md5Hex(xml.body))
-    throw InputError(xml.path + ": the MD5 checksum of main.xml does not match '" + member +
-                     "' (the archive is damaged or main.xml was edited)");
+    warnings.push_back(xml.path + ": the MD5 checksum of main.xml does not match '" + member +
+                       "' (main.xml was edited, or the archive is damaged); read all the same");
 }
 
 }  // namespace
 
 Topography readX3p(const std::string& path) {
-  const X3pArchive zip(path);
+  X3pArchive zip(path);
+  Topography t;
+  zip.setFolder(mainXmlFolder(path, zip, t.warnings));
   const std::string mainText = zip.read("main.xml", size_t(64) << 20);
   pugi::xml_document doc;
   const pugi::xml_parse_result parsed = doc.load_buffer(mainText.data(), mainText.size());
@@ -286,9 +335,14 @@ Topography readX3p(const std::string& path) {
   }
   const pugi::xml_node root = doc.document_element();
   const std::string rootName = root.name();
-  if (rootName.size() < 9 || rootName.substr(rootName.size() - 9) != "ISO5436_2")
+  const auto endsWith = [&](const std::string& tail) {
+    return rootName.size() >= tail.size() && rootName.compare(rootName.size() - tail.size(), tail.size(), tail) == 0;
+  };
+  if (endsWith("ISO5436"))
+    t.warnings.push_back(xml.where(root) + "the root element is <" + rootName + ">, not <ISO5436_2>; read as ISO5436_2");
+  else if (!endsWith("ISO5436_2"))
     throw InputError(xml.where(root) + "the root element is <" + rootName + ">, not <ISO5436_2>");
-  checkMainChecksum(xml, zip, root);
+  checkMainChecksum(xml, zip, root, t.warnings);
 
   const pugi::xml_node record1 = xml.child(root, "Record1");
   const std::string feature = xml.text(record1, "FeatureType");
@@ -298,8 +352,8 @@ Topography readX3p(const std::string& path) {
                       : feature == "PCL" ? " (this is a point cloud)"
                                          : ""));
   const pugi::xml_node axes = xml.child(record1, "Axes");
-  const Axis cx = readAxis(xml, axes, "CX", "I"), cy = readAxis(xml, axes, "CY", "I"),
-             cz = readAxis(xml, axes, "CZ", "A");
+  const Axis cx = readAxis(xml, axes, "CX", "I", t.warnings), cy = readAxis(xml, axes, "CY", "I", t.warnings),
+             cz = readAxis(xml, axes, "CZ", "A", t.warnings);
   // An optional rotation turns the stored points into the sample's frame. Taking the heights without
   // it would rotate or tilt the surface silently: only the identity is accepted.
   if (const pugi::xml_node rot = axes.child("Rotation")) {
@@ -318,7 +372,6 @@ Topography readX3p(const std::string& path) {
   const int64_t sx = xml.count(dims, "SizeX"), sy = xml.count(dims, "SizeY"), sz = xml.count(dims, "SizeZ");
   if (sz != 1) throw InputError(xml.where(dims) + "SizeZ is " + std::to_string(sz) + "; a height map has one layer");
   checkTopographySize(path, sx, sy);
-  Topography t;
   t.nx = int(sx);
   t.ny = int(sy);
   t.dx_um = cx.increment * 1e6;

@@ -236,6 +236,7 @@ struct GeometryReader {
     if (measured) {
       if (geo.has("texel_um")) geo.fail("texel_um", "the texel of " + file + " is in the file; remove texel_um");
       t = loadTopography(path);
+      for (const std::string& w : t.warnings) spdlog::warn("{}", w);
     } else {
       if (!geo.has("texel_um")) geo.fail("texel_um", "a heightfield needs its texel size in micrometres");
       t = loadTopographyExr(path, geo.positive("texel_um", 1.0));

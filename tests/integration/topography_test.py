@@ -6,6 +6,7 @@ and a heightfield from X3P gives byte-identical tables to the same heights from 
 Usage: topography_test.py BUILD_DIR SOURCE_DIR TEST_NAME (see harness.py)."""
 import os
 import sys
+import zipfile
 
 import h5py
 import numpy as np
@@ -97,6 +98,39 @@ def test_readers_exact():
                  valid=valid)
 
 
+def test_x3p_from_other_software():
+    """Layouts other X3P writers produce, which other readers accept: each is read with the heights
+    the writer stored and a warning naming the file and what was unusual. A point data checksum
+    that does not match stays an error (test_readers_malformed)."""
+    rng = np.random.default_rng(5)
+    ny, nx = 7, 10
+    raw = rng.normal(0, 4e-8, (ny, nx))
+    os.chdir(TMP)
+    for layout, ztype, warning in ((dict(layout="folder"), "D", "is in the folder 'folder/'"),
+                                   (dict(layout="folder", valid=rng.random((ny, nx)) > 0.2), "D",
+                                    "is in the folder 'folder-mask/'"),
+                                   (dict(layout="empty-offset", zoff=3e-7), "L", "has an empty <Offset>"),
+                                   (dict(corrupt="main-md5"), "D", "MD5 checksum of main.xml does not match"),
+                                   (dict(layout="root-iso5436"), "D", "<p:ISO5436>, not <ISO5436_2>")):
+        name = {"folder": "folder", "empty-offset": "offset", "root-iso5436": "root"}.get(layout.get("layout"),
+                                                                                        "main-md5")
+        if "valid" in layout:
+            name = "folder-mask"
+        stored = np.round(raw / 1e-10) if ztype == "L" else raw
+        zinc = 1e-10 if ztype == "L" else 1.0
+        write_x3p(f"{name}.x3p", stored, 0.5e-6, 0.5e-6, ztype=ztype, zinc=zinc, **layout)
+        h, dx, dy, text = loaded_heights(f"{name}.x3p")
+        p = run(["check", heightfield_job("w.toml", f"{name}.x3p")])
+        assert warning in p.stdout + p.stderr and f"{name}.x3p" in p.stdout + p.stderr, (name, p.stdout, p.stderr)
+        # An independent parse: the values the writer stored, times the increment, in micrometres.
+        want = stored * zinc * 1e6
+        valid = layout.get("valid")
+        mask = np.ones(want.shape, bool) if valid is None else valid
+        assert (dx, dy) == (0.5, 0.5), (name, dx, dy)
+        assert np.array_equal(h[mask], want[mask]), (name, np.abs(h[mask] - want[mask]).max())
+        print(f"{name}.x3p: heights exact; warned: {warning}")
+
+
 def expect_error(file, *phrases):
     job = heightfield_job("bad.toml", file)
     p = run(["check", job], expect=2)
@@ -110,7 +144,7 @@ def test_readers_malformed():
     z = rng.normal(0, 5e-8, (6, 8))
     os.chdir(TMP)
     for corrupt, phrase in (("xml", "main.xml line 11"), ("missing-bin", "no member 'bindata/data.bin'"),
-                            ("short-bin", "need 384"), ("main-md5", "MD5 checksum of main.xml"),
+                            ("short-bin", "need 384"),
                             ("data-md5", "MD5 checksum of 'bindata/data.bin'"), ("feature", "FeatureType PRF"),
                             ("axis", "AxisType A"), ("rotation", "carry a rotation")):
         write_x3p(f"{corrupt}.x3p", z, 1e-6, 1e-6, corrupt=corrupt)
@@ -118,6 +152,13 @@ def test_readers_malformed():
     with open("notzip.x3p", "wb") as f:
         f.write(b"PK\x03\x04 this is not a zip archive")
     expect_error("notzip.x3p", "not a readable X3P")
+    # main.xml in two folders of one archive: which is the surface is not known.
+    write_x3p("one.x3p", z, 1e-6, 1e-6, layout="folder")
+    with zipfile.ZipFile("one.x3p") as src, zipfile.ZipFile("two.x3p", "w") as dst:
+        for info in src.infolist():
+            for top in ("a/", "b/"):
+                dst.writestr(top + info.filename, src.read(info))
+    expect_error("two.x3p", "2 in folders")
     write_sdf_text("short.sdf", z, 1e-6, 1e-6, 1.0, truncate=True)
     expect_error("short.sdf", "43 height values")
     write_sdf_binary("shortb.sdf", z, 1e-6, 1e-6, 1.0)
