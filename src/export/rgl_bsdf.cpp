@@ -57,7 +57,13 @@ struct Reflectance {
   Vec3 wi(int k, int l) const { return sphericalDirection(theta[size_t(k)], isotropic ? 0.0 : phi[size_t(l)]); }
   // The table's hemispherical integral of the reflected side at node (k, l).
   double integral(int k, int l, int lambda) const { return lookup.hemisphericalIntegral(wi(k, l), lambda, true); }
-  double f(int k, int l, const Vec3& wo, int lambda) const { return lookup.eval(wi(k, l), wo, lambda); }
+  // The mean of the table's two estimates of a reciprocal pair, f(ωi, ωo) and f(ωo, ωi): a renderer
+  // reads f both ways (light and camera paths), a passive surface's BRDF is reciprocal (Helmholtz),
+  // and the table's Monte Carlo noise would otherwise break that by its own few per cent.
+  double f(int k, int l, const Vec3& wo, int lambda) const {
+    const Vec3 w = wi(k, l);
+    return 0.5 * (lookup.eval(w, wo, lambda) + lookup.eval(wo, w, lambda));
+  }
 };
 
 Reflectance reflectanceNodes(const BsdfFileReader& file, const BsdfLookup& lookup) {
@@ -164,8 +170,10 @@ TensorField floats(std::string name, std::vector<uint64_t> shape, std::vector<fl
   return f;
 }
 
-// Per incidence node: the table on the warp's n × n grid (values[λ][node]) — f cos θi 4σ / D at the
-// half vector the node maps to, 0 where the reflected direction leaves the upper hemisphere.
+// Per incidence node: the table on the warp's n × n grid (values[λ][node]) — f cos θo 4σ / D at the
+// half vector the node maps to, 0 where the reflected direction leaves the upper hemisphere. The
+// readers' eval returns spectra D / (4σ) as f cos θo, the value their samplers divide by the pdf over
+// ωo (rgl-epfl/brdf-loader powitacq.inl BRDF::eval and BRDF::sample; Mitsuba 3 `measured`).
 std::vector<std::vector<double>> spectraSlice(const Reflectance& r, int k, int l, const UGrid& d, double sigma,
                                               const PiecewiseBilinearWarp& warp, const std::vector<int>& lambdas,
                                               int n) {
@@ -178,14 +186,15 @@ std::vector<std::vector<double>> spectraSlice(const Reflectance& r, int k, int l
       const double c = dot(wi, m);
       const Vec3 wo = m * (2 * c) - wi;
       if (c <= 0 || wo.z <= 0) continue;
-      const double scale = wi.z * 4 * sigma / d.at(p.x, p.y);
+      const double scale = wo.z * 4 * sigma / d.at(p.x, p.y);
       for (size_t q = 0; q < lambdas.size(); ++q) values[q][size_t(b * n + a)] = r.f(k, l, wo, lambdas[q]) * scale;
     }
   return values;
 }
 
-// Scales one incidence's values (per wavelength) so that the file's albedo there — ∫ f cos θo dωo as a
-// renderer evaluates f, by the midpoint rule on the warp's unit square, where dωo = ds / pdf — is the
+// Scales one incidence's values (per wavelength) so that the file's albedo there — ∫ f cos θo dωo with
+// f cos θo = spectra D / (4σ) as a renderer evaluates it, by the midpoint rule on the warp's unit
+// square, where dωo = ds / pdf — is the
 // table's hemispherical integral: sampling a lobe narrower than the table's bins at the nodes (a flat
 // mirror's specular bin) would otherwise become light a renderer gains or loses. A mismatch beyond a
 // factor 2 is not scaled away: the nodes do not resolve that lobe, and `out` lists it.
@@ -207,7 +216,7 @@ void conserveEnergy(std::vector<std::vector<double>>& values, const Reflectance&
       const double x = sx * (n - 1), y = sy * (n - 1);
       const int i = std::min(int(x), n - 2), j = std::min(int(y), n - 2);
       const double tx = x - i, ty = y - j;
-      const double fScale = d.at(p.x, p.y) / (4 * sigma * wi.z) * wo.z * jacobian / p.pdf / (q * q);
+      const double fScale = d.at(p.x, p.y) / (4 * sigma) * jacobian / p.pdf / (q * q);
       for (size_t w = 0; w < lambdas.size(); ++w) {
         const std::vector<double>& v = values[w];
         const double spec = (1 - ty) * ((1 - tx) * v[size_t(j * n + i)] + tx * v[size_t(j * n + i + 1)]) +

@@ -12,9 +12,12 @@
 //   visible normals are distributed);
 // - `spectra` (per wavelength) or `rgb`, on an n × n grid of that warp's unit square, and
 //   `luminance`, the same table's luminance, which renderers sample before the warp.
-// A renderer evaluates f(ωi, ωo) cos θi = spectra(warp⁻¹(u(ωm))) D(ωm) / (4 σ(ωi)) (`jacobian` = 1),
-// with ωm the half vector and ωi the direction of the light (pbrt-v4 divides by cos θi; Mitsuba 3
-// returns the cosine-weighted value). So each spectra node holds f(ωi, ωo) cos θi 4σ(ωi) / D(ωm) of
+// A renderer evaluates f(ωi, ωo) cos θo = spectra(warp⁻¹(u(ωm))) D(ωm) / (4 σ(ωi)) (`jacobian` = 1),
+// with ωm the half vector, ωi the direction the table is parameterised by and ωo the one its sampler
+// draws: the value powitacq's BRDF::eval returns and BRDF::sample divides by the pdf over ωo (the
+// reference loader, rgl-epfl/brdf-loader powitacq.inl); Mitsuba 3's `measured` returns it as its
+// cosine-weighted eval, pbrt-v4's MeasuredBxDF::f divides it by the cosine of its sampled direction.
+// So each spectra node holds f(ωi, ωo) cos θo 4σ(ωi) / D(ωm) of
 // the table (BsdfLookup) at the half vector the warp puts there, with D and σ as the renderer
 // interpolates them: the file reproduces the table at its nodes whatever D is. D only decides where
 // the nodes go, so it is taken from the table itself rather than from a facet model: at each half

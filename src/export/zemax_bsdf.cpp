@@ -71,7 +71,9 @@ std::string zemaxHeader(const BsdfFileReader& file, const BsdfLookup& lookup, co
         "direction\n",
         o.eta);
   out += "Source\tMeasured\n";
-  out += std::string("Symmetry\t") + (rotation.size() > 1 ? "Asymmetrical4D" : "Asymmetrical") + "\n";
+  // The format description spells the four-dimensional keyword with two capitals, and readers that
+  // follow it (libbsdf's ZemaxBsdfReader) know no other spelling.
+  out += std::string("Symmetry\t") + (rotation.size() > 1 ? "ASymmetrical4D" : "Asymmetrical") + "\n";
   out += std::string("SpectralContent\t") + (o.xyz ? "XYZ" : "Monochrome") + "\n";
   out += std::string("ScatterType\t") + (o.transmission ? "BTDF" : "BRDF") + "\n";
   out += fmt::format("SampleRotation\t{}\n", rotation.size()) + numbers(rotation);

@@ -11,10 +11,10 @@
 // AngleOfIncidence is θi (the specular angle of a reflection); SampleRotation is the incidence
 // azimuth φi of the table (rotating the sample by it brings that incidence into the instrument's
 // plane of incidence; an isotropic table — the file's `symmetry` attribute — writes its first azimuth
-// only): one rotation writes `Symmetry Asymmetrical`, several `Asymmetrical4D`. TIS is
-// the table's own hemispherical integral Σ f Ω⊥ over the reflected bins — all the model reflects,
-// its specular lobe included (the table holds no separate specular ray). f between the table's bins
-// comes from BsdfLookup (bilinear between bin centres).
+// only): one rotation writes `Symmetry Asymmetrical`, several `ASymmetrical4D` (the format
+// description's spelling). TIS is the table's own hemispherical integral Σ f Ω⊥ over the reflected
+// bins — all the model reflects, its specular lobe included (the table holds no separate specular
+// ray). f between the table's bins comes from BsdfLookup (bilinear between bin centres).
 //
 // One file holds one wavelength (SpectralContent Monochrome) or the CIE tristimulus values of all of
 // them (SpectralContent XYZ: a TristimulusX, TristimulusY and TristimulusZ data set, each weighted as

@@ -25,7 +25,8 @@ class ZemaxBsdf:
             assert words[0] == key, f"{path}: expected {key}, found {words[0]}"
             self.keys[key] = words[1]
         assert self.keys["Source"] == "Measured", self.keys
-        assert self.keys["Symmetry"] in ("PlaneSymmetrical", "Asymmetrical", "Asymmetrical4D"), self.keys
+        # The format description spells "ASymmetrical4D"; some writers spell "Asymmetrical4D".
+        assert self.keys["Symmetry"] in ("PlaneSymmetrical", "Asymmetrical", "ASymmetrical4D", "Asymmetrical4D"), self.keys
         assert self.keys["SpectralContent"] in ("Monochrome", "XYZ"), self.keys
         assert self.keys["ScatterType"] in ("BRDF", "BTDF"), self.keys
         self.enums = {}
@@ -37,7 +38,7 @@ class ZemaxBsdf:
             assert len(values) == n, f"{path}: {key} announces {n} values, lists {len(values)}"
             assert np.all(np.diff(values) > 0), f"{path}: {key} not ascending"
             self.enums[key] = values
-        if self.keys["Symmetry"] != "Asymmetrical4D":
+        if self.keys["Symmetry"].lower() != "asymmetrical4d":
             assert len(self.enums["SampleRotation"]) == 1, "several rotations need Asymmetrical4D"
         az, rad = self.enums["ScatterAzimuth"], self.enums["ScatterRadial"]
         assert rad[0] == 0 and rad[-1] <= 180, rad
