@@ -74,8 +74,10 @@ void reportMbsdf(const std::string& path, const std::string& model, const MbsdfF
   std::cerr << "wrote " << path << " (model " << model
             << (m.transmission ? ", reflection and transmission" : ", reflection") << ", "
             << (m.bytes.size() + 512) / 1024 << " KiB)\n";
-  std::cerr << fmt::format("note: each incidence's row is scaled to the table's albedo: by {:.2f} % at most\n",
-                           100 * m.energyCorrection);
+  std::cerr << fmt::format(
+      "note: stored symmetric, as MDL runtimes read it, with each row's albedo the table's (it would have been "
+      "off by {:.2f} % at most; left {:.1e})\n",
+      100 * m.reflectionBalance.runtimeAlbedoError, m.reflectionBalance.residual);
   if (m.anisotropic && m.azimuths_deg.size() == 1)
     std::cerr << fmt::format(
         "warning: the table is anisotropic but holds incidences at one azimuth ({:g} deg): the isotropic MBSDF "
@@ -86,11 +88,17 @@ void reportMbsdf(const std::string& path, const std::string& model, const MbsdfF
         "warning: the table is anisotropic; the isotropic MBSDF holds its mean over the incidence azimuth, "
         "{:.1f} % of the table's L1 norm away from it\n",
         100 * m.anisotropyL1);
+  const MbsdfBalance& t = m.transmissionBalance;
   if (m.transmission)
     std::cerr << fmt::format(
-        "note: MDL runtimes use (f(ti,to) + f(to,ti)) / 2; for this BTDF that changes it by {:.1f} % of its L1 norm "
-        "(docs/export.md)\n",
-        100 * m.btdfSymmetrisationL1);
+        "{}: transmission stored symmetric, as MDL runtimes read it, with each row's albedo the table's (a runtime "
+        "would have been off by {:.1f} % at most; left {:.1e}); this BTDF is not reciprocal, and its lobe in the "
+        "file differs from the table's by {:.1f} % of its L1 norm (docs/export.md)\n",
+        t.lobeChangeL1 > 0.05 ? "warning" : "note", 100 * t.runtimeAlbedoError, t.residual, 100 * t.lobeChangeL1);
+  if (std::max(m.reflectionBalance.residual, t.residual) > 1e-3)
+    std::cerr << fmt::format(
+        "warning: some row's albedo stays {:.2f} % from the table's: the symmetric table cannot carry it\n",
+        100 * std::max(m.reflectionBalance.residual, t.residual));
   noteClamped(m.negativeClamped, m.values);
 }
 

@@ -94,51 +94,90 @@ Part tabulate(const BsdfLookup& lookup, const SpectrumToColour* rgb, int wavelen
   return part;
 }
 
-// Scales each incidence's row so that its albedo — Σ f cos θo dω over the exit cells, as the runtime
-// sums it — is the table's hemispherical integral: the resampling's own integral error (a lobe
-// narrower than the table's bins, near the pole, gains a few percent) must not become light gained or
-// lost in a renderer. Returns the largest relative change.
-double conserveEnergy(Part& part, int channels, const MbsdfExport& o) {
-  double largest = 0;
-  for (int ti = 0; ti < o.nTheta; ++ti)
-    for (int ch = 0; ch < channels; ++ch) {
-      auto at = [&](int to, int p) -> double& {
-        return part
-            .values[((size_t(ti) * size_t(o.nTheta) + size_t(to)) * size_t(o.nPhi) + size_t(p)) * size_t(channels) +
-                    size_t(ch)];
-      };
-      double albedo = 0;
-      for (int to = 0; to < o.nTheta; ++to) {
-        const double s0 = std::sin(to * 0.5 * kPi / o.nTheta), s1 = std::sin((to + 1) * 0.5 * kPi / o.nTheta);
-        for (int p = 0; p < o.nPhi; ++p) albedo += at(to, p) * (s1 * s1 - s0 * s0) * kPi / o.nPhi;
-      }
-      const double target = part.target[size_t(ti * channels + ch)];
-      if (!(albedo > 0) || !(target > 0) || target / albedo < 0.5 || target / albedo > 2) continue;
-      largest = std::max(largest, std::abs(target / albedo - 1));
-      for (int to = 0; to < o.nTheta; ++to)
-        for (int p = 0; p < o.nPhi; ++p) at(to, p) *= target / albedo;
-    }
-  return largest;
+size_t cellOf(int ti, int to, int p, const MbsdfExport& o) {
+  return (size_t(ti) * size_t(o.nTheta) + size_t(to)) * size_t(o.nPhi) + size_t(p);
 }
 
-// L1 of what a symmetrising runtime changes, ½[f(θi, θo) + f(θo, θi)] − f, relative to f's L1.
-double symmetrisationL1(const Part& part, int channels, const MbsdfExport& o) {
-  double change = 0, norm = 0;
+// Per θi: the sums over Δφ of one channel, M(θi, θo), and the exit cells' projected solid angle
+// w(θo) = (sin²θ1 − sin²θ0) π / nφ over both azimuth halves, as the runtime weighs them.
+struct RowSums {
+  std::vector<double> m, w;
+  double albedo(int ti, const std::vector<double>& d, int n) const {
+    double sum = 0;
+    for (int to = 0; to < n; ++to) sum += m[size_t(ti * n + to)] * d[size_t(to)] * w[size_t(to)];
+    return d[size_t(ti)] * sum;
+  }
+};
+
+RowSums rowSums(const std::vector<double>& values, int ch, int channels, const MbsdfExport& o) {
+  RowSums r{std::vector<double>(size_t(o.nTheta) * size_t(o.nTheta), 0.0), std::vector<double>(size_t(o.nTheta))};
+  for (int to = 0; to < o.nTheta; ++to) {
+    const double s0 = std::sin(to * 0.5 * kPi / o.nTheta), s1 = std::sin((to + 1) * 0.5 * kPi / o.nTheta);
+    r.w[size_t(to)] = (s1 * s1 - s0 * s0) * kPi / o.nPhi;
+  }
   for (int ti = 0; ti < o.nTheta; ++ti)
     for (int to = 0; to < o.nTheta; ++to)
       for (int p = 0; p < o.nPhi; ++p)
+        r.m[size_t(ti * o.nTheta + to)] += values[cellOf(ti, to, p, o) * size_t(channels) + size_t(ch)];
+  return r;
+}
+
+// Makes one part what a symmetrising runtime reads as it is. The MDL SDK's runtime evaluates
+// ½[f(θi, θo) + f(θo, θi)], takes each row's albedo from those values, and scales all light by the
+// inverse of the largest row albedo where that exceeds 1 (its prepare_mbsdfs_part and libbsdf's
+// measured_sample). So the part is made symmetric, then scaled symmetrically, f(θi, θo) d(θi) d(θo),
+// with d from symmetric Sinkhorn balancing (d ← d √(target / albedo); Knight 2008) so that every
+// row's albedo, summed as the runtime sums it, is the table's hemispherical integral on that side.
+MbsdfBalance balanceSymmetric(Part& part, int channels, const MbsdfExport& o) {
+  const size_t n = size_t(o.nTheta);
+  const std::vector<double> tabulated = part.values;
+  for (int ti = 0; ti < o.nTheta; ++ti)
+    for (int to = 0; to < o.nTheta; ++to)
+      for (int p = 0; p < o.nPhi; ++p)
+        for (int ch = 0; ch < channels; ++ch)
+          part.values[cellOf(ti, to, p, o) * size_t(channels) + size_t(ch)] =
+              0.5 * (tabulated[cellOf(ti, to, p, o) * size_t(channels) + size_t(ch)] +
+                     tabulated[cellOf(to, ti, p, o) * size_t(channels) + size_t(ch)]);
+  MbsdfBalance out;
+  for (int ch = 0; ch < channels; ++ch) {
+    const RowSums r = rowSums(part.values, ch, channels, o);
+    std::vector<double> d(n, 1.0);
+    auto target = [&](int ti) { return std::max(0.0, part.target[size_t(ti * channels + ch)]); };
+    for (int ti = 0; ti < o.nTheta; ++ti)
+      if (const double a = r.albedo(ti, d, o.nTheta); a > 0 && target(ti) > 0)
+        out.runtimeAlbedoError = std::max(out.runtimeAlbedoError, std::abs(a / target(ti) - 1));
+    for (int iteration = 0; iteration < 1000; ++iteration) {
+      double worst = 0;
+      for (int ti = 0; ti < o.nTheta; ++ti) {
+        const double a = r.albedo(ti, d, o.nTheta);
+        if (!(a > 0)) continue;
+        worst = std::max(worst, std::abs(a - target(ti)) / std::max(target(ti), 1e-12));
+        d[size_t(ti)] *= std::sqrt(target(ti) / a);
+      }
+      if (worst < 1e-9) break;
+    }
+    for (int ti = 0; ti < o.nTheta; ++ti)
+      if (target(ti) > 1e-6) out.residual = std::max(out.residual, std::abs(r.albedo(ti, d, o.nTheta) / target(ti) - 1));
+    for (int ti = 0; ti < o.nTheta; ++ti)
+      for (int to = 0; to < o.nTheta; ++to)
+        for (int p = 0; p < o.nPhi; ++p)
+          part.values[cellOf(ti, to, p, o) * size_t(channels) + size_t(ch)] *= d[size_t(ti)] * d[size_t(to)];
+  }
+  // How far the stored lobe is from the table's: L1 weighted by the exit cells' projected solid angle.
+  double change = 0, norm = 0;
+  for (int ti = 0; ti < o.nTheta; ++ti)
+    for (int to = 0; to < o.nTheta; ++to) {
+      const double theta_o = (to + 0.5) * 0.5 * kPi / o.nTheta;
+      const double weight = std::cos(theta_o) * std::sin(theta_o);
+      for (int p = 0; p < o.nPhi; ++p)
         for (int ch = 0; ch < channels; ++ch) {
-          auto at = [&](int a, int b) {
-            return part
-                .values[((size_t(a) * size_t(o.nTheta) + size_t(b)) * size_t(o.nPhi) + size_t(p)) * size_t(channels) +
-                        size_t(ch)];
-          };
-          const double theta_o = (to + 0.5) * 0.5 * kPi / o.nTheta;
-          const double weight = std::cos(theta_o) * std::sin(theta_o);
-          change += std::abs(0.5 * (at(ti, to) + at(to, ti)) - at(ti, to)) * weight;
-          norm += std::abs(at(ti, to)) * weight;
+          const size_t k = cellOf(ti, to, p, o) * size_t(channels) + size_t(ch);
+          change += std::abs(part.values[k] - tabulated[k]) * weight;
+          norm += std::abs(tabulated[k]) * weight;
         }
-  return norm > 0 ? change / norm : 0.0;
+    }
+  out.lobeChangeL1 = norm > 0 ? change / norm : 0.0;
+  return out;
 }
 
 }  // namespace
@@ -165,10 +204,9 @@ MbsdfFile mbsdfFile(const BsdfFileReader& file, const BsdfLookup& lookup, const 
   for (bool transmitted : {false, true}) {
     if (transmitted && !transmits) break;
     Part part = tabulate(lookup, rgb ? &colour : nullptr, o.wavelength, azimuths, transmitted, o);
-    out.energyCorrection = std::max(out.energyCorrection, conserveEnergy(part, rgb ? 3 : 1, o));
+    (transmitted ? out.transmissionBalance : out.reflectionBalance) = balanceSymmetric(part, rgb ? 3 : 1, o);
     differenceL1 += part.differenceL1;
     tableL1 += part.tableL1;
-    if (transmitted) out.btdfSymmetrisationL1 = symmetrisationL1(part, rgb ? 3 : 1, o);
     data += transmitted ? "MBSDF_DATA_TRANSMISSION=\n" : "MBSDF_DATA_REFLECTION=\n";
     putLittleEndian(data, uint32_t(rgb ? 1 : 0));
     putLittleEndian(data, uint32_t(o.nTheta));

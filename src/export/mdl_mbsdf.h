@@ -10,15 +10,19 @@
 // opposite normal on the transmitted side) and the azimuth difference Δφ = |φo − φi| ∈ [0, π]
 // (0: towards the incidence's side), each on cells of equal width whose centres hold the values,
 // as the MDL SDK's runtime places them: θ at (k + ½) π/2nθ, Δφ at (k + ½) π/nφ; between them it
-// interpolates trilinearly (held at the edges). Values are the table's (BsdfLookup, averaged over the
-// incidence azimuth for an anisotropic table), each incidence's row scaled so that its albedo, summed
-// as the runtime sums it, is the table's hemispherical integral on that side.
+// interpolates trilinearly (held at the edges).
 //
-// MDL runtimes use ½ [f(θi, θo, Δφ) + f(θo, θi, Δφ)], which is f itself for a reciprocal BRDF but not
-// for a BTDF between media of different index (there f(i→o)/ηo² = f(o→i)/ηi², and the table's
-// transmitted lobe at θo ≠ θi is mirrored to (θo, θi) at half height). The file holds the BTDF as the
-// table computed it, so a runtime that does not symmetrise gets it right; for one that does, the
-// exporter says how far the symmetrised table is from the true one.
+// What a runtime does with the data (the MDL SDK's prepare_mbsdfs_part and libbsdf's
+// measured_sample): it evaluates ½ [f(θi, θo, Δφ) + f(θo, θi, Δφ)], takes each row's albedo from
+// those values, and scales all light, reflected and transmitted, by the inverse of the largest row
+// albedo of either part where that exceeds 1. A reciprocal BRDF is unchanged by that; a BTDF between
+// media of different index is not (f(i→o)/ηo² = f(o→i)/ηi²): its lobe at θo ≠ θi is halved and
+// mirrored to (θo, θi), its row albedos change (1.47 at 1° for frosted BK7) and the bound then dims
+// every direction. So each part holds a symmetric table, the table's f (BsdfLookup, averaged over the
+// incidence azimuth for an anisotropic table) made symmetric and scaled as d(θi) d(θo) f, with d
+// chosen so that every row's albedo, summed as the runtime sums it, is the table's hemispherical
+// integral on that side: the runtime reads it as it is, with the table's albedo from every direction.
+// What that changes in a BTDF's lobe is measured (lobeChangeL1) and reported.
 #pragma once
 #include <string>
 #include <vector>
@@ -35,14 +39,20 @@ struct MbsdfExport {
   int nTheta = 45, nPhi = 90;
 };
 
+// What making one part symmetric with the table's row albedos did.
+struct MbsdfBalance {
+  double runtimeAlbedoError = 0;  // the largest relative error of a row albedo a runtime would have had
+  double residual = 0;            // the largest relative error of a row albedo left after balancing
+  double lobeChangeL1 = 0;        // L1 of the stored part's difference from the table's f / L1
+};
+
 struct MbsdfFile {
   std::string bytes;
   bool transmission = false;         // the file holds a BTDF part
   bool anisotropic = false;          // the table is not isotropic
   std::vector<double> azimuths_deg;  // the incidence azimuths the file averages over
   double anisotropyL1 = 0;           // anisotropic table: L1 of the table's difference from its azimuthal mean / L1
-  double btdfSymmetrisationL1 = 0;  // L1 of ½[f + fᵀ] − f over the BTDF / L1 (what a symmetrising runtime changes)
-  double energyCorrection = 0;      // the largest relative scale that made a row's albedo the table's
+  MbsdfBalance reflectionBalance, transmissionBalance;
   int negativeClamped = 0, values = 0;
 };
 

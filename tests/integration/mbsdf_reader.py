@@ -82,6 +82,16 @@ class Mbsdf:
                     out = out + fa * fb * fc * d[ia, ib, ic]
         return out
 
+    def runtime_scale(self):
+        """The factor an MDL runtime puts on all light of the file (libbsdf's measured_sample in
+        scatter_reflect_transmit mode): the inverse of the largest row albedo of either part, the
+        largest channel of the symmetrised data (the SDK's prepare_mbsdfs_part), where it exceeds 1."""
+        scale = 1.0
+        for part in self.parts:
+            largest = max(float(np.max(self.albedo(part, k))) for k in range(self.parts[part].shape[0]))
+            scale = min(scale, 1.0 / largest)
+        return scale
+
     def albedo(self, part, k, symmetrise=True):
         """The runtime's albedo of incidence cell k: sum of f over the exit cells times their
         projected solid angle (both azimuth halves)."""
