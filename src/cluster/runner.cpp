@@ -163,7 +163,8 @@ void logJobHeader(const Job& job, const DirectionGrid& grid, const TileComputer&
   const WaveEstimator* wave = tiles.wave();
   if (wave) {
     const std::string notes = wave->notes();
-    spdlog::info("scalar diffraction: {} estimator, {}, coherence length {} µm{}", wave->name(),
+    spdlog::info("scalar diffraction: {} estimator ({}), {}, coherence length {} µm{}", wave->name(),
+                 job.waveEstimatorChoice(),
                  notes.empty() ? std::to_string(job.waveSamplesPerBin) + " samples per bin" : notes,
                  job.scene.coherenceLength_um,
                  job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");

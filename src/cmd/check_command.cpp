@@ -42,6 +42,9 @@ int checkJob(const std::string& jobPath, const std::string& heightsPath, const s
             << job.material.describe() << "\n  " << job.lambda_nm.size() << " wavelengths, grid " << grid.kind()
             << " with " << grid.binCount() << " bins, " << job.incidence.size() << " incidence directions\n"
             << "  " << job.describePaths() << "\n"
+            << (job.needsWave() ? "  wave estimator " + waveEstimatorName(job.resolvedWaveEstimator()) + " (" +
+                                      job.waveEstimatorChoice() + ")\n"
+                                : std::string())
             << "  memory about " << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9)
             << " GB per rank before the "
             << "wave estimator's own (`plan` measures it), output up to "

@@ -149,6 +149,10 @@ struct Job {
   // `exact` there when it costs no more (8 x the cell's facets <= wave_samples_per_bin); `fft` for a periodic
   // heightfield under a narrower window on a disk grid without the lost component; otherwise `area`.
   WaveEstimatorKind resolvedWaveEstimator() const;
+  // Why the wave estimator is the one it is, for the log.
+  std::string waveEstimatorChoice() const;
+  // The propagating orders of the lattice cell a direction bin holds at the shortest wavelength.
+  double exactOrdersPerBin() const;
   // Why the wave term of this job is not halved by reciprocity (docs/physics.md §8), or "" when it is:
   // it needs incidence = "all" with bin-averaged incidence (the bin-to-bin table is then exactly
   // reciprocal), the incoherent component without `lost` (the masked power is not reciprocal) and

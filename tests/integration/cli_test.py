@@ -1311,6 +1311,65 @@ incidence = [[0.0, 0.0], [30.0, 0.0], [60.0, 0.0]]\n[effects]\ncomponents = ["co
     assert lost > 5, r.stderr
 
 
+def fresnel_unpolarised(cos_i, eta):
+    """Fresnel reflectance of unpolarised light at a smooth interface, eta = n_t / n_i (1 beyond the
+    critical angle)."""
+    sin_t2 = (1 - cos_i ** 2) / eta ** 2
+    if sin_t2 >= 1:
+        return 1.0
+    cos_t = np.sqrt(1 - sin_t2)
+    rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return 0.5 * (rs * rs + rp * rp)
+
+
+def test_defaults_closed_form():
+    """A flat mirror and flat glass (n 1.5, lit from above and from inside) with every sampling key at
+    its default, incidence bin-averaged and exact: the wave estimator the job gets is deterministic
+    (the log says which and why), and the table's reflectance and transmittance are the Fresnel
+    closed form (bin-averaged: the mean over the incidence bin) within 1 % of the incident energy;
+    at exact incidence the reflectance within 2 % of itself. Monte Carlo with 256 samples per bin
+    gave the mirror an albedo of -11 +- 4."""
+    cases = (("mirror", 'name = "mirror"', [[30.0, 0.0], [61.9, 0.0]]),
+             ("glass", 'kind = "dielectric"\nior = 1.5', [[30.0, 0.0], [61.9, 0.0], [150.0, 0.0], [125.0, 0.0]]))
+    for name, material, incidence in cases:
+        for sampling in ("bin", "exact"):
+            job = os.path.join(TMP, f"flat-{name}-{sampling}.toml")
+            with open(job, "w") as f:
+                f.write(f"""[geometry]\nkind = "flat"\n[material]\n{material}\n[spectrum]\nwavelengths_nm = [550.0]
+[directions]\nn_theta = 8\nn_phi = 16\nincidence = {incidence}\nincidence_sampling = "{sampling}"
+[effects]\ncomponents = ["coherent", "incoherent"]\n""")
+            out = f"flat-{name}-{sampling}.h5"
+            r = run(["run", job, "-o", out])
+            line = next(x for x in r.stderr.splitlines() + r.stdout.splitlines() if "scalar diffraction:" in x)
+            assert "exact estimator (chosen as deterministic" in line, line
+            with h5py.File(os.path.join(TMP, out), "r") as h:
+                op = h["/grid/projected_solid_angle"][:]
+                nh = len(op) // 2
+                total = sum(h["/bsdf/" + c][:, 0, :].astype(float) for c in ("coherent", "incoherent"))
+                upper, lower = total[:, :nh] @ op[:nh], total[:, nh:] @ op[nh:]
+                th = h["/incidence/theta_deg"][:]
+            for k, (theta, _) in enumerate(incidence):
+                above = theta < 90
+                eta = 1.0 if name == "mirror" else (1.5 if above else 1 / 1.5)
+                cos_i = abs(np.cos(np.radians(theta)))
+                if sampling == "bin":  # the bin's incidences, uniform in projected solid angle
+                    width = 90.0 / 8
+                    lo = np.floor(min(theta, 180 - theta) / width) * width
+                    mu = np.sqrt(np.linspace(np.cos(np.radians(lo + width)) ** 2, np.cos(np.radians(lo)) ** 2, 2001))
+                    want_r = float(np.mean([fresnel_unpolarised(m, eta) for m in mu]))
+                else:
+                    want_r = fresnel_unpolarised(cos_i, eta)
+                want_r = 1.0 if name == "mirror" else want_r
+                got_r, got_t = (upper[k], lower[k]) if above else (lower[k], upper[k])
+                print(f"flat {name}, {sampling} incidence at {th[k]:.1f} deg: R {got_r:.5f} (Fresnel {want_r:.5f}), "
+                      f"T {got_t:.5f} ({1 - want_r:.5f})")
+                assert abs(got_r - want_r) < 0.01 and abs(got_t - (1 - want_r)) < 0.01, (name, sampling, theta, got_r,
+                                                                                         got_t, want_r)
+                if sampling == "exact":
+                    assert abs(got_r / want_r - 1) < 0.02, (name, theta, got_r, want_r)
+
+
 def test_effects_adversarial():
     """Scenes built to fool the effects planner's pilots: an inter-reflection threshold between pilot
     incidences, listed incidences, collimated against bin-averaged incidence on a grating lit along
