@@ -38,6 +38,7 @@ OutputSchema outputSchemaOf(const Job& job) {
   s.halvesWaveByReciprocity = job.halvesWaveByReciprocity();
   if (!s.halvesWaveByReciprocity) s.reciprocityOffReason = job.reciprocityOffReason();
   s.lossless = job.material.lossless();
+  s.tolerance = job.scene.tolerance;
   s.lambda_nm = job.lambda_nm;
   s.incidence = job.incidence;
   s.components = job.components;

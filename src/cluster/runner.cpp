@@ -350,7 +350,7 @@ class TileServer {
     }
     return t.value_or(-1);
   }
-  void noteEnergyBalance(int slice, const EnergyBalance& b);
+  void noteSliceChecks(int slice, const EnergyBalance& b);
   void writeResult(const TileResult& r, int worker = 0);
   bool serveOne(bool blocking);
 
@@ -373,26 +373,45 @@ class TileServer {
   // A failed write stops the run: no more tiles are handed out and results still in flight are
   // dropped (the journal lists only slices whose data reached the disk).
   std::string writeFailure_;
-  int unbalanced_ = 0;
+  // Slices written now that are not physical (noteSliceChecks), and the worst of them.
+  int nonphysical_ = 0, worstSlice_ = -1;
+  unsigned worstFlags_ = 0;
+  double worstBadness_ = 0;
   double writeSeconds_ = 0;    // rank 0's time in the writer (slices, their flags, the journal)
   double prepareSeconds_ = 0;  // rank 0 preparing the slices of its own tiles (prepareSlice)
-  double worstBalance_ = 0;
   std::map<std::string, double> energySum_;  // Σ over the slices written now of each component's Σ f Ω⊥
 };
 
-// The energy balance of each slice (BsdfFileWriter::writeEnergyBalance): beyond [scene] tolerance
-// and its standard error it is the model's error (scalar theory on deep or steep structures), and
-// the log says so; `info` shows it for every slice.
-void TileServer::noteEnergyBalance(int slice, const EnergyBalance& b) {
-  for (size_t l = 0; l < b.value.size(); ++l) {
-    if (!(std::abs(b.value[l]) > job_.scene.tolerance + 4 * b.stdError[l])) continue;
-    if (unbalanced_++ < 10)
-      spdlog::warn(
-          "slice {} (theta_i {:.3g} deg, {} nm): energy balance {:+.4f} ± {:.4f} (reflected + transmitted + "
-          "lost paths − 1{}), beyond the tolerance {}: the model's own error there",
-          slice, job_.incidence[size_t(slice)].theta_deg, job_.lambda_nm[l], b.value[l], b.stdError[l],
-          job_.material.lossless() ? "" : ", counted only above 1: the material absorbs", job_.scene.tolerance);
-    if (std::abs(b.value[l]) > std::abs(worstBalance_)) worstBalance_ = b.value[l];
+// What makes a slice non-physical (SliceFlag, stored in /stats/nonphysical): the log names the slice
+// and the figure, for the first ten; the closing summary counts them and names the worst. An energy
+// balance beyond the tolerance is the model's own error (scalar theory on deep or steep structures);
+// energy outside [0, 1] beyond its error is an estimator that cannot vouch for the slice; lost paths
+// are light the table does not hold (a max_depth too small for deep trenches, rays leaking).
+void TileServer::noteSliceChecks(int slice, const EnergyBalance& b) {
+  for (size_t l = 0; l < b.flags.size(); ++l) {
+    const unsigned f = unsigned(b.flags[l]);
+    if (!f) continue;
+    const double badness = std::max({std::abs(b.value[l]), -b.energy[l], b.energy[l] - 1, b.pathsLost[l]});
+    if (nonphysical_++ < 10) {
+      std::string figures;
+      if (f & (unsigned(SliceFlag::NegativeEnergy) | unsigned(SliceFlag::ExcessEnergy)))
+        figures += fmt::format("; energy {:.4f} ± {:.4f}", b.energy[l], b.stdError[l]);
+      if (f & unsigned(SliceFlag::Unbalanced))
+        figures += fmt::format("; energy balance {:+.4f} ± {:.4f} (reflected + transmitted + lost paths − 1{}), "
+                               "beyond the tolerance {}: the model's own error there",
+                               b.value[l], b.stdError[l],
+                               job_.material.lossless() ? "" : ", counted only above 1: the material absorbs",
+                               job_.scene.tolerance);
+      if (f & unsigned(SliceFlag::PathsLost))
+        figures += fmt::format("; {:.4f} of the paths truncated at max_depth, leaked or missed", b.pathsLost[l]);
+      spdlog::warn("slice {} (theta_i {:.3g} deg, {} nm) is not physical: {}{}", slice,
+                   job_.incidence[size_t(slice)].theta_deg, job_.lambda_nm[l], describeSliceFlags(f), figures);
+    }
+    if (badness > worstBadness_) {
+      worstBadness_ = badness;
+      worstSlice_ = slice;
+      worstFlags_ = f;
+    }
     break;
   }
 }
@@ -433,7 +452,7 @@ void TileServer::writeResult(const TileResult& r, int worker) {
         prepareSeconds_ += since(tp);
         tw = Clock::now();
       }
-      noteEnergyBalance(m, writer_.writePrepared(*p, slice));
+      noteSliceChecks(m, writer_.writePrepared(*p, slice));
       written.push_back(m);
       writeSeconds_ += since(tw);
     }
@@ -524,11 +543,11 @@ void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
         summary_.computed, summary_.resumed, since(t0_), writeSeconds_, 100.0 * writeSeconds_ / since(t0_),
         prepareSeconds_, total[0], total[1], summary_.paths, energies);
   }
-  if (unbalanced_)
+  if (nonphysical_)
     spdlog::warn(
-        "energy balance beyond the tolerance {} in {} slice(s) computed now (the worst {:+.4f}); `microbsdf info` "
-        "lists it per slice",
-        job_.scene.tolerance, unbalanced_, worstBalance_);
+        "{} slice(s) computed now are not physical (the worst: slice {}, {}); `microbsdf info` lists them, "
+        "/stats/nonphysical flags them",
+        nonphysical_, worstSlice_, describeSliceFlags(worstFlags_));
   // Finish (close, fsync, rename) or close; a failure of either is a write failure, which leaves the
   // partial file and its journal (every slice in the journal is on disk) and any old output as they were.
   try {

@@ -43,6 +43,7 @@ void printInfo(const nlohmann::json& j) {
                "should bring\n"
             << " to GM's energy; — when the file has no lost component)\n";
   int reached = 0, budget = 0;
+  std::vector<std::string> nonphysical;  // one line per flagged slice
   // Skips the effects planner made, verified per slice: slices checked, those re-enabled, the largest check.
   struct Verified {
     int slices = 0;
@@ -63,10 +64,20 @@ void printInfo(const nlohmann::json& j) {
                 (unsigned long long)s["samples"].get<uint64_t>(), s["seconds"].get<double>(),
                 r.reflected + r.transmitted, r.albedoStdError, r.reflected, r.transmitted, r.truncated, r.relError,
                 r.balance, std::isnan(r.lost) ? "       —" : fmt::format("{:+8.4f}", r.lost).c_str());
+    if (r.nonphysical)
+      nonphysical.push_back(fmt::format("  slice {} (theta {:.2f}, phi {:.2f}): {}", s["index"].get<int>(),
+                                        s["theta_deg"].get<double>(), s["phi_deg"].get<double>(),
+                                        describeSliceFlags(r.nonphysical)));
     if (s["sampling_stop"] == "target") ++reached;
     if (s["sampling_stop"] == "budget") ++budget;
     tally(multiple, s, "multiple_check", "multiple_reenabled");
     tally(diffraction, s, "diffraction_check", "diffraction_reenabled");
+  }
+  if (!nonphysical.empty()) {
+    std::printf("not physical: %zu slice(s) (/stats/nonphysical: energy outside [0, 1] or a balance beyond the "
+                "tolerance, each beyond 3 s.e., or paths lost beyond the tolerance)\n",
+                nonphysical.size());
+    for (const std::string& line : nonphysical) std::printf("%s\n", line.c_str());
   }
   if (reached + budget > 0)
     std::printf("progressive sampling: %d slices reached target_rel_error, %d stopped at max_paths_per_slice first\n",

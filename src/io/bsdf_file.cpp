@@ -404,7 +404,7 @@ std::vector<std::string> rowDatasets(const OutputSchema& schema, FileStage stage
   for (const char* n :
        {"/stats/truncated", "/stats/leaked", "/stats/missed", "/stats/samples", "/stats/wave_samples", "/stats/rays",
         "/stats/seconds", "/stats/sampling_stop", "/stats/paths_albedo_stderr", "/stats/paths_rel_error",
-        "/stats/energy_balance", "/stats/energy_balance_stderr", "/bsdf/done"})
+        "/stats/energy_balance", "/stats/energy_balance_stderr", "/stats/nonphysical", "/bsdf/done"})
     v.push_back(n);
   if (schema.guarded.has(Component::Multiple))
     for (const char* n : {"/stats/multiple_check", "/stats/multiple_reenabled"}) v.push_back(n);
@@ -909,6 +909,12 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
                      "material absorbs: a deficit is absorption, an excess the model's error)");
       H5Dataset e = create3D(s, "energy_balance_stderr", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
       describe(e, "1", "standard error of energy_balance");
+      H5Dataset n = create3D(s, "nonphysical", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
+      describe(n, "1",
+               "bits of what makes the slice non-physical at this wavelength (0: none): 1 its energy (the "
+               "components but lost, both sides) below 0 and 2 above 1, each beyond 3 standard errors and 1e-3; 4 "
+               "|energy_balance| beyond [scene] tolerance + 3 standard errors; 8 truncated + leaked + missed beyond "
+               "the tolerance");
     }
     {
       H5Dataset d = create3D(s, "paths_albedo_stderr", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
@@ -1174,17 +1180,33 @@ EnergyBalance energyBalanceOf(const OutputSchema& schema,
       }
     }
   }
+  b.pathsLost.assign(size_t(nL), 0.0);
   for (const char* lost : {"/stats/truncated", "/stats/leaked", "/stats/missed"}) {
     const std::vector<double> v = row(lost);
-    for (int l = 0; l < nL; ++l) b.value[size_t(l)] += v[size_t(l)];
+    for (int l = 0; l < nL; ++l) {
+      b.value[size_t(l)] += v[size_t(l)];
+      b.pathsLost[size_t(l)] += v[size_t(l)];
+    }
   }
   b.stdError.resize(size_t(nL));
+  b.energy.resize(size_t(nL));
+  b.flags.assign(size_t(nL), 0.0);
   for (int l = 0; l < nL; ++l) {
+    b.energy[size_t(l)] = b.value[size_t(l)] + 1 - b.pathsLost[size_t(l)];
     if (!schema.lossless) b.value[size_t(l)] = std::max(0.0, b.value[size_t(l)]);
     b.stdError[size_t(l)] = std::sqrt(var[size_t(l)]);
+    const double se = b.stdError[size_t(l)], e = b.energy[size_t(l)];
+    unsigned f = 0;
+    if (e < -(3 * se + 1e-3)) f |= unsigned(SliceFlag::NegativeEnergy);
+    if (e - 1 > 3 * se + 1e-3) f |= unsigned(SliceFlag::ExcessEnergy);
+    if (std::abs(b.value[size_t(l)]) > schema.tolerance + 3 * se) f |= unsigned(SliceFlag::Unbalanced);
+    if (b.pathsLost[size_t(l)] > schema.tolerance) f |= unsigned(SliceFlag::PathsLost);
+    b.flags[size_t(l)] = double(f);
   }
   return b;
 }
+
+
 
 // Every row of slice r but its tables, as the writer stores them.
 Rows sliceRows(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid) {
@@ -1221,6 +1243,7 @@ Rows sliceRows(const TileResult& r, const OutputSchema& schema, const DirectionG
   const EnergyBalance b = energyBalanceOf(schema, [&](const std::string& path) { return rows.at(path); });
   rows["/stats/energy_balance"] = b.value;
   rows["/stats/energy_balance_stderr"] = b.stdError;
+  rows["/stats/nonphysical"] = b.flags;
   return rows;
 }
 
@@ -1473,6 +1496,7 @@ EnergyBalance BsdfFileWriter::writeEnergyBalance(int i) {
   const EnergyBalance b = energyBalanceOf(schema_, [&](const std::string& path) { return getRow(path, i); });
   putRow("/stats/energy_balance", i, b.value);
   putRow("/stats/energy_balance_stderr", i, b.stdError);
+  putRow("/stats/nonphysical", i, b.flags);
   return b;
 }
 
@@ -1969,6 +1993,7 @@ SliceStats BsdfFileReader::stats(int incidence) const {
     s.energyBalance = readRow("/stats/energy_balance", incidence);
     s.energyBalanceStdError = readRow("/stats/energy_balance_stderr", incidence);
   }
+  if (H5Lexists(file_, "/stats/nonphysical", H5P_DEFAULT) > 0) s.nonphysical = readRow("/stats/nonphysical", incidence);
   for (const auto& c : components()) {
     s.energyReflected[c] = readRow("/stats/energy_reflected/" + c, incidence);
     s.energyTransmitted[c] = readRow("/stats/energy_transmitted/" + c, incidence);
@@ -2089,6 +2114,17 @@ PreparedSlice deserializePrepared(const std::vector<unsigned char>& bytes) {
   }
   if (r.pos != bytes.size()) throw std::runtime_error("prepared slice: trailing bytes");
   return p;
+}
+
+std::string describeSliceFlags(unsigned flags) {
+  std::string out;
+  const std::pair<SliceFlag, const char*> names[] = {{SliceFlag::NegativeEnergy, "energy below 0"},
+                                                     {SliceFlag::ExcessEnergy, "energy above 1"},
+                                                     {SliceFlag::Unbalanced, "energy balance beyond the tolerance"},
+                                                     {SliceFlag::PathsLost, "paths lost beyond the tolerance"}};
+  for (const auto& [bit, name] : names)
+    if (flags & unsigned(bit)) out += (out.empty() ? "" : ", ") + std::string(name);
+  return out;
 }
 
 }  // namespace mbsdf

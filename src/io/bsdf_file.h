@@ -77,8 +77,23 @@ struct PackedChunk {
 };
 
 // A slice's energy balance per wavelength (BsdfFileWriter::writeEnergyBalance).
+// What makes a slice non-physical, a bit each in /stats/nonphysical (per wavelength): its energy
+// (Σ f Ω⊥ of the components but lost, both sides) below 0 or above 1 beyond 3 standard errors (and
+// 1e-3, the deterministic rules' rounding), its energy balance beyond [scene] tolerance + 3 standard
+// errors, or more than the tolerance of its paths truncated at max_depth, leaked or missed.
+enum class SliceFlag : uint8_t { NegativeEnergy = 1, ExcessEnergy = 2, Unbalanced = 4, PathsLost = 8 };
+std::string describeSliceFlags(unsigned flags);  // "energy below 0, paths lost", or "" for none
+
 struct EnergyBalance {
   std::vector<double> value, stdError;
+  std::vector<double> energy;     // Σ f Ω⊥ of the components but lost, both sides (stdError is its error too)
+  std::vector<double> pathsLost;  // truncated + leaked + missed
+  std::vector<double> flags;      // SliceFlag bits per wavelength (as stored)
+  unsigned anyFlags() const {     // the bits of every wavelength
+    unsigned f = 0;
+    for (double x : flags) f |= unsigned(x);
+    return f;
+  }
 };
 
 // A slice as the file stores it, made where its tile was computed (prepareSlice): its statistics
@@ -197,6 +212,7 @@ struct SliceStats {
   std::map<std::string, std::vector<double>> energyReflectedStdError, energyTransmittedStdError;
   std::vector<double> pathsAlbedoStdError;
   std::vector<double> energyBalance, energyBalanceStdError;  // (writeEnergyBalance) empty in older files
+  std::vector<double> nonphysical;                            // SliceFlag bits per wavelength; empty in older files
 };
 
 // The standard error of Σ f Ω⊥ of component c over one hemisphere (side 0 upper, 1 lower), per

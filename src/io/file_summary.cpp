@@ -81,6 +81,11 @@ nlohmann::json fileSummary(const BsdfFileReader& f, const std::string& path) {
         s["energy_balance"] = st.energyBalance;
         s["energy_balance_stderr"] = st.energyBalanceStdError;
       }
+      if (!st.nonphysical.empty()) {
+        std::vector<unsigned> bits;
+        for (double x : st.nonphysical) bits.push_back(std::isfinite(x) ? unsigned(x) : 0u);
+        s["nonphysical"] = bits;
+      }
     }
     slices.push_back(s);
   }
@@ -117,6 +122,8 @@ SliceSummary summariseSlice(const nlohmann::json& s) {
     for (auto& x : s["energy_balance"])
       if (!(std::abs(x.get<double>()) <= std::abs(r.balance))) r.balance = x.get<double>();
   r.truncated = mean(s["truncated"]);
+  if (s.contains("nonphysical"))
+    for (auto& x : s["nonphysical"]) r.nonphysical |= x.get<unsigned>();
   return r;
 }
 

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "io/bsdf_file.h"
 #include "io/bsdf_lookup.h"
 #include "io/file_summary.h"
 #include "io/slice_export.h"
@@ -94,7 +95,8 @@ std::string infoTable(const nlohmann::json& summary) {
   std::string h =
       "<table class=\"info\"><thead><tr><th>slice</th><th>&theta;</th><th>&phi;</th><th>samples</th>"
       "<th>seconds</th><th>albedo</th><th>&plusmn; s.e.</th><th>reflected</th><th>transmitted</th>"
-      "<th>truncated</th><th>rel. error</th><th>balance</th><th>lost</th></tr></thead><tbody>\n";
+      "<th>truncated</th><th>rel. error</th><th>balance</th><th>lost</th><th>not physical</th></tr></thead>"
+      "<tbody>\n";
   for (const auto& s : summary["slices"]) {
     if (!s["done"].get<bool>()) continue;
     const SliceSummary r = summariseSlice(s);
@@ -104,6 +106,7 @@ std::string infoTable(const nlohmann::json& summary) {
          "</td><td>" + number(r.albedoStdError, "%.2e") + "</td><td>" + number(r.reflected, "%.6f") + "</td><td>" +
          number(r.transmitted, "%.6f") + "</td><td>" + number(r.truncated, "%.2e") + "</td><td>" +
          number(r.relError, "%.2e") + "</td><td>" + number(r.balance, "%+.4f") + "</td><td>" + number(r.lost, "%+.4f") +
+         "</td><td" + (r.nonphysical ? " class=\"flagged\">" + describeSliceFlags(r.nonphysical) : ">") +
          "</td></tr>\n";
   }
   return h + "</tbody></table>\n";
@@ -226,6 +229,7 @@ h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 2em; border-bottom: 
 table { border-collapse: collapse; } td, th { padding: 2px 8px; text-align: left; vertical-align: top; }
 table.info td { text-align: right; font-variant-numeric: tabular-nums; }
 table.info tbody tr:nth-child(odd) { background: #f4f4f4; } .scroll { max-height: 420px; overflow: auto; }
+table.info td.flagged { color: #b00020; text-align: left; font-weight: bold; }
 pre { background: #f6f6f6; padding: 0.6em; overflow: auto; max-height: 420px; }
 .models { display: flex; flex-wrap: wrap; gap: 14px; } figure { margin: 0; }
 figcaption { font-weight: bold; } .pair img { margin-right: 6px; image-rendering: pixelated; }

@@ -1370,6 +1370,55 @@ def test_defaults_closed_form():
                     assert abs(got_r / want_r - 1) < 0.02, (name, theta, got_r, want_r)
 
 
+def test_nonphysical_flags():
+    """Every slice the model cannot vouch for is flagged (/stats/nonphysical, a WARN naming the slice
+    and figure, the run's closing count, `info`, `report`), and no physical one is: 100 um deep mirror trenches
+    with max_depth 4 (half the paths truncated: 8), a glass binary grating of period 4 lambda and
+    depth 2 lambda (scalar energy 1.136: 2 | 4), a flat mirror at 80 deg under a 50 um window (the
+    windowed Kirchhoff lobe loses 0.021 below the horizon: 4); against a flat mirror at 30 and 60 deg
+    and flat glass from above and inside, a shallow sine grating, a statistical GGX gold surface
+    (none)."""
+    grating = 'kind = "binary-grating"\nperiod_um = 2.0\n'
+    flat = 'kind = "flat"\n'
+    cases = (  # name, geometry, material, wavelength, incidence, components, extra sampling, flags expected
+        ("trench", grating + 'depth_um = 100.0\nsize_um = [4.0, 4.0]\n', 'name = "mirror"', 550.0, "[[10.0, 0.0]]",
+         '["coherent", "multiple"]', "paths_per_slice = 20000\nmax_depth = 4\n", 8),
+        ("deep-glass", grating + 'depth_um = 1.0\n', 'kind = "dielectric"\nior = 1.5', 500.0, "[[0.0, 0.0]]",
+         '["coherent", "incoherent"]', "", 2 | 4),
+        ("grazing-mirror", flat, 'name = "mirror"', 550.0, "[[80.0, 0.0]]", '["coherent", "incoherent"]', "", 4),
+        ("flat-mirror", flat, 'name = "mirror"', 550.0, "[[30.0, 0.0], [60.0, 0.0]]", '["coherent", "incoherent"]',
+         "", 0),
+        ("flat-glass", flat, 'kind = "dielectric"\nior = 1.5', 550.0, "[[30.0, 0.0], [150.0, 0.0], [135.0, 0.0]]",
+         '["coherent", "incoherent"]', "", 0),
+        ("sine", 'kind = "sine-grating"\nperiod_um = 5.0\namplitude_um = 0.02\n', 'name = "Al"', 550.0,
+         "[[0.0, 0.0], [40.0, 0.0]]", '["coherent", "incoherent", "multiple"]', "paths_per_slice = 20000\n", 0),
+        ("ggx-gold", 'kind = "statistical"\nndf = "ggx"\nalpha = 0.5\n', 'kind = "conductor"\nname = "Au"', 550.0,
+         "[[0.0, 0.0], [45.0, 0.0], [85.0, 0.0]]", '["coherent", "multiple"]', "paths_per_slice = 20000\n", 0))
+    for name, geometry, material, nm, incidence, components, sampling, want in cases:
+        job = os.path.join(TMP, f"np-{name}.toml")
+        with open(job, "w") as f:
+            f.write(f"""[geometry]\n{geometry}[material]\n{material}\n[spectrum]\nwavelengths_nm = [{nm}]
+[directions]\nn_theta = 8\nn_phi = 16\nincidence = {incidence}\nincidence_sampling = "exact"
+[effects]\ncomponents = {components}\n[sampling]\nseed = 3\n{sampling}""")
+        r = run(["run", job, "-o", f"np-{name}.h5"])
+        with h5py.File(os.path.join(TMP, f"np-{name}.h5"), "r") as h:
+            flags = h["/stats/nonphysical"][:, :, 0].astype(int)
+        got = int(np.bitwise_or.reduce(flags.reshape(-1)))
+        info = run(["info", f"np-{name}.h5"]).stdout
+        warned = [x for x in r.stderr.splitlines() if "is not physical" in x]
+        print(f"{name}: flags {flags.reshape(-1).tolist()} (want {want}); {len(warned)} warning(s)")
+        assert got == want, (name, flags, want)
+        if want:
+            assert warned and f"slice {int(np.argmax(flags.max(axis=1) > 0))} " in warned[0], (name, r.stderr)
+            assert "slice(s) computed now are not physical" in r.stderr, r.stderr
+            assert "not physical: " in info, info
+            run(["report", f"np-{name}.h5", "--render-size", "16", "-o", f"np-{name}.html"])
+            with open(os.path.join(TMP, f"np-{name}.html")) as f:
+                assert 'class="flagged">' in f.read(), name
+        else:
+            assert not warned and "not physical" not in info, (name, warned, info)
+
+
 def test_effects_adversarial():
     """Scenes built to fool the effects planner's pilots: an inter-reflection threshold between pilot
     incidences, listed incidences, collimated against bin-averaged incidence on a grating lit along
