@@ -9,6 +9,7 @@
 #include <memory>
 #include <numeric>
 #include <deque>
+#include <filesystem>
 #include <optional>
 #include <set>
 
@@ -635,6 +636,16 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   // does not match, an unwritable file), the workers are told there is nothing to do and every rank
   // returns the same error.
   std::unique_ptr<BsdfFileWriter> writer;
+  if (options.resume && !std::filesystem::exists(outPath + ".partial") &&
+      isFinishedOutputOf(outPath, outputSchemaOf(job))) {
+    spdlog::info("{} is already a finished table of this job (the same job text, input files and geometry, every "
+                 "slice done): nothing to resume",
+                 outPath);
+    summary.resumed = summary.tiles;
+    summary.alreadyFinished = true;
+    refuseWorkers(mpi, ExitCode::Ok);
+    return summary;
+  }
   try {
     checkDiskSpace(outPath, job, grid);
     writer = std::make_unique<BsdfFileWriter>(outPath, outputSchemaOf(job), grid, options.resume);

@@ -57,6 +57,7 @@ struct RunSummary {
   int computed = 0;  // tiles computed in this run (all ranks)
   int resumed = 0;   // tiles kept from an earlier run
   bool stoppedEarly = false;
+  bool alreadyFinished = false;  // --resume found the output finished by this job: nothing written
   // Not Ok when the run could not start or finish: BadInput (a resume that does not match, too
   // little memory), WriteFailed (the output or a log could not be written). Same on every rank;
   // `error` says why (rank 0).

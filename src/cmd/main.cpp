@@ -3,6 +3,7 @@
 // core/error.h.
 #include <CLI/CLI.hpp>
 
+#include <csignal>
 #include <iostream>
 
 #include "cmd/command.h"
@@ -13,6 +14,10 @@
 using namespace mbsdf;
 
 int main(int argc, char** argv) {
+  // A write beyond the file-size limit (ulimit -f) raises SIGXFSZ, whose default action kills the
+  // process (exit 153, no message); ignored, the write fails with EFBIG, which every writer reports
+  // as a write failure (exit 4, the file named, outputs intact).
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"microbsdf: tabulated BSDFs (BRDF + BTDF) of explicit surface microgeometry"};
   app.require_subcommand(1);
   app.set_version_flag("--version", MICROBSDF_VERSION);

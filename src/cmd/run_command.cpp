@@ -251,6 +251,7 @@ int runCommand(int argc, char** argv, RunArgs a) {
       return exitCode(s.exit);
     }
     if (s.stoppedEarly) return exitCode(ExitCode::Stopped);
+    if (s.alreadyFinished) return exitCode(ExitCode::Ok);
     if (mpi.rank() == 0)
       spdlog::info(
           "done: {} slices ({} tiles computed now, {} slices resumed), {} paths in total, {:.2f} s, wrote {} "

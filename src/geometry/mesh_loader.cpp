@@ -30,9 +30,8 @@ namespace {
 // parse: a truncated face "f 1" would silently leave a hole). Accepted: v (x y z, optionally w or
 // an RGB colour), vt, vn, f with at least three vertices whose indices exist (negative ones count
 // back), o, g, s, usemtl, mtllib and comment lines. Anything else is an error naming file:line.
-void checkObjText(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw InputError(path + ": cannot open");
+void checkObjText(const std::string& path, const std::string& text) {
+  std::istringstream f(text);
   std::string line;
   long long vertices = 0;
   auto fail = [&](int lineNo, const std::string& what) {
@@ -81,12 +80,24 @@ void checkObjText(const std::string& path) {
   }
 }
 
+// The file's text without a UTF-8 byte-order mark, which editors on Windows write first and
+// tinyobjloader would take as part of the first statement (job files are read the same way).
+std::string objText(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw InputError(path + ": cannot open");
+  std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (f.bad()) throw InputError(path + ": cannot read");
+  if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) text.erase(0, 3);
+  return text;
+}
+
 Microgeometry loadObj(const std::string& path, double scale) {
-  checkObjText(path);
+  const std::string text = objText(path);
+  checkObjText(path, text);
   tinyobj::ObjReader reader;
   tinyobj::ObjReaderConfig cfg;
   cfg.triangulate = true;
-  if (!reader.ParseFromFile(path, cfg)) throw InputError(path + ": cannot read OBJ: " + reader.Error());
+  if (!reader.ParseFromString(text, "", cfg)) throw InputError(path + ": cannot read OBJ: " + reader.Error());
   Microgeometry g;
   const auto& v = reader.GetAttrib().vertices;
   for (size_t i = 0; i + 2 < v.size(); i += 3) g.vertices.push_back(Vec3(v[i], v[i + 1], v[i + 2]) * scale);

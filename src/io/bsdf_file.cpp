@@ -603,6 +603,37 @@ std::vector<double> energyStdError(const TileResult& r, Component c, int side, c
   return se;
 }
 
+namespace {
+
+// How the file a run wrote differs from what `schema` would write — identity, not only text: the job
+// text, every input file's content and the geometry built; "" when it is the same job.
+std::string identityDifference(hid_t file, const OutputSchema& schema) {
+  std::string differs = jobTextDifference(readStringAttr(file, "job_text"), schema.jobText);
+  const std::string inputs = H5Aexists(file, "input_files") > 0 ? readStringAttr(file, "input_files") : "";
+  if (differs.empty()) differs = inputFilesDifference(inputs, schema.inputFiles);
+  const std::string storedHash = readStringAttr(file, "geometry_hash");
+  if (differs.empty() && storedHash != schema.geometryHash)
+    differs = "the microgeometry built from the job differs (geometry hash " + storedHash + ", now " +
+              schema.geometryHash + ")";
+  return differs;
+}
+
+}  // namespace
+
+bool isFinishedOutputOf(const std::string& path, const OutputSchema& schema) {
+  if (!std::filesystem::is_regular_file(path) || H5Fis_hdf5(path.c_str()) <= 0) return false;
+  try {
+    H5File f(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), "open " + path);
+    if (H5Aexists(f, "job_text") <= 0 || H5Aexists(f, "geometry_hash") <= 0 ||
+        !identityDifference(f, schema).empty() || H5Lexists(f, "/bsdf/done", H5P_DEFAULT) <= 0)
+      return false;
+    const std::vector<uint8_t> done = read1D<uint8_t>(f, "/bsdf/done", H5T_NATIVE_UINT8);
+    return done.size() == schema.incidence.size() && std::all_of(done.begin(), done.end(), [](uint8_t d) { return d; });
+  } catch (const std::exception&) {
+    return false;  // not a table this program can read: the run makes it anew
+  }
+}
+
 BsdfFileWriter::BsdfFileWriter(const std::string& path, OutputSchema outputSchema, const DirectionGrid& grid,
                                bool resume)
     : path_(path),
@@ -631,14 +662,7 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, OutputSchema outputSchem
   {
     H5File old(H5Fopen(partial_.c_str(), H5F_ACC_RDONLY | H5F_ACC_SWMR_READ, H5P_DEFAULT),
                "open " + partial_ + " to resume");
-    // Identity, not only text: the job text, every input file's content and the geometry built.
-    std::string differs = jobTextDifference(readStringAttr(old, "job_text"), schema.jobText);
-    const std::string inputs = H5Aexists(old, "input_files") > 0 ? readStringAttr(old, "input_files") : "";
-    if (differs.empty()) differs = inputFilesDifference(inputs, schema.inputFiles);
-    const std::string storedHash = readStringAttr(old, "geometry_hash");
-    if (differs.empty() && storedHash != schema.geometryHash)
-      differs = "the microgeometry built from the job differs (geometry hash " + storedHash + ", now " +
-                schema.geometryHash + ")";
+    const std::string differs = identityDifference(old, schema);
     if (!differs.empty())
       throw InputError("cannot resume " + partial_ + ": " + differs + ". Restore what changed, or remove " + partial_ +
                        " and " + journal_ + " (or run without --resume) to start over");

@@ -109,6 +109,11 @@ PreparedSlice prepareSlice(const TileResult& r, const OutputSchema& schema, cons
 std::vector<unsigned char> serializePrepared(const PreparedSlice& p);
 PreparedSlice deserializePrepared(const std::vector<unsigned char>& bytes);
 
+// Whether `path` is a finished table of the job `schema` describes: the identity --resume checks
+// (job text, input files' contents, geometry hash) and every slice done. `run --resume` then has
+// nothing to compute.
+bool isFinishedOutputOf(const std::string& path, const OutputSchema& schema);
+
 class BsdfFileWriter {
  public:
   // resume: keep the finished slices of an earlier run of the same job (see above). Throws

@@ -126,6 +126,21 @@ TEST(MeshLoader, MalformedObjLinesAndShortFacesAreNamed) {
   EXPECT_NE(errorOf(ply).find("short.ply: face 1 has 2 vertex indices"), std::string::npos) << errorOf(ply);
 }
 
+// A UTF-8 byte-order mark (written first by editors on Windows) is not part of the first statement:
+// the same triangles with and without it, and a malformed line is still named by its number.
+TEST(MeshLoader, ObjWithByteOrderMark) {
+  const std::string body = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0.5\nf 1 2 3\nf 2 4 3\n";
+  write(tmp("plain.obj"), body);
+  write(tmp("bom.obj"), "\xEF\xBB\xBF" + body);
+  const Microgeometry a = loadMesh(tmp("plain.obj"), 1.0), b = loadMesh(tmp("bom.obj"), 1.0);
+  ASSERT_EQ(b.triangles.size(), 2u);
+  ASSERT_EQ(a.vertices.size(), b.vertices.size());
+  for (size_t i = 0; i < a.vertices.size(); ++i) EXPECT_EQ(a.vertices[i], b.vertices[i]);
+  for (size_t i = 0; i < a.triangles.size(); ++i) EXPECT_EQ(a.triangles[i], b.triangles[i]);
+  write(tmp("bom-bad.obj"), "\xEF\xBB\xBF" + body + "f 1 2\n");
+  EXPECT_NE(errorOf(tmp("bom-bad.obj")).find("bom-bad.obj:7"), std::string::npos) << errorOf(tmp("bom-bad.obj"));
+}
+
 TEST(HeightfieldLoader, ExrRoundTripAndNaN) {
   const int w = 8, h = 4;
   ExrChannel y{"Y", std::vector<float>(w * h)};

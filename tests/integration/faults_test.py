@@ -8,6 +8,7 @@ state (a journal line, a log line, a process gone), with a timeout only as a bou
 """
 import json
 import os
+import resource
 import shutil
 import signal
 import subprocess
@@ -133,6 +134,48 @@ def test_disk_full():
         subprocess.run(["umount", disk], capture_output=True)
     print(f"disk full ({how}): exit 4 with ENOSPC named, {journaled} slices journaled, old output "
           "byte-identical; --resume completed it identical to a clean run; a full log folder: exit 4")
+
+
+def test_file_size_limit():
+    """A file-size limit (ulimit -f) below the output's size: exit 4 naming the partial file and
+    EFBIG (not SIGXFSZ's silent kill, exit 153), the old output byte-identical, and --resume without
+    the limit completing a table identical to a clean run."""
+    job = small_job(os.path.join(TMP, "job.toml"), output="out.h5")
+    ref = good_output("out.h5", job)
+    limit = os.path.getsize(os.path.join(TMP, "out.h5")) // 2
+
+    def limited():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    p = subprocess.run([EXE, "run", job, "-o", "out.h5"], capture_output=True, text=True, timeout=300, env=ENV,
+                       cwd=TMP, preexec_fn=limited)
+    text = p.stdout + p.stderr
+    assert p.returncode == EXIT_WRITE_FAILED, f"exit {p.returncode} under ulimit -f:\n{text}"
+    assert "File too large (EFBIG)" in text and "out.h5.partial" in text, text
+    assert sha(os.path.join(TMP, "out.h5")) == ref, "the old output was damaged"
+    run(["run", job, "-o", "fresh.h5"])
+    run(["run", job, "-o", "out.h5", "--resume"])
+    assert datasets(os.path.join(TMP, "out.h5")) == datasets(os.path.join(TMP, "fresh.h5"))
+    print(f"ulimit -f {limit} bytes: exit 4 naming EFBIG, the old output byte-identical; --resume completed it "
+          "identical to a clean run")
+
+
+def test_resume_finished():
+    """--resume of an output this job already finished computes nothing (0 tiles, exit 0, the file
+    byte-identical, under mpirun -np 2 too); the same with a changed job runs it afresh."""
+    job = small_job(os.path.join(TMP, "job.toml"), output="out.h5")
+    ref = good_output("out.h5", job)
+    text = expect(["run", job, "-o", "out.h5", "--resume"], 0, "already a finished table of this job", mpi=2)
+    assert "tiles computed now" not in text, text
+    assert sha(os.path.join(TMP, "out.h5")) == ref, "a finished output was rewritten"
+    with open(job) as f:
+        changed = f.read().replace("seed = 7", "seed = 8")
+    with open(job, "w") as f:
+        f.write(changed)
+    text = expect(["run", job, "-o", "out.h5", "--resume"], 0, "5 tiles computed now")
+    assert "already a finished table" not in text and sha(os.path.join(TMP, "out.h5")) != ref, text
+    print("--resume of a finished output: nothing computed, byte-identical (2 ranks); with a changed job: computed "
+          "afresh")
 
 
 def test_two_writers():
