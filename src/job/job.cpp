@@ -415,6 +415,21 @@ void parseSampling(const ParamDict& samp, Job& job) {
                                          : Job::VisibilityTableMode::Auto;
 }
 
+// Every vertex within 1e6 µm (1 m) of the origin. Embree traces in single precision and asserts on
+// bounds it cannot represent (heights of 5e28 µm from a finite EXR of 1e30 × height_scale 0.05
+// aborted the run); a surface patch of that size is a unit or scale error.
+void checkCoordinates(const ParamDict& geo, const char* shapeKey, const Microgeometry& g) {
+  constexpr double kMaxCoordinate_um = 1e6;
+  for (size_t i = 0; i < g.vertices.size(); ++i) {
+    const Vec3& v = g.vertices[i];
+    const double m = std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+    if (!(m <= kMaxCoordinate_um))
+      geo.fail(shapeKey, fmt::format("vertex {} lies at ({:.4g}, {:.4g}, {:.4g}) µm, beyond the 1e6 µm (1 m) a surface "
+                                     "patch can span: check the file's units, height_scale or size_um",
+                                     i, v.x, v.y, v.z));
+  }
+}
+
 // [geometry]: a statistical surface (its NDF) or explicit microgeometry, and the input files it reads.
 void parseGeometry(const ParamDict& geo, const ParamDict& eff, const std::string& baseDir,
                    const std::string& sourceName, Job& job) {
@@ -446,8 +461,9 @@ void parseGeometry(const ParamDict& geo, const ParamDict& eff, const std::string
     TopographyReport topography;
     job.geometry = buildMicrogeometry(geo, baseDir, &job.geometryKind, &topography);
     if (topography.heights) job.topography = std::move(topography);
-    job.closure = surfaceClosureOf(job.geometry);
     const char* shapeKey = geo.has("file") ? "file" : "kind";
+    checkCoordinates(geo, shapeKey, job.geometry);
+    job.closure = surfaceClosureOf(job.geometry);
     // A face wound the other way faces the other medium: it would take the upper medium's light as
     // the lower's (a flat square with one face turned reflected 0.38 instead of 0.92).
     if (job.closure.windingEdges)

@@ -26,11 +26,19 @@ ParamDict ParamDict::parseString(const std::string& text, const std::string& sou
 }
 
 ParamDict ParamDict::parseFile(const std::string& path) {
-  std::ifstream f(path);
+  std::ifstream f(path, std::ios::binary);
   if (!f) throw InputError(path + ": cannot open job file");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return parseString(ss.str(), path);
+  // A job's text is keys and short lists: 22 500 listed incidences take under 1 MB. Read no more
+  // than the limit, so that a device or a wrong file (/dev/zero, an HDF5 table) is refused at once
+  // instead of being read until memory runs out.
+  constexpr size_t kMaxJobBytes = size_t(16) << 20;
+  std::string text(kMaxJobBytes + 1, '\0');
+  f.read(text.data(), std::streamsize(text.size()));
+  if (f.bad()) throw InputError(path + ": cannot read job file");
+  text.resize(size_t(f.gcount()));
+  if (text.size() > kMaxJobBytes)
+    throw InputError(path + ": larger than 16 MiB, which no job file is (is it a job file?)");
+  return parseString(text, path);
 }
 
 std::string ParamDict::path(const std::string& key) const {

@@ -123,11 +123,15 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
     int group;
     uint64_t c0, c1;  // chunks [c0, c1) of the group
   };
-  std::vector<Batch> batches;
+  // The batches in order, each made from its index: a list of them would take 24 bytes a batch,
+  // 90 GB for 1e15 paths per slice.
   const uint64_t nChunks = (N + kPathChunk - 1) / kPathChunk;
-  for (int g = 0; g < int(plan.groups.size()); ++g)
-    for (uint64_t c0 = 0; c0 < nChunks; c0 += kPathChunksPerBatch)
-      batches.push_back({g, c0, std::min(nChunks, c0 + kPathChunksPerBatch)});
+  const uint64_t perGroup = (nChunks + kPathChunksPerBatch - 1) / kPathChunksPerBatch;
+  const uint64_t nBatches = perGroup * plan.groups.size();
+  auto batch = [&](uint64_t i) {
+    const uint64_t c0 = (i % perGroup) * kPathChunksPerBatch;
+    return Batch{int(i / perGroup), c0, std::min(nChunks, c0 + kPathChunksPerBatch)};
+  };
 
   auto compute = [&](const Batch& b, std::vector<PathChunk>& set, size_t& used) {
     // The chunks' storage is kept from batch to batch and from run to run (chunkPool).
@@ -169,14 +173,15 @@ TileResult runPaths(const PathTallyPlan& plan, const PathBatchFunction& trace,
   std::vector<PathChunk>* current = &*first;
   std::vector<PathChunk>* next = &*second;
   size_t currentUsed = 0, nextUsed = 0;
-  if (!batches.empty()) compute(batches[0], *current, currentUsed);
-  for (size_t i = 0; i < batches.size(); ++i) {
+  if (nBatches > 0) compute(batch(0), *current, currentUsed);
+  for (uint64_t i = 0; i < nBatches; ++i) {
     throwIfStopped();
     tbb::task_group ahead;
-    if (i + 1 < batches.size()) ahead.run([&] { compute(batches[i + 1], *next, nextUsed); });
+    if (i + 1 < nBatches) ahead.run([&] { compute(batch(i + 1), *next, nextUsed); });
     try {
       merge({current->data(), currentUsed});
-      if (progress) progress(uint64_t(batches[i].group) * N + std::min(N, batches[i].c1 * kPathChunk));
+      const Batch b = batch(i);
+      if (progress) progress(uint64_t(b.group) * N + std::min(N, b.c1 * kPathChunk));
     } catch (...) {
       ahead.cancel();
       ahead.wait();

@@ -160,6 +160,41 @@ def test_file_size_limit():
           "identical to a clean run")
 
 
+def test_runaways():
+    """paths_per_slice = 1e15 on a flat mirror: the run's memory stays what a small job needs (its
+    batches of paths are made as they are traced, not listed first: 90 GB) and a SIGTERM stops it
+    cleanly with exit 3. /dev/zero as a job file: refused at once with exit 2 (it was read until
+    memory ran out). A heightfield of heights 5e28 um: exit 2 naming the key (Embree aborted)."""
+    job = os.path.join(TMP, "huge.toml")
+    with open(job, "w") as f:
+        f.write("""[geometry]\nkind = "flat"\n[material]\nname = "mirror"\n[spectrum]\nwavelengths_nm = [550.0]
+[directions]\nn_theta = 8\nn_phi = 16\nincidence = [[30.0, 0.0]]\n[effects]\ncomponents = ["coherent", "multiple"]
+[sampling]\npaths_per_slice = 1000000000000000\n""")
+    p = subprocess.Popen([EXE, "run", job, "-o", "huge.h5"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                         text=True, env=ENV, cwd=TMP)
+    peak_kb = 0
+    for _ in range(40):  # 4 s of tracing
+        time.sleep(0.1)
+        with open(f"/proc/{p.pid}/status") as f:
+            peak_kb = max([peak_kb] + [int(x.split()[1]) for x in f if x.startswith("VmHWM:")])
+    p.send_signal(signal.SIGTERM)
+    out, _ = p.communicate(timeout=120)
+    print(f"paths_per_slice 1e15: peak resident {peak_kb / 1024:.0f} MB after 4 s; exit {p.returncode} on SIGTERM")
+    assert p.returncode == EXIT_STOPPED, out
+    assert peak_kb < 1024 * 1024, f"peak resident {peak_kb} kB"
+    for command in (["check", "/dev/zero"], ["run", "/dev/zero", "-o", "zero.h5"]):
+        expect(command, EXIT_BAD_INPUT, "/dev/zero: larger than 16 MiB")
+    # Finite but enormous heights (1e30 x height_scale 0.05): refused naming the key and the vertex,
+    # before Embree (whose bounds assertion aborted the run with a core dump).
+    sys.path.insert(0, os.path.join(SRC, "python"))
+    from topography_files import write_exr
+    write_exr(os.path.join(TMP, "tall.exr"), np.full((8, 8), 1e30, np.float32))
+    tall = small_job(os.path.join(TMP, "tall.toml"), output="tall.h5",
+                     geometry='kind = "heightfield"\nfile = "tall.exr"\ntexel_um = 0.5\nheight_scale = 0.05\n')
+    for command in (["check", tall], ["run", tall, "-o", "tall.h5"]):
+        expect(command, EXIT_BAD_INPUT, "geometry.file", "beyond the 1e6 µm")
+
+
 def test_resume_finished():
     """--resume of an output this job already finished computes nothing (0 tiles, exit 0, the file
     byte-identical, under mpirun -np 2 too); the same with a changed job runs it afresh."""
