@@ -268,6 +268,10 @@ class TileServer {
     written_ = int(finished_.size());
     if (summary_.resumed)
       spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary_.resumed, nTiles, outPath);
+    for (int t : writer.recomputedTiles())
+      spdlog::warn("resuming: slice {} is marked done in {}.partial but its energies are not finite (a damaged or "
+                   "forged flag): computing it again",
+                   t, outPath);
     // Symmetry (symmetry.h): one tile per ring (or per n-th of a ring) of a symmetric surface;
     // queued if any slice of its ring is missing (a kill may fall between a ring's slices).
     if (job.symmetryReduced()) symmetry_.emplace(job, grid);

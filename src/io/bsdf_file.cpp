@@ -659,21 +659,59 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, OutputSchema outputSchem
   // Resume: copy the finished slices of the old partial file (opened as a SWMR reader: readable
   // even if its writer was killed) into a new one.
   const std::string fresh = partial_ + ".new";
+  // What is read from the old partial file: an HDF5 failure there is a damaged file (truncated,
+  // overwritten), which the user must remove, not a failure of this run.
+  auto fromOld = [&](auto read) {
+    try {
+      return read();
+    } catch (const InputError&) {
+      throw;
+    } catch (const WriteError&) {
+      throw;
+    } catch (const std::runtime_error& e) {
+      throw InputError("cannot resume " + partial_ + ": it is damaged or not a partial table of this program (" +
+                       e.what() + "). Remove " + partial_ + " and " + journal_ +
+                       " (or run without --resume) to start over");
+    }
+  };
   {
-    H5File old(H5Fopen(partial_.c_str(), H5F_ACC_RDONLY | H5F_ACC_SWMR_READ, H5P_DEFAULT),
-               "open " + partial_ + " to resume");
-    const std::string differs = identityDifference(old, schema);
+    H5File old = fromOld([&] {
+      // One read of each piece of metadata: a SWMR reader retries a checksum failure (its writer
+      // may be mid-write) for minutes, but this file's writer is gone (the lock was taken), so a
+      // failure is damage.
+      H5Plist fapl(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate");
+      h5check(H5Pset_metadata_read_attempts(fapl, 1), "H5Pset_metadata_read_attempts");
+      return H5File(H5Fopen(partial_.c_str(), H5F_ACC_RDONLY | H5F_ACC_SWMR_READ, fapl),
+                    "open " + partial_ + " to resume");
+    });
+    const std::string differs = fromOld([&] { return identityDifference(old, schema); });
     if (!differs.empty())
       throw InputError("cannot resume " + partial_ + ": " + differs + ". Restore what changed, or remove " + partial_ +
                        " and " + journal_ + " (or run without --resume) to start over");
-    std::vector<uint8_t> done = read1D<uint8_t>(old, "/bsdf/done", H5T_NATIVE_UINT8);
+    const std::vector<uint8_t> done = fromOld([&] { return read1D<uint8_t>(old, "/bsdf/done", H5T_NATIVE_UINT8); });
     create(fresh);
     for (int t : journaled) {
       if (t < 0 || t >= int(done.size()) || !done[t]) continue;
-      for (const auto& d : rowDatasets(schema))  // (a partial file of an older version lacks some statistics)
-        if (H5Lexists(old, d.substr(0, d.rfind('/')).c_str(), H5P_DEFAULT) > 0 &&
-            H5Lexists(old, d.c_str(), H5P_DEFAULT) > 0)
-          writeRow(file_, d, t, readRowImpl(old, d, t), H5T_NATIVE_DOUBLE);
+      using Rows = std::map<std::string, std::vector<double>>;
+      Rows kept = fromOld([&] {
+        Rows rows;
+        for (const auto& d : rowDatasets(schema))  // (a partial file of an older version lacks some statistics)
+          if (H5Lexists(old, d.substr(0, d.rfind('/')).c_str(), H5P_DEFAULT) > 0 &&
+              H5Lexists(old, d.c_str(), H5P_DEFAULT) > 0)
+            rows[d] = readRowImpl(old, d, t);
+        return rows;
+      });
+      // A finished slice has finite energies; a `done` flag over rows never written (fill values) is
+      // a forged or damaged flag: the slice is computed again.
+      const bool finite = std::all_of(kept.begin(), kept.end(), [](const auto& row) {
+        return row.first.rfind("/stats/energy_", 0) != 0 ||
+               std::all_of(row.second.begin(), row.second.end(), [](double x) { return std::isfinite(x); });
+      });
+      if (!finite) {
+        recomputed_.push_back(t);
+        continue;
+      }
+      for (const auto& [d, row] : kept) writeRow(file_, d, t, row, H5T_NATIVE_DOUBLE);
       resumed_.push_back(t);
     }
     h5check(H5Fflush(file_, H5F_SCOPE_GLOBAL), "flush " + fresh);

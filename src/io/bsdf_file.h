@@ -146,6 +146,8 @@ class BsdfFileWriter {
   void close();
   // Incidence indices whose slices are already complete (after a resume).
   const std::vector<int>& resumedTiles() const { return resumed_; }
+  // Slices the journal listed whose energies in the partial file are not finite: computed again.
+  const std::vector<int>& recomputedTiles() const { return recomputed_; }
 
  private:
   void create(const std::string& file);
@@ -194,7 +196,7 @@ class BsdfFileWriter {
   H5File file_;
   std::map<std::string, OpenDataset> datasets_;                        // declared after file_: closed before it
   std::map<std::string, std::map<int, std::vector<double>>> pending_;  // path → row → values (putRow)
-  std::vector<int> resumed_;
+  std::vector<int> resumed_, recomputed_;
   nlohmann::json pairsReport_ = nlohmann::json::object();
   bool finished_ = false;
 };

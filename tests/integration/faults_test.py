@@ -15,6 +15,7 @@ import subprocess
 import sys
 import time
 
+import h5py
 import numpy as np
 
 from harness import *  # noqa: F401,F403 (BUILD, SRC, EXE, ENV, TMP, run, small_job, datasets, ...)
@@ -193,6 +194,46 @@ def test_runaways():
                      geometry='kind = "heightfield"\nfile = "tall.exr"\ntexel_um = 0.5\nheight_scale = 0.05\n')
     for command in (["check", tall], ["run", tall, "-o", "tall.h5"]):
         expect(command, EXIT_BAD_INPUT, "geometry.file", "beyond the 1e6 µm")
+
+
+def test_damaged_partials():
+    """--resume of a partial file that is truncated or overwritten with garbage: exit 2 naming the
+    file and what to do, no MPI_ABORT (it was exit 1 with an abort banner). A slice whose `done` flag
+    and journal line were forged over rows never written: computed again, with a warning, and the
+    finished table identical to a clean run with no NaN."""
+    job = small_job(os.path.join(TMP, "job.toml"), output="out.h5")
+    run(["run", job, "-o", "ref.h5"])
+    for damage in ("truncated", "garbage"):
+        out = f"{damage}.h5"
+        killed_partial(job, out)
+        partial = os.path.join(TMP, out + ".partial")
+        size = os.path.getsize(partial)
+        with open(partial, "r+b") as f:
+            if damage == "truncated":
+                f.truncate(size // 3)
+            else:
+                f.seek(size // 4)
+                f.write(np.random.default_rng(1).bytes(size // 2))
+        expect(["run", job, "-o", out, "--resume"], EXIT_BAD_INPUT, f"cannot resume {out}.partial", "damaged",
+               f"Remove {out}.partial", mpi=2)
+    out = "forged.h5"
+    killed_partial(job, out)
+    partial = os.path.join(TMP, out + ".partial")
+    subprocess.run(["h5clear", "-s", partial], check=True, capture_output=True)
+    with h5py.File(partial, "r+") as h:
+        done = h["/bsdf/done"][:]
+        forged = int(np.flatnonzero(done == 0)[0])
+        done[forged] = 1
+        h["/bsdf/done"][:] = done
+    with open(partial[:-len(".partial")] + ".journal", "a") as f:
+        f.write(f"tile {forged}\n")
+    text = expect(["run", job, "-o", out, "--resume"], 0, f"slice {forged} is marked done", "computing it again",
+                  mpi=2)
+    assert datasets(os.path.join(TMP, out)) == datasets(os.path.join(TMP, "ref.h5")), "the resumed table differs"
+    with h5py.File(os.path.join(TMP, out), "r") as h:
+        assert all(np.all(np.isfinite(h["/bsdf/" + c][...])) for c in h["/bsdf"] if c != "done")
+    print(f"truncated and garbage partials: exit 2 naming the file; a forged done flag (slice {forged}): computed "
+          "again, the table identical to a clean run")
 
 
 def test_resume_finished():
