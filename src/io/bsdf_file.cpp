@@ -1905,6 +1905,25 @@ BsdfFileReader::BsdfFileReader(const std::string& path) {
     throw InputError(path + ": cannot be opened as HDF5 (not a microbsdf output file, or no permission to read it)");
   }
   file_ = H5File(id, "open " + path);
+  path_ = path;
+  // A foreign HDF5 file, or one damaged, is refused with what it lacks (exit 2), not with the HDF5
+  // library's error stack.
+  for (const char* required : {"/spectrum", "/spectrum/wavelength_nm", "/incidence", "/incidence/bin",
+                               "/incidence/theta_deg", "/incidence/phi_deg", "/bsdf", "/bsdf/done", "/grid"})
+    if (H5Lexists(file_, required, H5P_DEFAULT) <= 0) {
+      H5Eclear2(H5E_DEFAULT);
+      throw InputError(path + ": not a microbsdf output file (it has no " + required + ")");
+    }
+  try {
+    readStructure(path);
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::runtime_error& e) {
+    throw InputError(path + ": a damaged microbsdf output file (" + e.what() + ")");
+  }
+}
+
+void BsdfFileReader::readStructure(const std::string& path) {
   lambda_nm_ = read1D<double>(file_, "/spectrum/wavelength_nm", H5T_NATIVE_DOUBLE);
   incBin_ = read1D<int>(file_, "/incidence/bin", H5T_NATIVE_INT);
   incTheta_ = read1D<double>(file_, "/incidence/theta_deg", H5T_NATIVE_DOUBLE);
@@ -1931,6 +1950,10 @@ BsdfFileReader::BsdfFileReader(const std::string& path) {
     grid_ = std::make_unique<DirectionGrid>(ThetaPhiGrid{intAttr("n_theta"), intAttr("n_phi")});
   else
     grid_ = std::make_unique<DirectionGrid>(DiskGrid{intAttr("width"), intAttr("height")});
+  if (incBin_.size() != done_.size() || incTheta_.size() != done_.size() || incPhi_.size() != done_.size() ||
+      lambda_nm_.empty())
+    throw InputError(path + ": a damaged microbsdf output file (its incidence and done lists differ in length, or it "
+                            "has no wavelength)");
 }
 
 SpectrumToColour BsdfFileReader::toColour() const {
@@ -1983,7 +2006,20 @@ const BsdfFileReader::OpenTable& BsdfFileReader::table(const std::string& path) 
   return tables_.emplace(path, std::move(t)).first->second;
 }
 
+// A finished table holds finite values only (every mirrored half filled, every skipped component
+// 0): a NaN or an infinity there is damage, which a reader must not pass on as a figure. A partial
+// file may hold NaN in the half of a pair still to be mirrored, and is read as it is.
 std::vector<double> BsdfFileReader::readTable(const std::string& path, int incidence) const {
+  std::vector<double> v = readTableValues(path, incidence);
+  if (doneCount() == incidenceCount())
+    for (size_t k = 0; k < v.size(); ++k)
+      if (!std::isfinite(v[k]))
+        throw InputError(fmt::format("{}: {} of slice {} holds {} at value {}: the table is damaged; compute it again",
+                                     path_, path, incidence, v[k], k));
+  return v;
+}
+
+std::vector<double> BsdfFileReader::readTableValues(const std::string& path, int incidence) const {
   const OpenTable& t = table(path);
   std::vector<double> v = readRowFrom(t.d, path, incidence);
   const size_t nB = size_t(grid_->binCount()), nC = v.size() / nB, nI = incBin_.size();

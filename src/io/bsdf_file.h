@@ -276,6 +276,9 @@ class BsdfFileReader {
   int nearestIncidence(double theta_deg, double phi_deg) const;
 
  private:
+  void readStructure(const std::string& path);  // the axes, grid and done flags (the constructor)
+  std::vector<double> readTableValues(const std::string& path, int incidence) const;
+  std::string path_;
   std::vector<double> readRow(const std::string& dataset, int incidence) const;
   // A table's row, multiplied by its scales in a half-precision file, its mirrored half filled
   // where pairs are stored once.
