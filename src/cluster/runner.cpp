@@ -578,7 +578,14 @@ void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
   } catch (const WriteError& e) {
     if (writeFailure_.empty()) writeFailure_ = e.what();
   }
-  if (!writeFailure_.empty()) {
+  if (!writeFailure_.empty() && writer_.outputInPlace()) {
+    summary_.exit = ExitCode::WriteFailed;
+    summary_.error = fmt::format(
+        "{}. {} is complete and in place (every slice; the partial file and journal are gone), but the sync of its "
+        "folder failed: after a crash or power loss the folder may still show the file as it was. Check the file "
+        "system; `microbsdf info {}` shows the table",
+        writeFailure_, outPath_, outPath_);
+  } else if (!writeFailure_.empty()) {
     summary_.exit = ExitCode::WriteFailed;
     summary_.error = fmt::format(
         "{}. {}/{} slices are safe in {}.partial (listed in its journal); free space or fix the "

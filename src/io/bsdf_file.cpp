@@ -1878,10 +1878,14 @@ void BsdfFileWriter::finish() {
     syncPath(partial_);
     renameChecked(partial_, path_);
   }
-  std::filesystem::path dir = std::filesystem::path(path_).parent_path();
-  syncPath(dir.empty() ? "." : dir.string());
+  // The output has its name and the partial file is gone: the journal goes with it before the
+  // folder is synced, and a failure of that sync is reported as what it is (the output in place,
+  // its rename not yet durable), not as a run whose partial file is still there.
+  inPlace_ = true;
   std::error_code ec;
   std::filesystem::remove(journal_, ec);
+  std::filesystem::path dir = std::filesystem::path(path_).parent_path();
+  syncPath(dir.empty() ? "." : dir.string());
   finished_ = true;
 }
 

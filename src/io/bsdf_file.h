@@ -146,6 +146,8 @@ class BsdfFileWriter {
   void close();
   // Incidence indices whose slices are already complete (after a resume).
   const std::vector<int>& resumedTiles() const { return resumed_; }
+  // finish() renamed the partial file to the output (even if syncing its folder then failed).
+  bool outputInPlace() const { return inPlace_; }
   // Slices the journal listed whose energies in the partial file are not finite: computed again.
   const std::vector<int>& recomputedTiles() const { return recomputed_; }
 
@@ -197,6 +199,7 @@ class BsdfFileWriter {
   std::map<std::string, OpenDataset> datasets_;                        // declared after file_: closed before it
   std::map<std::string, std::map<int, std::vector<double>>> pending_;  // path → row → values (putRow)
   std::vector<int> resumed_, recomputed_;
+  bool inPlace_ = false;
   nlohmann::json pairsReport_ = nlohmann::json::object();
   bool finished_ = false;
 };

@@ -264,6 +264,50 @@ def test_damaged_tables():
     print("foreign, incomplete-schema and NaN tables: every reader exits 2 naming the file")
 
 
+FOLDER_FSYNC_SHIM = r"""
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <errno.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
+/* fsync of a folder fails with EIO once the file named by FAIL_FOLDER_FSYNC_AFTER exists. */
+int fsync(int fd) {
+  static int (*real)(int);
+  if (!real) real = (int (*)(int))dlsym(RTLD_NEXT, "fsync");
+  struct stat st;
+  const char *after = getenv("FAIL_FOLDER_FSYNC_AFTER");
+  if (after && access(after, F_OK) == 0 && fstat(fd, &st) == 0 && S_ISDIR(st.st_mode)) {
+    errno = EIO;
+    return -1;
+  }
+  return real(fd);
+}
+"""
+
+
+def test_folder_sync_after_rename():
+    """EIO on the folder's fsync after the partial file was renamed to the output: exit 4 with a
+    message that says what is true (the output complete and in place, its rename not yet durable),
+    no journal left; it said "5/5 slices are safe in OUT.h5.partial ... OUT.h5 was not changed"
+    while the partial was gone and the output replaced (fsync failed by an LD_PRELOAD shim)."""
+    shim = os.path.join(TMP, "shim.so")
+    with open(os.path.join(TMP, "shim.c"), "w") as f:
+        f.write(FOLDER_FSYNC_SHIM)
+    subprocess.run(["cc", "-shared", "-fPIC", "-o", shim, os.path.join(TMP, "shim.c"), "-ldl"], check=True)
+    job = small_job(os.path.join(TMP, "job.toml"), output="c.h5")
+    out = os.path.join(TMP, "c.h5")
+    env = dict(ENV, LD_PRELOAD=shim, FAIL_FOLDER_FSYNC_AFTER=out)
+    p = subprocess.run([EXE, "run", job, "-o", "c.h5"], capture_output=True, text=True, timeout=300, env=env, cwd=TMP)
+    text = p.stdout + p.stderr
+    assert p.returncode == EXIT_WRITE_FAILED, f"exit {p.returncode}:\n{text}"
+    assert "is complete and in place" in text and "Input/output error" in text, text
+    assert "was not changed" not in text and "safe in c.h5.partial" not in text, text
+    assert not os.path.exists(out + ".journal") and not os.path.exists(out + ".partial")
+    assert "complete:    5/5 slices" in run(["info", "c.h5"]).stdout
+    print("EIO on the folder's fsync after the rename: exit 4 saying the output is complete and in place, no journal left")
+
+
 def test_resume_finished():
     """--resume of an output this job already finished computes nothing (0 tiles, exit 0, the file
     byte-identical, under mpirun -np 2 too); the same with a changed job runs it afresh."""
