@@ -164,11 +164,10 @@ void logJobHeader(const Job& job, const DirectionGrid& grid, const TileComputer&
   const WaveEstimator* wave = tiles.wave();
   if (wave) {
     const std::string notes = wave->notes();
-    spdlog::info("scalar diffraction: {} estimator ({}), {}, coherence length {} µm{}", wave->name(),
-                 job.waveEstimatorChoice(),
-                 notes.empty() ? std::to_string(job.waveSamplesPerBin) + " samples per bin" : notes,
-                 job.scene.coherenceLength_um,
-                 job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
+    spdlog::info(
+        "scalar diffraction: {} estimator ({}), {}, coherence length {} µm{}", wave->name(), job.waveEstimatorChoice(),
+        notes.empty() ? std::to_string(job.waveSamplesPerBin) + " samples per bin" : notes,
+        job.scene.coherenceLength_um, job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
     // Reciprocity (docs/physics.md §8): each pair of incidence bins gets the wave term once.
     const std::optional<ReciprocalPairs>& pairs = tiles.pairs();
     spdlog::info("reciprocity: {}", pairs ? fmt::format("the wave term is computed for {:.1f}% of the same-side bin "
@@ -269,9 +268,10 @@ class TileServer {
     if (summary_.resumed)
       spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary_.resumed, nTiles, outPath);
     for (int t : writer.recomputedTiles())
-      spdlog::warn("resuming: slice {} is marked done in {}.partial but its energies are not finite (a damaged or "
-                   "forged flag): computing it again",
-                   t, outPath);
+      spdlog::warn(
+          "resuming: slice {} is marked done in {}.partial but its energies are not finite (a damaged or "
+          "forged flag): computing it again",
+          t, outPath);
     // Symmetry (symmetry.h): one tile per ring (or per n-th of a ring) of a symmetric surface;
     // queued if any slice of its ring is missing (a kill may fall between a ring's slices).
     if (job.symmetryReduced()) symmetry_.emplace(job, grid);
@@ -382,8 +382,8 @@ class TileServer {
   int nonphysical_ = 0, worstSlice_ = -1;
   unsigned worstFlags_ = 0;
   double worstBadness_ = 0;
-  double writeSeconds_ = 0;    // rank 0's time in the writer (slices, their flags, the journal)
-  double prepareSeconds_ = 0;  // rank 0 preparing the slices of its own tiles (prepareSlice)
+  double writeSeconds_ = 0;                  // rank 0's time in the writer (slices, their flags, the journal)
+  double prepareSeconds_ = 0;                // rank 0 preparing the slices of its own tiles (prepareSlice)
   std::map<std::string, double> energySum_;  // Σ over the slices written now of each component's Σ f Ω⊥
 };
 
@@ -402,11 +402,11 @@ void TileServer::noteSliceChecks(int slice, const EnergyBalance& b) {
       if (f & (unsigned(SliceFlag::NegativeEnergy) | unsigned(SliceFlag::ExcessEnergy)))
         figures += fmt::format("; energy {:.4f} ± {:.4f}", b.energy[l], b.stdError[l]);
       if (f & unsigned(SliceFlag::Unbalanced))
-        figures += fmt::format("; energy balance {:+.4f} ± {:.4f} (reflected + transmitted + lost paths − 1{}), "
-                               "beyond the tolerance {}: the model's own error there",
-                               b.value[l], b.stdError[l],
-                               job_.material.lossless() ? "" : ", counted only above 1: the material absorbs",
-                               job_.scene.tolerance);
+        figures += fmt::format(
+            "; energy balance {:+.4f} ± {:.4f} (reflected + transmitted + lost paths − 1{}), "
+            "beyond the tolerance {}: the model's own error there",
+            b.value[l], b.stdError[l], job_.material.lossless() ? "" : ", counted only above 1: the material absorbs",
+            job_.scene.tolerance);
       if (f & unsigned(SliceFlag::PathsLost))
         figures += fmt::format("; {:.4f} of the paths truncated at max_depth, leaked or missed", b.pathsLost[l]);
       spdlog::warn("slice {} (theta_i {:.3g} deg, {} nm) is not physical: {}{}", slice,
@@ -649,9 +649,10 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
   std::unique_ptr<BsdfFileWriter> writer;
   if (options.resume && !std::filesystem::exists(outPath + ".partial") &&
       isFinishedOutputOf(outPath, outputSchemaOf(job))) {
-    spdlog::info("{} is already a finished table of this job (the same job text, input files and geometry, every "
-                 "slice done): nothing to resume",
-                 outPath);
+    spdlog::info(
+        "{} is already a finished table of this job (the same job text, input files and geometry, every "
+        "slice done): nothing to resume",
+        outPath);
     summary.resumed = summary.tiles;
     summary.alreadyFinished = true;
     refuseWorkers(mpi, ExitCode::Ok);

@@ -74,9 +74,10 @@ void printInfo(const nlohmann::json& j) {
     tally(diffraction, s, "diffraction_check", "diffraction_reenabled");
   }
   if (!nonphysical.empty()) {
-    std::printf("not physical: %zu slice(s) (/stats/nonphysical: energy outside [0, 1] or a balance beyond the "
-                "tolerance, each beyond 3 s.e., or paths lost beyond the tolerance)\n",
-                nonphysical.size());
+    std::printf(
+        "not physical: %zu slice(s) (/stats/nonphysical: energy outside [0, 1] or a balance beyond the "
+        "tolerance, each beyond 3 s.e., or paths lost beyond the tolerance)\n",
+        nonphysical.size());
     for (const std::string& line : nonphysical) std::printf("%s\n", line.c_str());
   }
   if (reached + budget > 0)

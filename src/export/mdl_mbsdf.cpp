@@ -157,7 +157,8 @@ MbsdfBalance balanceSymmetric(Part& part, int channels, const MbsdfExport& o) {
       if (worst < 1e-9) break;
     }
     for (int ti = 0; ti < o.nTheta; ++ti)
-      if (target(ti) > 1e-6) out.residual = std::max(out.residual, std::abs(r.albedo(ti, d, o.nTheta) / target(ti) - 1));
+      if (target(ti) > 1e-6)
+        out.residual = std::max(out.residual, std::abs(r.albedo(ti, d, o.nTheta) / target(ti) - 1));
     for (int ti = 0; ti < o.nTheta; ++ti)
       for (int to = 0; to < o.nTheta; ++to)
         for (int p = 0; p < o.nPhi; ++p)

@@ -339,7 +339,8 @@ Topography readX3p(const std::string& path) {
     return rootName.size() >= tail.size() && rootName.compare(rootName.size() - tail.size(), tail.size(), tail) == 0;
   };
   if (endsWith("ISO5436"))
-    t.warnings.push_back(xml.where(root) + "the root element is <" + rootName + ">, not <ISO5436_2>; read as ISO5436_2");
+    t.warnings.push_back(xml.where(root) + "the root element is <" + rootName +
+                         ">, not <ISO5436_2>; read as ISO5436_2");
   else if (!endsWith("ISO5436_2"))
     throw InputError(xml.where(root) + "the root element is <" + rootName + ">, not <ISO5436_2>");
   checkMainChecksum(xml, zip, root, t.warnings);

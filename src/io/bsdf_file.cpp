@@ -624,8 +624,8 @@ bool isFinishedOutputOf(const std::string& path, const OutputSchema& schema) {
   if (!std::filesystem::is_regular_file(path) || H5Fis_hdf5(path.c_str()) <= 0) return false;
   try {
     H5File f(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), "open " + path);
-    if (H5Aexists(f, "job_text") <= 0 || H5Aexists(f, "geometry_hash") <= 0 ||
-        !identityDifference(f, schema).empty() || H5Lexists(f, "/bsdf/done", H5P_DEFAULT) <= 0)
+    if (H5Aexists(f, "job_text") <= 0 || H5Aexists(f, "geometry_hash") <= 0 || !identityDifference(f, schema).empty() ||
+        H5Lexists(f, "/bsdf/done", H5P_DEFAULT) <= 0)
       return false;
     const std::vector<uint8_t> done = read1D<uint8_t>(f, "/bsdf/done", H5T_NATIVE_UINT8);
     return done.size() == schema.incidence.size() && std::all_of(done.begin(), done.end(), [](uint8_t d) { return d; });
@@ -1267,8 +1267,6 @@ EnergyBalance energyBalanceOf(const OutputSchema& schema,
   }
   return b;
 }
-
-
 
 // Every row of slice r but its tables, as the writer stores them.
 Rows sliceRows(const TileResult& r, const OutputSchema& schema, const DirectionGrid& grid) {
@@ -1956,8 +1954,9 @@ void BsdfFileReader::readStructure(const std::string& path) {
     grid_ = std::make_unique<DirectionGrid>(DiskGrid{intAttr("width"), intAttr("height")});
   if (incBin_.size() != done_.size() || incTheta_.size() != done_.size() || incPhi_.size() != done_.size() ||
       lambda_nm_.empty())
-    throw InputError(path + ": a damaged microbsdf output file (its incidence and done lists differ in length, or it "
-                            "has no wavelength)");
+    throw InputError(path +
+                     ": a damaged microbsdf output file (its incidence and done lists differ in length, or it "
+                     "has no wavelength)");
 }
 
 SpectrumToColour BsdfFileReader::toColour() const {

@@ -222,7 +222,7 @@ struct SliceStats {
   std::map<std::string, std::vector<double>> energyReflectedStdError, energyTransmittedStdError;
   std::vector<double> pathsAlbedoStdError;
   std::vector<double> energyBalance, energyBalanceStdError;  // (writeEnergyBalance) empty in older files
-  std::vector<double> nonphysical;                            // SliceFlag bits per wavelength; empty in older files
+  std::vector<double> nonphysical;                           // SliceFlag bits per wavelength; empty in older files
 };
 
 // The standard error of Σ f Ω⊥ of component c over one hemisphere (side 0 upper, 1 lower), per

@@ -18,9 +18,9 @@ struct SliceSummary {
   double reflected = 0, transmitted = 0;  // the components the file holds, without `lost`
   double albedoStdError = 0;              // NaN when the file has no per-path errors
   double truncated = 0;
-  double relError = 0;  // the largest relative per-bin error over components and λ
-  double balance = 0;   // reflected + transmitted + lost paths − 1, the largest over λ (NaN: none)
-  double lost = 0;      // the lost component's energy, NaN without one
+  double relError = 0;       // the largest relative per-bin error over components and λ
+  double balance = 0;        // reflected + transmitted + lost paths − 1, the largest over λ (NaN: none)
+  double lost = 0;           // the lost component's energy, NaN without one
   unsigned nonphysical = 0;  // SliceFlag bits over λ (0 in files without /stats/nonphysical)
 };
 SliceSummary summariseSlice(const nlohmann::json& slice);

@@ -33,7 +33,7 @@ struct OutputSchema {
   // BsdfFileWriter::completeReciprocal), or why not.
   bool halvesWaveByReciprocity = false;
   std::string reciprocityOffReason;
-  bool lossless = false;  // the material absorbs nothing: every energy deficit is the model's error
+  bool lossless = false;    // the material absorbs nothing: every energy deficit is the model's error
   double tolerance = 0.02;  // [scene] tolerance: the energy balance and lost paths a slice may have
   // Axes and datasets.
   std::vector<double> lambda_nm;

@@ -60,12 +60,17 @@ class Warp:
         self.data, self.cond, self.marg, self.scale = data, cond, marg, scale
         self.ny, self.nx = data.shape
 
-    def eval(self, x, y):
+    def _patch(self, x, y):
+        """The bilinear patch (i, j) holding (x, y) and the position in it (tx, ty), as the loader
+        finds it (the last patch holds the upper edge)."""
         px = np.asarray(x, float) * (self.nx - 1)
         py = np.asarray(y, float) * (self.ny - 1)
         i = np.minimum(px.astype(np.int64), self.nx - 2)
         j = np.minimum(py.astype(np.int64), self.ny - 2)
-        tx, ty = px - i, py - j
+        return i, j, px - i, py - j
+
+    def eval(self, x, y):
+        i, j, tx, ty = self._patch(x, y)
         d = self.data
         return ((1 - ty) * ((1 - tx) * d[j, i] + tx * d[j, i + 1]) +
                 ty * ((1 - tx) * d[j + 1, i] + tx * d[j + 1, i + 1])) * self.scale
@@ -91,11 +96,7 @@ class Warp:
 
     def invert(self, x, y):
         """(sx, sy, pdf): the uniform sample that sample() maps to (x, y), and the density there."""
-        px = np.asarray(x, float) * (self.nx - 1)
-        py = np.asarray(y, float) * (self.ny - 1)
-        i = np.minimum(px.astype(np.int64), self.nx - 2)
-        j = np.minimum(py.astype(np.int64), self.ny - 2)
-        tx, ty = px - i, py - j
+        i, j, tx, ty = self._patch(x, y)
         d = self.data
         c0 = (1 - ty) * d[j, i] + ty * d[j + 1, i]
         c1 = (1 - ty) * d[j, i + 1] + ty * d[j + 1, i + 1]
