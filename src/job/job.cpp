@@ -416,8 +416,8 @@ void parseSampling(const ParamDict& samp, Job& job) {
 }
 
 // Every vertex within 1e6 µm (1 m) of the origin. Embree traces in single precision and asserts on
-// bounds it cannot represent (heights of 5e28 µm from a finite EXR of 1e30 × height_scale 0.05
-// aborted the run); a surface patch of that size is a unit or scale error.
+// bounds it cannot represent (heights of 5e28 µm, a finite EXR of 1e30 × height_scale 0.05, abort
+// it); a surface patch of that size is a unit or scale error.
 void checkCoordinates(const ParamDict& geo, const char* shapeKey, const Microgeometry& g) {
   constexpr double kMaxCoordinate_um = 1e6;
   for (size_t i = 0; i < g.vertices.size(); ++i) {
@@ -675,8 +675,8 @@ WaveEstimatorKind Job::resolvedWaveEstimator() const {
   // Overlapping lobes on a small cell (a flat or few-facet surface): `exact` sums every order a bin
   // holds, 8 points per facet and order in the unit above. Chosen where that costs at most 16 times
   // the Monte Carlo budget, which buys a Monte Carlo estimator only a quarter of its error (1/√N):
-  // a flat mirror's Kirchhoff integral is then exact, where 256 samples per bin gave ten units of
-  // noise on a unit albedo.
+  // a flat mirror's Kirchhoff integral is then exact, where 256 samples per bin of `area` give ten
+  // units of noise on a unit albedo.
   if (geometry.periodic && scene.coherenceLength_um > 0 &&
       8 * facetsPerCell() * std::max(1.0, exactOrdersPerBin()) <= 16 * double(waveSamplesPerBin))
     return WaveEstimatorKind::Exact;
