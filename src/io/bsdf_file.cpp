@@ -618,6 +618,23 @@ std::string identityDifference(hid_t file, const OutputSchema& schema) {
   return differs;
 }
 
+// What a resume reads from the old partial file: an HDF5 failure there is a damaged file (truncated,
+// overwritten), which the user must remove, not a failure of this run.
+template <typename Read>
+auto readingPartial(const std::string& partial, const std::string& journal, Read read) {
+  try {
+    return read();
+  } catch (const InputError&) {
+    throw;
+  } catch (const WriteError&) {
+    throw;
+  } catch (const std::runtime_error& e) {
+    throw InputError("cannot resume " + partial + ": it is damaged or not a partial table of this program (" +
+                     e.what() + "). Remove " + partial + " and " + journal +
+                     " (or run without --resume) to start over");
+  }
+}
+
 }  // namespace
 
 bool isFinishedOutputOf(const std::string& path, const OutputSchema& schema) {
@@ -659,21 +676,7 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, OutputSchema outputSchem
   // Resume: copy the finished slices of the old partial file (opened as a SWMR reader: readable
   // even if its writer was killed) into a new one.
   const std::string fresh = partial_ + ".new";
-  // What is read from the old partial file: an HDF5 failure there is a damaged file (truncated,
-  // overwritten), which the user must remove, not a failure of this run.
-  auto fromOld = [&](auto read) {
-    try {
-      return read();
-    } catch (const InputError&) {
-      throw;
-    } catch (const WriteError&) {
-      throw;
-    } catch (const std::runtime_error& e) {
-      throw InputError("cannot resume " + partial_ + ": it is damaged or not a partial table of this program (" +
-                       e.what() + "). Remove " + partial_ + " and " + journal_ +
-                       " (or run without --resume) to start over");
-    }
-  };
+  auto fromOld = [&](auto read) { return readingPartial(partial_, journal_, read); };
   {
     H5File old = fromOld([&] {
       // One read of each piece of metadata: a SWMR reader retries a checksum failure (its writer
