@@ -91,7 +91,7 @@ def test_readers_exact():
     z32 = rng.normal(0, 40, (ny, nx)).astype(np.float32)
     write_gsf("nm.gsf", z32, 3.0, 4.5, xy_units="um", z_units="nm")
     expect_exact("GSF (nm heights, µm field)", "nm.gsf", z32.astype(np.float64) * 1e-3, 3.0 / nx, 4.5 / ny)
-    gnan = z32.copy()
+    gnan = z32 * np.float32(1e-9)  # nanometre heights, stored in metres
     gnan[~valid] = np.nan
     write_gsf("nan.gsf", gnan, 3e-6, 4.5e-6)
     expect_exact("GSF with NaN", "nan.gsf", gnan.astype(np.float64) * 1e6, 3e-6 * 1e6 / nx, 4.5e-6 * 1e6 / ny,
