@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "core/rng.h"
 #include "core/stop.h"
@@ -25,9 +26,11 @@ constexpr size_t kMaxLobes = 4096;
 // standard deviation 1/(√2 σ n_o k0) in (x, y) of ωo around ωo_xy = −(G + n_i k0 ωi_xy)/(n_o k0),
 // for every wavelength. Uniform sampling of a bin would rarely hit them, so ωo is drawn from a
 // mixture of the uniform density and these lobes; the estimate divides by the mixture density,
-// which keeps it unbiased whatever the lobes really look like. Used with a collimated incidence
-// (one ωi per bin); with bin-averaged incidence the lobes sweep across the incidence bin and the
-// uniform density is used.
+// which keeps it unbiased whatever the lobes really look like. With bin-averaged incidence the lobes
+// move with ωi: each direction k finds the lobes of its own ωi_k and draws from that mixture. The
+// balance heuristic over the joint (ωi, ωo) space then still divides by Σ_t (n_t/M) pdf_t(ωo | ωi_k)
+// (the pdf of ωi cancels), technique t being "the (t mod L(ωi))-th lobe of ωi" (uniform where ωi
+// has none), so the estimate stays unbiased.
 class ExitDirectionSampler {
  public:
   struct Lobe {
@@ -82,9 +85,10 @@ class ExitDirectionSampler {
   // Techniques are allocated deterministically over the M directions of a bin (multi-sample MIS,
   // balance heuristic; Veach 1997 §9.2): the first nUniform draw uniformly in the bin, the others go
   // round-robin over the lobes. Requires one incidence direction for the whole bin.
+  static int uniformCount(int M) { return std::max(2, int(std::lround(kUniformFraction * M))); }
   void allocate(int M) {
     M_ = M;
-    nUniform_ = lobes_.empty() ? M : std::max(1, int(std::lround(kUniformFraction * M)));
+    nUniform_ = lobes_.empty() ? M : uniformCount(M);
     counts_.assign(lobes_.size(), 0);
     for (int k = nUniform_; k < M; ++k) counts_[size_t(k - nUniform_) % lobes_.size()]++;
   }
@@ -102,19 +106,25 @@ class ExitDirectionSampler {
     *wo = Vec3{x, y, (grid_.isUpper(bin_) ? 1.0 : -1.0) * std::sqrt(1 - r2)};
     return grid_.binOf(*wo) == bin_;
   }
-  // Effective density Σ_t (n_t / M) pdf_t in solid angle: f / density, averaged over the M
-  // directions, is the balance-heuristic estimate of ∫_bin f dω.
-  double density(const Vec3& wo) const {
-    double d = double(nUniform_) / M_ / grid_.solidAngle(bin_);
-    if (lobes_.empty()) return d;
-    double lobe = 0;
+  // The effective density of a direction drawn with technique t (−1: uniform) under the power
+  // heuristic (β = 2; Veach 1997 §9.2.4): f / density averaged over the M directions is
+  //   Σ_t (1/n_t) Σ_{j∈t} w_t f / pdf_t,  w_t = (n_t pdf_t)² / Σ_s (n_s pdf_s)²,
+  // so density = Σ_s (n_s pdf_s)² / (M n_t pdf_t). Against the balance heuristic it leaves the
+  // uniform directions almost nothing of a narrow lobe's core, which they would hit rarely and then
+  // with a large value (a skewed estimate whose spread the error misses).
+  double density(int t, const Vec3& wo) const {
+    const double uniform = double(nUniform_) / grid_.solidAngle(bin_);
+    double sum2 = uniform * uniform, own = t < 0 ? uniform : 0;
     for (size_t c = 0; c < lobes_.size(); ++c) {
       if (!counts_[c]) continue;
       const Lobe& L = lobes_[c];
       double dx = wo.x - L.cx, dy = wo.y - L.cy;
-      lobe += counts_[c] * std::exp(-(dx * dx + dy * dy) / (2 * L.sd * L.sd)) / (2 * kPi * L.sd * L.sd);
+      const double nc =
+          counts_[c] * std::exp(-(dx * dx + dy * dy) / (2 * L.sd * L.sd)) / (2 * kPi * L.sd * L.sd) * std::abs(wo.z);
+      sum2 += nc * nc;
+      if (int(c) == t) own = nc;
     }
-    return d + lobe * std::abs(wo.z) / M_;
+    return own > 0 ? sum2 / (M_ * own) : std::numeric_limits<double>::infinity();
   }
   int techniques() const { return int(lobes_.size()) + 1; }
   size_t lobeCount() const { return lobes_.size(); }
@@ -129,13 +139,14 @@ class ExitDirectionSampler {
 
 }  // namespace
 
-AreaWaveEstimator::AreaWaveEstimator(const WaveContext& ctx) : ctx_(ctx), sampler_(ctx.geometry) {}
+AreaWaveEstimator::AreaWaveEstimator(const WaveContext& ctx)
+    : ctx_(ctx), sampler_(ctx.geometry), control_(ctx.geometry) {}
 
 // Bin b's integral mean_k p_k / pdf_k over the M directions of each wavelength (p: [k * nL + l]) as a
 // bin-averaged BSDF (× toF = 1/Ω⊥) into f, with the standard error of the stratified mean into e.
-static void binIntegral(const ExitDirectionSampler& dirs, int M, int nL, int nB, int b, double toF,
+// stratum[k] (0 … T−1) names the group of directions drawn the same way.
+static void binIntegral(const std::vector<int>& stratum, int T, int M, int nL, int nB, int b, double toF,
                         const std::vector<double>& p, std::vector<double>& f, std::vector<double>& e) {
-  const int T = dirs.techniques();
   std::vector<double> sum(T), sum2(T);
   std::vector<int> n(T);
   for (int l = 0; l < nL; ++l) {
@@ -145,15 +156,15 @@ static void binIntegral(const ExitDirectionSampler& dirs, int M, int nL, int nB,
     double mean = 0;
     for (int k = 0; k < M; ++k) {
       double v = p[size_t(k) * nL + l];
-      int t = dirs.technique(k) + 1;
+      int t = stratum[size_t(k)];
       sum[t] += v;
       sum2[t] += v * v;
       n[t]++;
       mean += v;
     }
     mean /= M;
-    // Variance of a stratified sum: Σ_t n_t Var_t / M², Var_t from each technique's own
-    // samples (a technique with one sample contributes its square: conservative).
+    // Variance of a stratified sum: Σ_t n_t Var_t / M², Var_t from each stratum's own
+    // samples (a stratum with one sample contributes its square: conservative).
     double var = 0;
     for (int t = 0; t < T; ++t) {
       if (n[t] == 0) continue;
@@ -165,6 +176,81 @@ static void binIntegral(const ExitDirectionSampler& dirs, int M, int nL, int nB,
   }
 }
 
+namespace {
+// Directions M and points N per direction for a bin reached by `lobes` lobes: M = budget / N0,
+// raised so that every lobe and the uniform technique get two directions or more where the budget
+// allows (their errors are then estimated from their own spread, not bounded by a single value's
+// square).
+std::pair<int, int> directionsFor(uint64_t budget, int N0, size_t lobes) {
+  uint64_t M = std::max<uint64_t>(2, budget / uint64_t(N0));
+  // At most 4x the directions (a quarter of the points): the pairwise estimate's floor on a rough
+  // surface grows as the points per direction fall.
+  const uint64_t Mmax = std::max<uint64_t>(M, std::min(budget / 2, 4 * M));
+  if (lobes > 0) {
+    uint64_t wanted = uint64_t(ExitDirectionSampler::uniformCount(int(std::min<uint64_t>(M, 1u << 20)))) + 2 * lobes;
+    while (M < wanted && M < Mmax) {
+      M = std::min(Mmax, wanted);
+      wanted = uint64_t(ExitDirectionSampler::uniformCount(int(M))) + 2 * lobes;
+    }
+  }
+  return {int(M), int(std::max<uint64_t>(2, budget / M))};
+}
+
+// The control variate's pieces for one exit direction and wavelength (mean_plane_control.h):
+// q = k1 − k2, c·h (s, p) and c·E[Z] (s, p). active = false: c is negligible, Y = X.
+struct PlaneTerm {
+  Vec3 q;
+  Complex chS, chP, cEzS, cEzP;
+  bool active = false;
+};
+// Below this |c| the control saves nothing worth its cost (it is fixed before sampling: no bias).
+constexpr double kMinControl = 1e-3;
+// Fewest points per direction a bin is given when the control variate leaves little variance (and
+// never fewer than a quarter of wave_points_per_direction: shadowing and masking, which c does not
+// see, keep some of the variance).
+constexpr int kMinPoints = 4;
+
+PlaneTerm planeTermOf(const WaveContext& ctx, const MeanPlaneControl& control, const wave::Media& media, int l,
+                      const Vec3& wi, const Vec3& wo, bool fromAbove, bool transmission) {
+  PlaneTerm t;
+  const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
+  const double nI = media.incident(l, fromAbove), nO = transmission ? media.other(l, fromAbove) : nI;
+  t.q = wi * (-nI * k0) - wo * (nO * k0);
+  const Complex c = control.coefficient(t.q.z);
+  if (std::abs(c) < kMinControl) return t;
+  const Vec3 mPlane{0, 0, fromAbove ? 1.0 : -1.0};
+  const KirchhoffValue h = wave::integrandAt(media, l, Vec3{0, 0, 0}, mPlane, wi, wo, k0, fromAbove, transmission);
+  const double J = ctx.window.planeIntegral(t.q.x, t.q.y);
+  t.chS = c * h.s;
+  t.chP = c * h.p;
+  t.cEzS = t.chS * J;
+  t.cEzP = t.chP * J;
+  t.active = true;
+  return t;
+}
+}  // namespace
+
+// Points per direction for exit bin b: the residual Y − E[Y] of the control variate has about
+// (1 − |c|²) of the variance of X (mean_plane_control.h), so a bin where |c| is near 1 needs few
+// points per direction and takes more directions instead. c at the bin's centre and the shortest
+// wavelength (the largest q_z: the smallest |c|).
+int AreaWaveEstimator::pointsFor(int b, int N0, const wave::Media& media, bool fromAbove,
+                                 const std::optional<Vec3>& exactDirection, int incidenceBin) const {
+  if (!control_.usable()) return N0;
+  const Vec3 wi = exactDirection ? normalize(*exactDirection) : ctx_.grid.centre(incidenceBin);
+  const Vec3 wo = ctx_.grid.centre(b);
+  double lambdaMin = ctx_.lambda_um[0];
+  int l0 = 0;
+  for (size_t l = 0; l < ctx_.lambda_um.size(); ++l)
+    if (ctx_.lambda_um[l] < lambdaMin) lambdaMin = ctx_.lambda_um[l], l0 = int(l);
+  const bool transmission = wave::isTransmission(media.conductor(), fromAbove, wo);
+  const double k0 = 2 * kPi / lambdaMin, nI = media.incident(l0, fromAbove);
+  const double nO = transmission ? media.other(l0, fromAbove) : nI;
+  const double qz = -k0 * (nI * wi.z + nO * wo.z);
+  const double residual = std::max(0.0, 1 - std::norm(control_.coefficient(qz)));
+  return std::max({kMinPoints, N0 / 4, std::min(N0, int(std::ceil(N0 * residual)))});
+}
+
 WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::function<void(uint64_t)>& progress,
                                       const std::vector<uint8_t>& exitMask) const {
   const int tile = request.tile, incidenceBin = request.incidenceBin;
@@ -172,90 +258,58 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
   auto t0 = std::chrono::steady_clock::now();
   const DirectionGrid& grid = ctx_.grid;
   const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();
-  // N points per direction, M = budget / N directions (>= 2): the variance of the bin estimate
-  // then falls as 1 / budget, the directions being independent.
-  const int N = std::max(2, ctx_.settings.pointsPerDirection);
-  const int M = std::max(2, ctx_.settings.samplesPerBin / N);
+  // N points per direction, M = budget / N directions per bin (a bin with lobes takes more
+  // directions, fewer points: directionsFor).
+  const uint64_t budget = uint64_t(std::max(4, ctx_.settings.samplesPerBin));
+  const int N0 = std::max(2, ctx_.settings.pointsPerDirection);
   const bool masked = ctx_.settings.computeMasked;
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   const wave::Media media(ctx_);
   const std::vector<int> bins = wave::exitBins(grid, fromAbove, !media.conductor(), masked, exitMask);
-  const double area = sampler_.totalArea();
 
   WaveTileResult r(nL, nB, masked);
   r.computed = exitMask;
   std::atomic<uint64_t> rays{0};
 
+  std::atomic<uint64_t> samples{0};
   auto doBin = [&](int b) {
+    ExitDirectionSampler dirs(grid, b);
+    // Lobes of the beam, or of the incidence bin's centre to size the allocation.
+    dirs.findLobes(ctx_, media, exactDirection ? normalize(*exactDirection) : grid.centre(incidenceBin), fromAbove);
+    const auto [M, N] =
+        directionsFor(budget, pointsFor(b, N0, media, fromAbove, exactDirection, incidenceBin), dirs.lobeCount());
+    if (exactDirection) dirs.allocate(M);
     // p_k per (direction, λ) for the visible and the masked field.
     std::vector<double> pv(size_t(M) * nL, 0.0), pm(masked ? size_t(M) * nL : 0, 0.0);
-    std::vector<Complex> sv(2 * nL), sm(2 * nL);
-    std::vector<double> qv(2 * nL), qm(2 * nL);
+    std::vector<int> stratum(size_t(M), 0);
     uint64_t localRays = 0;
-    ExitDirectionSampler dirs(grid, b);
-    if (exactDirection) dirs.findLobes(ctx_, media, normalize(*exactDirection), fromAbove);
-    dirs.allocate(M);
+    // Strata of the error estimate: per technique with a collimated beam (the same lobes for
+    // every k); uniform and lobe directions with bin-averaged incidence (the lobes move with ωi).
+    const int nUniform = ExitDirectionSampler::uniformCount(M);
+    const int T = exactDirection ? dirs.techniques() : 2;
     for (int k = 0; k < M; ++k) {
       Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(b) * uint64_t(M) + uint64_t(k), kWaveStream);
       const Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s).w;
+      if (!exactDirection) {
+        dirs.findLobes(ctx_, media, wi, fromAbove);
+        dirs.allocate(M);
+      }
+      stratum[size_t(k)] = exactDirection ? dirs.technique(k) + 1 : (k < nUniform ? 0 : 1);
       double u1 = s.get1D(), u2 = s.get1D();
       Vec3 wo;
       if (!dirs.sample(dirs.technique(k), u1, u2, &wo)) continue;  // outside the bin: estimate 0
-      const double pdf = dirs.density(wo);
+      const double pdf = dirs.density(dirs.technique(k), wo);
       const bool transmission = wave::isTransmission(media.conductor(), fromAbove, wo);
-      const double cosI = std::abs(wi.z);
-      std::fill(sv.begin(), sv.end(), Complex(0));
-      std::fill(sm.begin(), sm.end(), Complex(0));
-      std::fill(qv.begin(), qv.end(), 0.0);
-      std::fill(qm.begin(), qm.end(), 0.0);
-      for (int j = 0; j < N; ++j) {
-        const double u3 = s.get1D(), u2 = s.get1D(), u1 = s.get1D();  // in this order (the last argument's first)
-        SurfaceSample sp = sampler_.sample(u1, u2, u3);
-        const Vec3 m = fromAbove ? sp.n : -sp.n;  // facing the incident medium
-        const double cosLocal = dot(m, wi);
-        if (cosLocal <= 0) continue;  // back-facing: X_j = 0
-        ++localRays;
-        if (!wave::escapes(ctx_.scene, sp.x, m, wi, sp.prim, fromAbove)) continue;  // shadowed
-        const ExitVisibility vis =
-            wave::visibleExit(ctx_.scene, sp.x, m, wo, sp.prim, fromAbove, transmission, &localRays);
-        if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
-        const bool visible = vis == ExitVisibility::Visible;
-        auto& S = visible ? sv : sm;
-        auto& Q = visible ? qv : qm;
-        for (int l = 0; l < nL; ++l) {
-          const double k0 = 2 * kPi / ctx_.lambda_um[l];
-          KirchhoffValue kv = wave::integrandAt(media, l, sp.x, m, wi, wo, k0, fromAbove, transmission);
-          const Complex wgt = area * ctx_.window.copyFactor(sp.x.x, sp.x.y, kv.qx, kv.qy);
-          const Complex xs = kv.s * wgt, xp = kv.p * wgt;
-          S[2 * l] += xs;
-          S[2 * l + 1] += xp;
-          Q[2 * l] += std::norm(xs);
-          Q[2 * l + 1] += std::norm(xp);
-        }
-      }
-      // Unbiased |E X|² for s and p, then the mean of the two powers (unpolarised light).
-      const double nn = double(N) * double(N - 1);
-      for (int l = 0; l < nL; ++l) {
-        const double nI = media.incident(l, fromAbove), nO = transmission ? media.other(l, fromAbove) : nI;
-        // p(ωo) / pdf(ωo): an unbiased estimate of ∫_bin p dω.
-        const double scale = kirchhoffPowerScale(ctx_.window.w2(), cosI, nI, nO) / pdf;
-        auto power = [&](const std::vector<Complex>& S, const std::vector<double>& Q) {
-          double ps = std::norm(S[2 * l]) - Q[2 * l], pp = std::norm(S[2 * l + 1]) - Q[2 * l + 1];
-          return 0.5 * (ps + pp) / nn * scale;
-        };
-        pv[size_t(k) * nL + l] = power(sv, qv);
-        if (masked) pm[size_t(k) * nL + l] = power(sm, qm);
-      }
+      const Direction d{wi, wo, transmission, pdf};
+      directionPowers(d, k, nL, N, masked, media, fromAbove, s, pv, pm, &localRays);
     }
     // Bin integral mean_k p_k / pdf_k, as a bin-averaged BSDF (÷ Ω⊥), with the standard error of
     // the mean over the M independent directions.
     const double toF = 1.0 / grid.projectedSolidAngle(b);
-    auto reduce = [&](const std::vector<double>& p, std::vector<double>& f, std::vector<double>& e) {
-      binIntegral(dirs, M, nL, nB, b, toF, p, f, e);
-    };
-    reduce(pv, r.fws, r.fwsErr);
-    if (masked) reduce(pm, r.pmsk, r.pmskErr);
+    binIntegral(stratum, T, M, nL, nB, b, toF, pv, r.fws, r.fwsErr);
+    if (masked) binIntegral(stratum, T, M, nL, nB, b, toF, pm, r.pmsk, r.pmskErr);
     rays += localRays;
+    samples += uint64_t(M) * uint64_t(N);
   };
 
   constexpr size_t kBatch = 512;
@@ -263,12 +317,79 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     size_t b1 = std::min(bins.size(), b0 + kBatch);
     tbb::parallel_for(b0, b1, [&](size_t i) { doBin(bins[i]); });
     throwIfStopped();
-    if (progress) progress(uint64_t(b1) * uint64_t(M) * uint64_t(N));
+    if (progress) progress(uint64_t(b1) * budget);
   }
-  r.samples = uint64_t(bins.size()) * uint64_t(M) * uint64_t(N);
+  r.samples = samples.load();
   r.rays = rays.load();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
+}
+
+// p_k / pdf_k for direction k into pv (visible field, with the mean-plane control variate) and pm
+// (masked field), per wavelength, from N points by the unbiased pairwise form of |E Y|².
+void AreaWaveEstimator::directionPowers(const Direction& d, int k, int nL, int N, bool masked, const wave::Media& media,
+                                        bool fromAbove, Sampler& s, std::vector<double>& pv, std::vector<double>& pm,
+                                        uint64_t* rays) const {
+  std::vector<Complex> sv(2 * nL, Complex(0)), sm(2 * nL, Complex(0));
+  std::vector<double> qv(2 * nL, 0.0), qm(2 * nL, 0.0);
+  std::vector<PlaneTerm> plane(static_cast<size_t>(nL));
+  for (int l = 0; l < nL; ++l)
+    plane[size_t(l)] = planeTermOf(ctx_, control_, media, l, d.wi, d.wo, fromAbove, d.transmission);
+  const double area = sampler_.totalArea();
+  for (int j = 0; j < N; ++j) {
+    const double u3 = s.get1D(), u2 = s.get1D(), u1 = s.get1D();  // in this order (the last argument's first)
+    SurfaceSample sp = sampler_.sample(u1, u2, u3);
+    const Vec3 m = fromAbove ? sp.n : -sp.n;          // facing the incident medium
+    ExitVisibility vis = ExitVisibility::BackFacing;  // X_j = 0 unless it is seen both ways
+    if (dot(m, d.wi) > 0) {
+      ++*rays;
+      if (wave::escapes(ctx_.scene, sp.x, m, d.wi, sp.prim, fromAbove))
+        vis = wave::visibleExit(ctx_.scene, sp.x, m, d.wo, sp.prim, fromAbove, d.transmission, rays);
+    }
+    const bool visible = vis == ExitVisibility::Visible, blocked = vis == ExitVisibility::Blocked;
+    for (int l = 0; l < nL; ++l) {
+      const PlaneTerm& pt = plane[size_t(l)];
+      if (!visible && !(blocked && masked) && !pt.active) continue;
+      const Complex cf = area * ctx_.window.copyFactor(sp.x.x, sp.x.y, pt.q.x, pt.q.y);
+      Complex ys = 0, yp = 0;
+      if (visible || (blocked && masked)) {
+        const double k0 = 2 * kPi / ctx_.lambda_um[size_t(l)];
+        const KirchhoffValue kv = wave::integrandAt(media, l, sp.x, m, d.wi, d.wo, k0, fromAbove, d.transmission);
+        ys = kv.s * cf;
+        yp = kv.p * cf;
+        if (blocked) {
+          sm[2 * l] += ys;
+          sm[2 * l + 1] += yp;
+          qm[2 * l] += std::norm(ys);
+          qm[2 * l + 1] += std::norm(yp);
+          ys = yp = 0;
+        }
+      }
+      if (pt.active) {
+        // Y = X − c (Z − E[Z]), Z = A n_z C(x, q) h e^{i q_xy·x_xy}.
+        const Complex z = cf * sp.n.z * std::polar(1.0, pt.q.x * sp.x.x + pt.q.y * sp.x.y);
+        ys -= pt.chS * z - pt.cEzS;
+        yp -= pt.chP * z - pt.cEzP;
+      }
+      sv[2 * l] += ys;
+      sv[2 * l + 1] += yp;
+      qv[2 * l] += std::norm(ys);
+      qv[2 * l + 1] += std::norm(yp);
+    }
+  }
+  // Unbiased |E Y|² for s and p, then the mean of the two powers (unpolarised light).
+  const double nn = double(N) * double(N - 1), cosI = std::abs(d.wi.z);
+  for (int l = 0; l < nL; ++l) {
+    const double nI = media.incident(l, fromAbove), nO = d.transmission ? media.other(l, fromAbove) : nI;
+    // p(ωo) / pdf(ωo): an unbiased estimate of ∫_bin p dω.
+    const double scale = kirchhoffPowerScale(ctx_.window.w2(), cosI, nI, nO) / d.pdf;
+    auto power = [&](const std::vector<Complex>& S, const std::vector<double>& Q) {
+      double ps = std::norm(S[2 * l]) - Q[2 * l], pp = std::norm(S[2 * l + 1]) - Q[2 * l + 1];
+      return 0.5 * (ps + pp) / nn * scale;
+    };
+    pv[size_t(k) * nL + l] = power(sv, qv);
+    if (masked) pm[size_t(k) * nL + l] = power(sm, qm);
+  }
 }
 
 }  // namespace mbsdf

@@ -2,6 +2,13 @@
 
 #include <cmath>
 
+// libcerf's Faddeeva function w(x + iy), real and imaginary parts (cerf.h declares them too, but
+// includes the C <complex.h>, whose macro I breaks C++ sources compiled in the same unit).
+extern "C" {
+double re_w_of_z(double x, double y);
+double im_w_of_z(double x, double y);
+}
+
 #include "core/vecmath.h"
 
 namespace mbsdf {
@@ -38,6 +45,24 @@ Complex CoherenceWindow::axisFactor(double x, double q, double L, int K) const {
     phase *= step;
   }
   return sum;
+}
+
+// ∫_{−a}^{a} e^{−u²/(2σ²)} e^{iqu} du, a = (K+½)L, = σ√(2π) e^{−y²} Re erf(b + iy) with
+// b = a/(σ√2), y = qσ/√2 (completing the square). erf(b + iy) grows as e^{y²}: written with the
+// Faddeeva function w(z) = e^{−z²} erfc(−iz) (Poppe & Wijers 1990; libcerf) as
+//   e^{−y²} erf(b + iy) = e^{−y²} − e^{−b²} e^{−2iby} w(−y + ib),
+// where w is bounded in the upper half-plane, so nothing overflows at large q.
+double CoherenceWindow::axisIntegral(double q, double L, int K) const {
+  if (sigma_ <= 0) return std::abs(q * L) < 1e-8 ? L * (1 - q * q * L * L / 24) : 2 * std::sin(0.5 * q * L) / q;
+  const double a = (K + 0.5) * L, b = a / (sigma_ * std::sqrt(2.0)), y = q * sigma_ / std::sqrt(2.0);
+  const double wr = re_w_of_z(-y, b), wi = im_w_of_z(-y, b);
+  // Re[e^{−2iby} (wr + i wi)] = cos(2by) wr + sin(2by) wi.
+  const double tail = std::exp(-b * b) * (std::cos(2 * b * y) * wr + std::sin(2 * b * y) * wi);
+  return sigma_ * std::sqrt(2 * kPi) * (std::exp(-y * y) - tail);
+}
+
+double CoherenceWindow::planeIntegral(double qx, double qy) const {
+  return axisIntegral(qx, sizeX_, kx_) * axisIntegral(qy, sizeY_, ky_);
 }
 
 Complex CoherenceWindow::copyFactor(double x, double y, double qx, double qy) const {

@@ -59,9 +59,14 @@ class CoherenceWindow {
   Complex copyFactor(double x, double y, double qx, double qy) const;
   // The window amplitude at a point of the plane (no copies).
   double amplitude(double x, double y) const;
+  // ∫ w(x) e^{i q·x} dA_xy over the plane that the copies cover ([−(K+½)L, (K+½)L] per axis;
+  // the patch alone without a window): what copyFactor(x, y, q) e^{i q·x} integrates to over the
+  // patch. Real, since the window and its domain are symmetric about the centre.
+  double planeIntegral(double qx, double qy) const;
 
  private:
   Complex axisFactor(double x, double q, double L, int K) const;
+  double axisIntegral(double q, double L, int K) const;
   double sigma_, sizeX_, sizeY_, w2_;
   int kx_ = 0, ky_ = 0;
 };
