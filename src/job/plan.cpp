@@ -11,6 +11,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <sstream>
 
@@ -94,6 +95,39 @@ double waveRelativeError(const WaveTileResult& w, const DirectionGrid& grid) {
   return worst;
 }
 
+// A Monte Carlo wave pass's errors seen from a budget where its errors are `s` times its own. The
+// pairwise estimators' tables are mostly noise where the signal is small, so Σ|f| Ω⊥ is itself
+// noise and falls with the errors: a relative error against it stays flat whatever the budget
+// (the rate read off two passes came out 0), so the rate is read off the absolute errors. For the
+// L1 parts the signal is estimated per bin as what |f| holds beyond its noise,
+// m = max(0, |f| − √(2/π) σ), and a table's mass at the other budget as Σ √(m² + (√(2/π) s σ)²) Ω⊥
+// (its noise shrinks with s, its signal does not).
+struct WavePassErrors {
+  double relError = 0;  // √Σ(s σ Ω⊥)² / Σ|f| Ω⊥ (waveRelativeError's measure), the worst wavelength
+  double absError = 0;  // √Σ(σ Ω⊥)² at the pass's own budget, the worst wavelength (for the rate)
+  SliceL1 l1;           // f_ws's L1 parts at the other budget
+};
+WavePassErrors monteCarloWaveErrors(const WaveTileResult& w, const DirectionGrid& grid, double s) {
+  WavePassErrors out;
+  out.l1 = {std::vector<double>(size_t(w.nLambda), 0.0), std::vector<double>(size_t(w.nLambda), 0.0)};
+  for (int l = 0; l < w.nLambda; ++l) {
+    double var = 0, mass = 0;
+    for (int b = 0; b < w.nBins; ++b) {
+      const size_t i = size_t(l) * size_t(w.nBins) + size_t(b);
+      if (!std::isfinite(w.fws[i]) || !std::isfinite(w.fwsErr[i])) continue;
+      const double op = grid.projectedSolidAngle(b), sigma = std::abs(w.fwsErr[i]);
+      const double m = std::max(0.0, std::abs(w.fws[i]) - kMeanAbsPerSigma * sigma);
+      var += std::pow(sigma * op, 2);
+      mass += std::abs(w.fws[i]) * op;
+      out.l1.deviation[size_t(l)] += kMeanAbsPerSigma * s * sigma * op;
+      out.l1.mass[size_t(l)] += std::hypot(m, kMeanAbsPerSigma * s * sigma) * op;
+    }
+    out.absError = std::max(out.absError, std::sqrt(var));
+    if (mass > 0) out.relError = std::max(out.relError, s * std::sqrt(var) / mass);
+  }
+  return out;
+}
+
 // A path-traced tile's time, fixed + perPath × paths. What a tile costs whatever its paths (its
 // tallies' allocation, merge and errors, the facet sum, its threads' start) is counted once, not
 // scaled with the paths: at the pilots' 20 000 paths it is most of a paper-resolution tile's time,
@@ -103,6 +137,35 @@ struct PathTileCost {
   double fixed = 0, perPath = 0;
   double seconds(double paths) const { return fixed + perPath * paths; }
 };
+
+// The most wave samples per bin a job may ask for (the bound of sampling.wave_samples_per_bin).
+constexpr double kMaxWaveSamplesPerBin = 1e9;
+
+// The factor on the job's wave samples per bin that brings a Monte Carlo wave error `err`
+// (∝ samples^−rate) to `target`, at least 16 samples per bin and at most the key's bound; `needed`
+// is the samples per bin without the bound.
+struct WaveBudget {
+  double factor = 1, needed = 0;
+  bool capped = false;
+};
+WaveBudget waveBudgetFor(double err, double target, double rate, uint64_t samples) {
+  WaveBudget b;
+  const double s = double(samples);
+  b.factor = std::max(16.0 / s, std::pow(err / target, 1 / rate));
+  b.needed = s * b.factor;
+  if (b.needed > kMaxWaveSamplesPerBin) {
+    b.factor = kMaxWaveSamplesPerBin / s;
+    b.capped = true;
+  }
+  return b;
+}
+
+// What `exact` would evaluate per exit bin instead (Job::waveEstimatorChoice's measure), for the
+// plan's line on a target no Monte Carlo budget reaches; 0 where it does not apply.
+double exactPointsPerBin(const Job& job) {
+  if (!job.geometry.periodic || !(job.scene.coherenceLength_um > 0)) return 0;
+  return 8 * job.facetsPerCell() * std::max(1.0, job.exactOrdersPerBin());
+}
 
 // What accuracy costs for this job. A Monte Carlo part's relative error falls as 1/√N with its
 // budget N and its time grows as N, so from the pilots' errors at their own budget the error at the
@@ -155,8 +218,8 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
     // The wave term's budget from its measured rate; a rate near 0 (an error the pilots could not
     // see fall) buys nothing by samples.
     const bool waveByBudget = wave && !waveDeterministic && waveErr > 0 && waveRate > 0.05;
-    const double fw =
-        !waveByBudget ? 1.0 : std::max(16.0 / double(job.waveSamplesPerBin), std::pow(waveErr / target, 1 / waveRate));
+    const WaveBudget wb = waveByBudget ? waveBudgetFor(waveErr, target, waveRate, job.waveSamplesPerBin) : WaveBudget{};
+    const double fw = wb.factor;
     nlohmann::json t = {{"rel_error", target},
                         {"core_hours", (pathCost.seconds(job.meanSlicePaths() * fp) + waveSeconds * fw) *
                                            computedTiles * cores / 3600.0}};
@@ -177,14 +240,15 @@ nlohmann::json accuracyTable(const Job& job, const std::vector<int>& pilots, con
                           {"core_hours", (pathCost.seconds(job.meanSlicePaths()) * meanRounds + waveSeconds * fw) *
                                              computedTiles * cores / 3600.0}};
     }
-    if (waveByBudget)
-      t["wave_samples_per_bin"] = uint64_t(std::ceil(std::min(double(job.waveSamplesPerBin) * fw, 9e18)));
+    if (waveByBudget) t["wave_samples_per_bin"] = uint64_t(std::ceil(double(job.waveSamplesPerBin) * fw));
+    if (wb.capped) t["wave_samples_needed"] = wb.needed;
     t["reached"] =
         (pathsDeterministic || pathErr * std::sqrt(1 / fp) <= target * 1.0000001) &&
         (!wave || waveErr <= target || (waveByBudget && waveErr * std::pow(fw, -waveRate) <= target * 1.0000001));
     targets.push_back(t);
   }
   a["targets"] = targets;
+  a["exact_points_per_bin"] = exactPointsPerBin(job);
   return a;
 }
 // The wave term's pilots (a Monte Carlo estimator at two budgets, for its error's rate), each added
@@ -258,20 +322,25 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
       binningSeconds += w.binningSeconds;
       keepL1(w, 1.0);
     } else if (!twoPasses) {
-      waveRelErrors.push_back(e1 * std::sqrt(double(ws.samplesPerBin) / N));
+      const WavePassErrors pe = monteCarloWaveErrors(w, grid, std::sqrt(double(ws.samplesPerBin) / N));
+      waveRelErrors.push_back(pe.relError);
       waveSeconds += w.seconds;
-      keepL1(w, std::sqrt(double(ws.samplesPerBin) / N));
+      out.wsL1.push_back(pe.l1);
     } else {
+      // The rate from the absolute errors (monteCarloWaveErrors: the relative ones are flat where
+      // the table is noise).
       const WaveTileResult w2 = est2->run(tileRequestOf(job, t), heartbeat("plan: wave pilot"));
-      const double e2 = waveRelativeError(w2, grid);
+      const double a1 = monteCarloWaveErrors(w, grid, 1.0).absError;
+      const double a2 = monteCarloWaveErrors(w2, grid, 1.0).absError;
       const double rate =
-          e1 > 0 && e2 > 0
-              ? std::clamp(std::log(e1 / e2) / std::log(double(ws2.samplesPerBin) / ws.samplesPerBin), 0.0, 0.5)
+          a1 > 0 && a2 > 0
+              ? std::clamp(std::log(a1 / a2) / std::log(double(ws2.samplesPerBin) / ws.samplesPerBin), 0.0, 0.5)
               : 0.5;
       waveRate = std::min(waveRate, rate);
-      waveRelErrors.push_back(e2 * std::pow(N / double(ws2.samplesPerBin), -rate));
+      const WavePassErrors pe = monteCarloWaveErrors(w2, grid, std::pow(N / double(ws2.samplesPerBin), -rate));
+      waveRelErrors.push_back(pe.relError);
       waveSeconds += w2.seconds;
-      keepL1(w2, std::pow(N / double(ws2.samplesPerBin), -rate));
+      out.wsL1.push_back(pe.l1);
     }
     pilotSeconds.push_back(waveSeconds - secondsBefore);
     if (pilotTiles[k].has(Component::Coherent))
@@ -461,6 +530,48 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
   return out;
 }
 
+// One L1 target of l1AccuracyTable at the wave budget wb: the paths that bring every table's path
+// part within what its wave part leaves of the target, the core-hours, and where the wave part
+// alone stays above it.
+struct L1Part {
+  double p = 0, w = 0;
+};
+using L1Parts = std::vector<std::pair<std::string, std::vector<std::vector<L1Part>>>>;  // table → pilot → λ
+nlohmann::json l1Target(const Job& job, const std::vector<int>& pilots, const L1Parts& comps, double target,
+                        const WaveBudget& wb, double rate, const PathTileCost& pathCost, double waveSeconds,
+                        int computedTiles, int cores) {
+  double fp = 0;
+  bool reached = !wb.capped;
+  nlohmann::json waveAbove = nlohmann::json::array();
+  for (const auto& [name, perPilot] : comps)
+    for (size_t k = 0; k < perPilot.size(); ++k) {
+      double above = 0;
+      for (const L1Part& part : perPilot[k]) {
+        const double w = part.w * std::pow(wb.factor, -rate);
+        const bool pathsLeft = target - w > 1e-6 * target;
+        if (w > target * (1 + 1e-7) || (part.p > 0 && !pathsLeft)) {
+          reached = false;
+          above = std::max(above, w);
+          continue;
+        }
+        if (part.p > 0) fp = std::max(fp, std::pow(part.p / (target - w), 2));
+      }
+      if (above > 0)
+        waveAbove.push_back({{"table", name},
+                             {"theta_deg", job.incidence[size_t(pilots[k])].theta_deg},
+                             {"phi_deg", job.incidence[size_t(pilots[k])].phi_deg},
+                             {"rel_l1", above}});
+    }
+  fp = fp > 0 ? std::max(fp, 1000.0 / double(job.pathsPerSlice)) : 1.0;
+  nlohmann::json t = {{"rel_l1", target},
+                      {"paths_per_slice", uint64_t(std::min(9e18, std::ceil(double(job.pathsPerSlice) * fp)))},
+                      {"core_hours", (pathCost.seconds(job.meanSlicePaths() * fp) + waveSeconds * wb.factor) *
+                                         computedTiles * cores / 3600.0},
+                      {"reached", reached}};
+  if (!reached) t["wave_part_above"] = waveAbove;
+  return t;
+}
+
 // The accuracy study's measure, the relative L1 distance of each table's slice from its
 // expectation (sliceL1), at the job's budget, and what 10 %, 3 % and 1 % in every table cost: the
 // path-traced components `coherent` and `multiple`, and the wave term's table f_ws (= coherent +
@@ -472,11 +583,9 @@ PathPilotCost pathPilots(const Job& job, const Job& planned, const DirectionGrid
 nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, const PilotL1& paths,
                                const WavePilotCost& wave, const DirectionGrid& grid, const std::vector<double>& toJob,
                                const PathTileCost& pathCost, double waveSeconds, int computedTiles, int cores) {
-  struct Part {
-    double p = 0, w = 0;
-  };
+  using Part = L1Part;
   auto ratio = [](double d, double m) { return m > 0 ? d / m : 0.0; };
-  std::vector<std::pair<std::string, std::vector<std::vector<Part>>>> comps;  // table → pilot → λ
+  L1Parts comps;
   for (auto [c, l1] : {std::pair{Component::Coherent, &paths.coherent}, {Component::Multiple, &paths.multiple}}) {
     if (!job.components.has(c)) continue;
     std::vector<std::vector<Part>> perPilot;
@@ -523,44 +632,27 @@ nlohmann::json l1AccuracyTable(const Job& job, const std::vector<int>& pilots, c
       for (const Part& part : perLambda) worstW = std::max(worstW, part.w);
   nlohmann::json targets = nlohmann::json::array();
   for (double target : {0.1, 0.03, 0.01}) {
-    // The wave samples first (from the wave parts alone), then the paths that bring every
-    // component's path part within what the wave part leaves of the target.
-    const double fw = waveByBudget && worstW > 0
-                          ? std::max(16.0 / double(job.waveSamplesPerBin), std::pow(worstW / target, 1 / rate))
-                          : 1.0;
-    double fp = 0;
-    bool reached = true;
-    nlohmann::json waveAbove = nlohmann::json::array();  // where the wave part alone stays above the target
-    for (const auto& [name, perPilot] : comps)
-      for (size_t k = 0; k < perPilot.size(); ++k) {
-        double above = 0;
-        for (const Part& part : perPilot[k]) {
-          const double w = part.w * std::pow(fw, -rate);
-          if (w > 0.99 * target) {
-            reached = false;
-            above = std::max(above, w);
-            continue;
-          }
-          if (part.p > 0) fp = std::max(fp, std::pow(part.p / (target - w), 2));
-        }
-        if (above > 0)
-          waveAbove.push_back({{"table", name},
-                               {"theta_deg", job.incidence[size_t(pilots[k])].theta_deg},
-                               {"phi_deg", job.incidence[size_t(pilots[k])].phi_deg},
-                               {"rel_l1", above}});
-      }
-    fp = fp > 0 ? std::max(fp, 1000.0 / double(job.pathsPerSlice)) : 1.0;
-    nlohmann::json t = {{"rel_l1", target},
-                        {"paths_per_slice", uint64_t(std::min(9e18, std::ceil(double(job.pathsPerSlice) * fp)))},
-                        {"core_hours", (pathCost.seconds(job.meanSlicePaths() * fp) + waveSeconds * fw) *
-                                           computedTiles * cores / 3600.0},
-                        {"reached", reached}};
-    if (!reached) t["wave_part_above"] = waveAbove;
-    if (waveByBudget)
-      t["wave_samples_per_bin"] = uint64_t(std::ceil(std::min(double(job.waveSamplesPerBin) * fw, 9e18)));
-    targets.push_back(t);
+    // The wave parts take a share of the target and the paths the rest; of a few shares the one
+    // that costs least (all of it when no table has a path-traced part).
+    nlohmann::json best;
+    double bestHours = std::numeric_limits<double>::infinity();
+    for (double share : {0.5, 0.7, 0.9, 1.0}) {
+      if (!waveByBudget && share < 1.0) continue;
+      const WaveBudget wb = waveByBudget && worstW > 0
+                                ? waveBudgetFor(worstW, share * target, rate, job.waveSamplesPerBin)
+                                : WaveBudget{};
+      nlohmann::json t = l1Target(job, pilots, comps, target, wb, rate, pathCost, waveSeconds, computedTiles, cores);
+      if (waveByBudget) t["wave_samples_per_bin"] = uint64_t(std::ceil(double(job.waveSamplesPerBin) * wb.factor));
+      if (wb.capped) t["wave_samples_needed"] = wb.needed;
+      const double hours = t["core_hours"].get<double>() * (t["reached"].get<bool>() ? 1.0 : 1e300);
+      if (best.is_null() || hours < bestHours) best = t, bestHours = hours;
+    }
+    targets.push_back(best);
   }
   a["targets"] = targets;
+  a["wave_by_budget"] = waveByBudget;
+  a["wave_deterministic"] = wave.deterministic;
+  a["exact_points_per_bin"] = exactPointsPerBin(job);
   return a;
 }
 
@@ -778,6 +870,28 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
 }
 
 namespace {
+// Why a target is not reached, in the plan's words: the wave samples it would need beyond their
+// bound (and what `exact` would evaluate instead), a wave error that did not fall with samples, or
+// a deterministic estimator's rules; `where` names the tables and pilots that stay above it.
+std::string unreachedWhy(const nlohmann::json& table, const nlohmann::json& t, const std::string& where) {
+  const double exactPoints = table.value("exact_points_per_bin", 0.0);
+  const std::string exact =
+      exactPoints > 0
+          ? fmt::format("; `exact` would evaluate {:.3g} facet terms per bin, without sampling noise", exactPoints)
+          : std::string();
+  if (t.contains("wave_samples_needed"))
+    return fmt::format("wave_samples_per_bin would need {:.3g}, beyond its bound {:.0e}{}",
+                       t["wave_samples_needed"].get<double>(), kMaxWaveSamplesPerBin, exact);
+  const std::string at = where.empty() ? "" : ", " + where;
+  if (table.value("wave_deterministic", false))
+    return "the wave term's rules keep their own error" + at +
+           ", whatever the budget: set by [sampling] wave_incidence_directions (wave_incidence_directions_pole_horizon "
+           "at the pole and horizon bins) and wave_subdirections";
+  if (!table.value("wave_by_budget", true))
+    return "the wave term's error did not fall with samples between the pilots' two budgets" + at + exact;
+  return "a part's own error stays above it" + at;
+}
+
 // "L1 per slice: coherent 1.5 %, multiple 5.8 % at 5000000 paths", then the budget and core-hours
 // that bring every component to 10 %, 3 % and 1 %.
 std::string fmtL1(const nlohmann::json& l1) {
@@ -803,10 +917,7 @@ std::string fmtL1(const nlohmann::json& l1) {
       for (const auto& w : t.value("wave_part_above", nlohmann::json::array()))
         where += fmt::format("{}{} {} at ({:.3g}°, {:.3g}°)", where.empty() ? "" : ", ", w["table"].get<std::string>(),
                              pct(w["rel_l1"].get<double>()), w["theta_deg"].get<double>(), w["phi_deg"].get<double>());
-      o += " (not reached: the wave term's own error estimate stays above it" + (where.empty() ? "" : ", " + where) +
-           "; for exact and fft it is set by [sampling] wave_incidence_directions "
-           "(wave_incidence_directions_pole_horizon "
-           "at the pole and horizon bins) and wave_subdirections, not by the budget)";
+      o += " (not reached: " + unreachedWhy(l1, t, where) + ")";
     }
     o += "\n";
   }
@@ -852,9 +963,7 @@ std::string fmtAccuracy(const nlohmann::json& a) {
       o += fmt::format("; or target_rel_error = {}, max_paths_per_slice = {}: {:.3g} core-hours",
                        t["progressive"]["target_rel_error"].get<double>(),
                        t["progressive"]["max_paths_per_slice"].dump(), t["progressive"]["core_hours"].get<double>());
-    if (!t["reached"].get<bool>())
-      o += " (not reached by budget: a deterministic part's own error, or a wave error the pilots did not see fall, "
-           "stays above it)";
+    if (!t["reached"].get<bool>()) o += " (not reached: " + unreachedWhy(a, t, "") + ")";
     o += "\n";
   }
   if (a.contains("l1")) o += fmtL1(a["l1"]);
