@@ -96,25 +96,53 @@ void printInfo(const nlohmann::json& j) {
   report(diffraction, "diffraction", "WS - GS difference beyond noise");
 }
 
+// Reads every table of a finished file once (BsdfFileReader::slice refuses a NaN, an Inf or a
+// negative value where its component cannot hold one, with the slice): what `info` vouches for.
+// Files above kScanBytes are scanned only with --scan. Returns the values read (0: not scanned).
+constexpr double kScanBytes = 2e9;
+uint64_t scanTables(const BsdfFileReader& f, bool force, double* bytes) {
+  const std::vector<std::string> components = f.components();
+  const double perSlice = double(f.grid().binCount()) * double(f.channelCount());
+  *bytes = 4.0 * perSlice * double(f.incidenceCount()) * double(components.size());
+  if (f.doneCount() != f.incidenceCount() || (*bytes > kScanBytes && !force)) return 0;
+  uint64_t values = 0;
+  for (const std::string& c : components)
+    for (int i = 0; i < f.incidenceCount(); ++i) {
+      values += f.slice(c, i).size();
+      if (f.hasBinErrors(c)) values += f.sliceStdError(c, i).size();
+    }
+  return values;
+}
+
 }  // namespace
 
 Command addInfoCommand(CLI::App& app) {
   struct Options {
     std::string h5Path;
     bool json = false;
+    bool scan = false;
   };
   auto o = std::make_shared<Options>();
   Command c;
   c.app = app.add_subcommand("info", "provenance, completeness and energy per slice of an output file");
   c.app->add_option("file", o->h5Path, "output HDF5 file")->required();
   c.app->add_flag("--json", o->json, "machine-readable summary");
+  c.app->add_flag("--scan", o->scan, "read every value even of a file above 2 GB (smaller ones always are)");
   c.run = [o] {
     BsdfFileReader f(o->h5Path);
     nlohmann::json j = fileSummary(f, o->h5Path);
+    double bytes = 0;
+    const uint64_t values = scanTables(f, o->scan, &bytes);
+    j["values_scanned"] = values;
     if (o->json)
       std::cout << j.dump(2) << "\n";
-    else
+    else {
       printInfo(j);
+      if (values > 0)
+        fmt::print("values: {} read, all finite and none negative where a component cannot be\n", values);
+      else if (f.doneCount() == f.incidenceCount())
+        fmt::print("values: not read ({:.3g} GB; `info --scan` reads them)\n", bytes / 1e9);
+    }
     return 0;
   };
   return c;

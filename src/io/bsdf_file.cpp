@@ -2017,11 +2017,21 @@ const BsdfFileReader::OpenTable& BsdfFileReader::table(const std::string& path) 
 // file may hold NaN in the half of a pair still to be mirrored, and is read as it is.
 std::vector<double> BsdfFileReader::readTable(const std::string& path, int incidence) const {
   std::vector<double> v = readTableValues(path, incidence);
-  if (doneCount() == incidenceCount())
-    for (size_t k = 0; k < v.size(); ++k)
-      if (!std::isfinite(v[k]))
-        throw InputError(fmt::format("{}: {} of slice {} holds {} at value {}: the table is damaged; compute it again",
-                                     path_, path, incidence, v[k], k));
+  if (doneCount() != incidenceCount()) return v;
+  // Path tallies (coherent, multiple, geo_masked) and every standard error are sums of
+  // non-negative terms; incoherent and lost are differences and may be negative.
+  const bool nonNegative = path.rfind("/bsdf_stderr/", 0) == 0 || path == "/bsdf/coherent" ||
+                           path == "/bsdf/multiple" || path == "/bsdf/geo_masked";
+  for (size_t k = 0; k < v.size(); ++k) {
+    if (!std::isfinite(v[k]))
+      throw InputError(fmt::format("{}: {} of slice {} holds {} at value {}: the table is damaged; compute it again",
+                                   path_, path, incidence, v[k], k));
+    if (nonNegative && v[k] < 0)
+      throw InputError(
+          fmt::format("{}: {} of slice {} holds {} at value {}, which a sum of non-negative terms "
+                      "cannot: the table is damaged; compute it again",
+                      path_, path, incidence, v[k], k));
+  }
   return v;
 }
 

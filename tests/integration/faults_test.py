@@ -238,16 +238,18 @@ def test_damaged_partials():
 
 def test_damaged_tables():
     """Readers do not trust what they read: a foreign HDF5 file, a table without /bsdf/done or its
-    grid's attributes, and a finished table with one NaN end `info`, `eval`, `diff`, `export` and
-    `slice` with exit 2 naming the file (no HDF5 error stack; the NaN one names the dataset and
-    slice), where they printed "L1 nan %", nan rows with exit 0, or exit 1."""
+    grid's attributes, a finished table with one NaN, and a path-traced table with one negative value
+    end `info`, `eval`, `diff`, `export` and `slice` with exit 2 naming the file (no HDF5 error
+    stack; the NaN and negative ones name the dataset and slice), where they printed "L1 nan %", nan
+    rows with exit 0, or exit 1; `info` reads every value of a file this small and says so."""
     job = small_job(os.path.join(TMP, "job.toml"), output="good.h5")
     run(["run", job, "-o", "good.h5"])
     with h5py.File(os.path.join(TMP, "foreign.h5"), "w") as h:
         h["data"] = np.arange(4.0)
     for name, edit in (("nodone", lambda h: h.__delitem__("/bsdf/done")),
                        ("nogrid", lambda h: h["/grid"].attrs.__delitem__("n_theta")),
-                       ("nan", lambda h: h["/bsdf/coherent"].__setitem__((1, 0, 7), np.nan))):
+                       ("nan", lambda h: h["/bsdf/coherent"].__setitem__((1, 0, 7), np.nan)),
+                       ("negative", lambda h: h["/bsdf/multiple"].__setitem__((1, 0, 9), -0.5))):
         shutil.copy(os.path.join(TMP, "good.h5"), os.path.join(TMP, f"{name}.h5"))
         with h5py.File(os.path.join(TMP, f"{name}.h5"), "r+") as h:
             edit(h)
@@ -255,13 +257,15 @@ def test_damaged_tables():
                "export": lambda f: ["export", f, "--format", "rgl", "-o", "x.bsdf"],
                "slice": lambda f: ["slice", f, "--theta-i", "20", "-o", "x.png"], "info": lambda f: ["info", f]}
     for name, phrase in (("foreign", "not a microbsdf output file"), ("nodone", "it has no /bsdf/done"),
-                         ("nogrid", "a damaged microbsdf output file"), ("nan", "/bsdf/coherent of slice 1 holds nan")):
+                         ("nogrid", "a damaged microbsdf output file"), ("nan", "/bsdf/coherent of slice 1 holds nan"),
+                         ("negative", "/bsdf/multiple of slice 1 holds -0.5")):
         for reader, args in readers.items():
-            if name == "nan" and reader in ("info", "export"):
-                continue  # info reads the statistics, not the tables; export refuses this job's listed incidences
+            if name in ("nan", "negative") and reader == "export":
+                continue  # export refuses this job's listed incidences before it reads a table
             text = expect(args(f"{name}.h5"), EXIT_BAD_INPUT, f"{name}.h5", phrase)
             assert "HDF5-DIAG" not in text, text
-    print("foreign, incomplete-schema and NaN tables: every reader exits 2 naming the file")
+    assert "values: " in run(["info", "good.h5"]).stdout
+    print("foreign, incomplete-schema, NaN and negative tables: every reader exits 2 naming the file")
 
 
 FOLDER_FSYNC_SHIM = r"""
