@@ -41,8 +41,11 @@ class ExitDirectionSampler {
   void findLobes(const WaveContext& ctx, const wave::Media& media, const Vec3& wi, bool fromAbove) {
     lobes_.clear();
     const CoherenceWindow& w = ctx.window;
-    if (!w.active() || !ctx.scene.periodic()) return;
     const bool transmission = !media.conductor() && grid_.isUpper(bin_) != fromAbove;
+    if (!w.active() || !ctx.scene.periodic()) {
+      findApertureLobes(ctx, media, wi, fromAbove, transmission);
+      return;
+    }
     const double Lx = ctx.scene.sizeX(), Ly = ctx.scene.sizeY();
     double x0, x1, y0, y1;
     grid_.xyBounds(bin_, &x0, &x1, &y0, &y1);
@@ -64,22 +67,44 @@ class ExitDirectionSampler {
       }
       for (long a = a0; a <= a1; ++a)
         for (long b = b0; b <= b1; ++b) {
-          double cx = -(2 * kPi * a / Lx + nI * k0 * wi.x) / (nO * k0);
-          double cy = -(2 * kPi * b / Ly + nI * k0 * wi.y) / (nO * k0);
-          // Keep lobes that reach into this bin (probe the centre and ±3 sd).
-          bool reaches = false;
-          for (int dx = -1; dx <= 1 && !reaches; ++dx)
-            for (int dy = -1; dy <= 1 && !reaches; ++dy) {
-              double px = cx + 3 * sd * dx, py = cy + 3 * sd * dy, r2 = px * px + py * py;
-              if (r2 < 1 && grid_.binOf({px, py, zs * std::sqrt(1 - r2)}) == bin_) reaches = true;
-            }
-          if (reaches) lobes_.push_back({cx, cy, sd});
+          const double cx = -(2 * kPi * a / Lx + nI * k0 * wi.x) / (nO * k0);
+          const double cy = -(2 * kPi * b / Ly + nI * k0 * wi.y) / (nO * k0);
+          addIfReaching({cx, cy, sd}, zs);
           if (lobes_.size() > kMaxLobes) {
             lobes_.clear();
             return;
           }
         }
     }
+  }
+
+  // One copy of the patch (no window, or a patch that does not repeat): no grating orders, but the
+  // mean plane's specular lobe, the Fourier transform of the lit aperture. |∫_{−L/2}^{L/2} e^{iqx}|²
+  // = (2 sin(qL/2)/q)² ≈ L²(1 − q²L²/12): a Gaussian of the same curvature has σ_q = √6/L; under
+  // a window narrower than the patch, σ_q = 1/(√2 σ). The wider of the two, on the shorter side.
+  void findApertureLobes(const WaveContext& ctx, const wave::Media& media, const Vec3& wi, bool fromAbove,
+                         bool transmission) {
+    const double L = std::min(ctx.scene.sizeX(), ctx.scene.sizeY());
+    const double sigmaQ =
+        std::max(std::sqrt(6.0) / L, ctx.window.active() ? 1 / (std::sqrt(2.0) * ctx.window.sigma()) : 0.0);
+    const double zs = grid_.isUpper(bin_) ? 1.0 : -1.0;
+    for (size_t l = 0; l < ctx.lambda_um.size(); ++l) {
+      const double k0 = 2 * kPi / ctx.lambda_um[l];
+      const double nI = media.incident(int(l), fromAbove);
+      const double nO = transmission ? media.other(int(l), fromAbove) : nI;
+      addIfReaching({-nI * wi.x / nO, -nI * wi.y / nO, sigmaQ / (nO * k0)}, zs);
+    }
+  }
+  // Keeps a lobe that reaches into this bin (probes at its centre and ±3 sd).
+  void addIfReaching(const Lobe& L, double zs) {
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy) {
+        const double px = L.cx + 3 * L.sd * dx, py = L.cy + 3 * L.sd * dy, r2 = px * px + py * py;
+        if (r2 < 1 && grid_.binOf({px, py, zs * std::sqrt(1 - r2)}) == bin_) {
+          lobes_.push_back(L);
+          return;
+        }
+      }
   }
 
   // Techniques are allocated deterministically over the M directions of a bin (multi-sample MIS,
@@ -269,9 +294,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
 
   WaveTileResult r(nL, nB, masked);
   r.computed = exitMask;
-  std::atomic<uint64_t> rays{0};
-
-  std::atomic<uint64_t> samples{0};
+  std::atomic<uint64_t> rays{0}, samples{0};
   auto doBin = [&](int b) {
     ExitDirectionSampler dirs(grid, b);
     // Lobes of the beam, or of the incidence bin's centre to size the allocation.
@@ -288,7 +311,8 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     const int nUniform = ExitDirectionSampler::uniformCount(M);
     const int T = exactDirection ? dirs.techniques() : 2;
     for (int k = 0; k < M; ++k) {
-      Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(b) * uint64_t(M) + uint64_t(k), kWaveStream);
+      // Keyed by (bin, direction): M differs between bins.
+      Sampler s(ctx_.settings.seed, uint32_t(tile), (uint64_t(b) << 32) | uint64_t(k), kWaveStream);
       const Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s).w;
       if (!exactDirection) {
         dirs.findLobes(ctx_, media, wi, fromAbove);

@@ -45,6 +45,7 @@ std::vector<HonestyCase> honestyCases() {
 
 struct Honesty {
   double meanZ2 = 0, worstZeroErrorDev = 0, total = 0, refTotal = 0;
+  double totalSd = 0;  // the spread of one seed's hemispherical energy over the seeds
   int tested = 0, beyond3 = 0;
 };
 
@@ -61,12 +62,14 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
   Honesty h;
   double z2 = 0, scale = 0;
   for (int b = 0; b < R.grid.binCount(); ++b) scale = std::max(scale, rr.fws[size_t(b)]);
+  double sum2 = 0;
   for (int seed = 0; seed < seeds; ++seed) {
     const WaveTileResult r = S.run(hc.theta_deg, 10.0, collimated, seed);
+    double total = 0;
     for (int b = 0; b < R.grid.binCount(); ++b) {
       const double op = R.grid.projectedSolidAngle(b);
       if (op <= 0) continue;
-      h.total += r.fws[size_t(b)] * op / seeds;
+      total += r.fws[size_t(b)] * op;
       h.refTotal += rr.fws[size_t(b)] * op / seeds;
       const double se = std::hypot(r.fwsErr[size_t(b)], rr.fwsErr[size_t(b)]);
       const double dev = r.fws[size_t(b)] - rr.fws[size_t(b)];
@@ -79,7 +82,10 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
       h.beyond3 += std::abs(z) > 3;
       ++h.tested;
     }
+    h.total += total / seeds;
+    sum2 += total * total / seeds;
   }
+  h.totalSd = std::sqrt(std::max(0.0, sum2 - h.total * h.total) * seeds / (seeds - 1));
   h.meanZ2 = h.tested ? z2 / h.tested : 0;
   return h;
 }
@@ -88,19 +94,29 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
 
 // `area` on flat interfaces: the mean plane's control variate makes each direction's |I|² exact, and
 // lobe sampling around each incidence direction's specular finds the lobe with bin-averaged light
-// too; the hemispherical energy over 8 seeds is within 10 % of Fresnel (1 for the mirror, R + T = 1
-// for glass from either side) in every case. The other surfaces' figures are recorded.
+// too. Over 12 seeds at the default 256 samples per bin, in every case: the mean hemispherical energy
+// equals Fresnel (1 for the mirror, R + T = 1 for glass from either side) within 4 standard errors
+// of that mean (from the seeds' spread), and one seed's energy spreads by at most 0.1 under a
+// collimated beam and 0.6 over the incidence bin (measured 0.02–0.06 and 0.32–0.48; a flat mirror's
+// albedo came out −11 ± 3.9 without the control and the moving lobes). Over the incidence bin a
+// direction's lobe count changes with its ωi, and with it which lobe a direction samples: the
+// spread that remains. The other surfaces' figures and every case's mean z² of the bins against
+// their stored errors (1.2–6.9 on the flat cases: the errors are not yet honest) are recorded.
 TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
+  const int seeds = 12;
   for (const HonestyCase& hc : honestyCases())
     for (bool collimated : {true, false}) {
-      const Honesty h = honesty(hc, "area", collimated, 8);
+      const Honesty h = honesty(hc, "area", collimated, seeds);
       const std::string key = hc.name + (collimated ? " collimated" : " averaged");
-      std::printf("area %-18s %-10s mean z² %.3f (%d bins, %d beyond 3)  energy %.4f, exact %.4f\n", hc.name.c_str(),
-                  collimated ? "collimated" : "averaged", h.meanZ2, h.tested, h.beyond3, h.total, h.refTotal);
+      std::printf("area %-18s %-10s mean z² %.3f (%d bins, %d beyond 3)  energy %.4f ± %.4f (one seed), exact %.4f\n",
+                  hc.name.c_str(), collimated ? "collimated" : "averaged", h.meanZ2, h.tested, h.beyond3, h.total,
+                  h.totalSd, h.refTotal);
       RecordProperty("energy " + key, std::to_string(h.total));
+      RecordProperty("energy_sd " + key, std::to_string(h.totalSd));
       RecordProperty("mean_z2 " + key, std::to_string(h.meanZ2));
       if (hc.name.rfind("flat", 0) != 0) continue;
-      EXPECT_NEAR(h.total, h.refTotal, 0.1) << key;
+      EXPECT_NEAR(h.total, h.refTotal, 4 * h.totalSd / std::sqrt(double(seeds)) + 1e-3) << key;
+      EXPECT_LT(h.totalSd, collimated ? 0.1 : 0.6) << key;
       EXPECT_LT(h.worstZeroErrorDev, 1e-6) << key;
     }
 }
