@@ -471,9 +471,10 @@ BENCHMARK(BM_GratingPathTile)->Unit(benchmark::kMillisecond)->UseRealTime()->Ite
 }  // namespace
 
 namespace mbsdf {
-void printWriterSummary();  // bench_writer.cpp
-void printReadSummary();    // bench_writer.cpp
-void printWalkSummary();    // bench_walk.cpp
+void printWriterSummary();        // bench_writer.cpp
+void printReadSummary();          // bench_writer.cpp
+void printWalkSummary();          // bench_walk.cpp
+void printWaveVarianceSummary();  // bench_wave_variance.cpp
 }  // namespace mbsdf
 
 int main(int argc, char** argv) {
@@ -483,6 +484,7 @@ int main(int argc, char** argv) {
   mbsdf::printWriterSummary();
   mbsdf::printReadSummary();
   mbsdf::printWalkSummary();
+  mbsdf::printWaveVarianceSummary();
   if (gOurs > 0 && gRaw > 0)
     std::printf(
         "\npath tracer: %.3g rays/s   raw rtcIntersect1: %.3g rays/s   ratio: %.2f (median of 7 alternating rounds, "

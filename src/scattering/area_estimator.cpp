@@ -165,7 +165,10 @@ class ExitDirectionSampler {
 }  // namespace
 
 AreaWaveEstimator::AreaWaveEstimator(const WaveContext& ctx)
-    : ctx_(ctx), sampler_(ctx.geometry), control_(ctx.geometry) {}
+    : ctx_(ctx),
+      sampler_(ctx.geometry),
+      control_(ctx.settings.controlVariate == WaveControlVariate::MeanPlane ? MeanPlaneControl(ctx.geometry)
+                                                                            : MeanPlaneControl()) {}
 
 // Bin b's integral mean_k p_k / pdf_k over the M directions of each wavelength (p: [k * nL + l]) as a
 // bin-averaged BSDF (× toF = 1/Ω⊥) into f, with the standard error of the stratified mean into e.

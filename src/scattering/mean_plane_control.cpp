@@ -5,7 +5,7 @@
 namespace mbsdf {
 
 namespace {
-constexpr size_t kMaxHeights = 4096;
+constexpr size_t kMaxHeights = 256;
 }
 
 MeanPlaneControl::MeanPlaneControl(const Microgeometry& g) {

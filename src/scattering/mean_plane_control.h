@@ -24,6 +24,7 @@ namespace mbsdf {
 class MeanPlaneControl {
  public:
   explicit MeanPlaneControl(const Microgeometry& g);
+  MeanPlaneControl() = default;  // no control (c = 0)
   // False when the surface does not cover its footprint exactly once (holes, overlapping sheets:
   // E[Z] is not known) or has facets facing down (overhangs: Z there adds variance that X does
   // not share); the control is then not used (c = 0).

@@ -29,6 +29,10 @@ namespace mbsdf {
 // 75 × 300 bins, at a quarter of 32's binning cost.
 inline constexpr int kMinSubdirections = 16, kMaxSubdirections = 512, kDefaultSubdirections = 16;
 
+// Whether `area` uses the mean plane's field as a control variate (mean_plane_control.h); None is
+// the baseline of the variance benchmark (bench/bench_wave_variance.cpp).
+enum class WaveControlVariate { MeanPlane, None };
+
 struct WaveSettings {
   WaveEstimatorKind estimator = WaveEstimatorKind::Area;
   int samplesPerBin = 256;      // area: points x directions per exit bin; paper: passes
@@ -42,6 +46,7 @@ struct WaveSettings {
   int subdirections = kDefaultSubdirections;
   uint64_t seed = 1;
   bool computeMasked = false;  // also estimate P_msk for the lost component
+  WaveControlVariate controlVariate = WaveControlVariate::MeanPlane;
   // exact: directions per axis of the shared visibility table (visibility_table.h); 0 casts every
   // ray per order instead.
   int visibilityTable = 0;
