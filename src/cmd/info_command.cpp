@@ -100,11 +100,12 @@ void printInfo(const nlohmann::json& j) {
 // negative value where its component cannot hold one, with the slice): what `info` vouches for.
 // Files above kScanBytes are scanned only with --scan. Returns the values read (0: not scanned).
 constexpr double kScanBytes = 2e9;
-uint64_t scanTables(const BsdfFileReader& f, bool force, double* bytes) {
+enum class ScanScope { UpToLimit, Always };
+uint64_t scanTables(const BsdfFileReader& f, ScanScope scope, double* bytes) {
   const std::vector<std::string> components = f.components();
   const double perSlice = double(f.grid().binCount()) * double(f.channelCount());
   *bytes = 4.0 * perSlice * double(f.incidenceCount()) * double(components.size());
-  if (f.doneCount() != f.incidenceCount() || (*bytes > kScanBytes && !force)) return 0;
+  if (f.doneCount() != f.incidenceCount() || (*bytes > kScanBytes && scope != ScanScope::Always)) return 0;
   uint64_t values = 0;
   for (const std::string& c : components)
     for (int i = 0; i < f.incidenceCount(); ++i) {
@@ -132,7 +133,7 @@ Command addInfoCommand(CLI::App& app) {
     BsdfFileReader f(o->h5Path);
     nlohmann::json j = fileSummary(f, o->h5Path);
     double bytes = 0;
-    const uint64_t values = scanTables(f, o->scan, &bytes);
+    const uint64_t values = scanTables(f, o->scan ? ScanScope::Always : ScanScope::UpToLimit, &bytes);
     j["values_scanned"] = values;
     if (o->json)
       std::cout << j.dump(2) << "\n";
