@@ -304,6 +304,8 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     dirs.findLobes(ctx_, media, exactDirection ? normalize(*exactDirection) : grid.centre(incidenceBin), fromAbove);
     const auto [M, N] =
         directionsFor(budget, pointsFor(b, N0, media, fromAbove, exactDirection, incidenceBin), dirs.lobeCount());
+    // The first (budget − M N) directions take one point more: every bin spends the budget.
+    const int extra = int(budget - uint64_t(M) * uint64_t(N));
     if (exactDirection) dirs.allocate(M);
     // p_k per (direction, λ) for the visible and the masked field.
     std::vector<double> pv(size_t(M) * nL, 0.0), pm(masked ? size_t(M) * nL : 0, 0.0);
@@ -328,7 +330,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
       const double pdf = dirs.density(dirs.technique(k), wo);
       const bool transmission = wave::isTransmission(media.conductor(), fromAbove, wo);
       const Direction d{wi, wo, transmission, pdf};
-      directionPowers(d, k, nL, N, masked, media, fromAbove, s, pv, pm, &localRays);
+      directionPowers(d, k, nL, N + (k < extra ? 1 : 0), masked, media, fromAbove, s, pv, pm, &localRays);
     }
     // Bin integral mean_k p_k / pdf_k, as a bin-averaged BSDF (÷ Ω⊥), with the standard error of
     // the mean over the M independent directions.
@@ -336,7 +338,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     binIntegral(stratum, T, M, nL, nB, b, toF, pv, r.fws, r.fwsErr);
     if (masked) binIntegral(stratum, T, M, nL, nB, b, toF, pm, r.pmsk, r.pmskErr);
     rays += localRays;
-    samples += uint64_t(M) * uint64_t(N);
+    samples += uint64_t(M) * uint64_t(N) + uint64_t(extra);
   };
 
   constexpr size_t kBatch = 512;
