@@ -307,7 +307,6 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
     const int t = pilots[k];
     spdlog::info("plan: wave pilot at theta_i = {:.3g} deg", job.incidence[size_t(t)].theta_deg);
     const WaveTileResult w = est->run(tileRequestOf(job, t), heartbeat("plan: wave pilot"));
-    const double e1 = waveRelativeError(w, grid);
     pilotNodes.push_back(finerRule ? job.incidenceRuleNodesAt(grid, job.incidence[size_t(t)].bin, 1) : 1.0);
     const double secondsBefore = waveSeconds;
     // The f_ws table's L1 parts at the job's budget: the pass's deviation scaled as its error is.
@@ -317,7 +316,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
       out.wsL1.push_back(std::move(l1));
     };
     if (waveDeterministic) {
-      waveRelErrors.push_back(e1);
+      waveRelErrors.push_back(waveRelativeError(w, grid));
       waveSeconds += w.seconds - w.binningSeconds;
       binningSeconds += w.binningSeconds;
       keepL1(w, 1.0);

@@ -297,7 +297,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
 
   WaveTileResult r(nL, nB, masked);
   r.computed = exitMask;
-  std::atomic<uint64_t> rays{0}, samples{0};
+  std::atomic<uint64_t> rays{0};
   auto doBin = [&](int b) {
     ExitDirectionSampler dirs(grid, b);
     // Lobes of the beam, or of the incidence bin's centre to size the allocation.
@@ -338,7 +338,6 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     binIntegral(stratum, T, M, nL, nB, b, toF, pv, r.fws, r.fwsErr);
     if (masked) binIntegral(stratum, T, M, nL, nB, b, toF, pm, r.pmsk, r.pmskErr);
     rays += localRays;
-    samples += uint64_t(M) * uint64_t(N) + uint64_t(extra);
   };
 
   constexpr size_t kBatch = 512;
@@ -348,7 +347,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     throwIfStopped();
     if (progress) progress(uint64_t(b1) * budget);
   }
-  r.samples = samples.load();
+  r.samples = uint64_t(bins.size()) * budget;  // M N + extra = budget in every bin
   r.rays = rays.load();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
