@@ -267,11 +267,14 @@ class TileServer {
     written_ = int(finished_.size());
     if (summary_.resumed)
       spdlog::info("resuming: {} of {} slices already complete in {}.partial", summary_.resumed, nTiles, outPath);
-    for (int t : writer.recomputedTiles())
-      spdlog::warn(
-          "resuming: slice {} is marked done in {}.partial but its energies are not finite (a damaged or "
-          "forged flag): computing it again",
-          t, outPath);
+    for (const RecomputedSlice& r : writer.recomputedTiles()) {
+      const std::string why =
+          r.fault == KeptSliceFault::EnergiesNotFinite ? "its energies are not finite (a damaged or forged flag)"
+          : r.fault == KeptSliceFault::Unreadable
+              ? "its " + r.dataset + " cannot be read back (a chunk fails its checksum: the file was damaged)"
+              : "its " + r.dataset + " holds a value the program cannot have written (NaN, infinite or negative)";
+      spdlog::warn("resuming: slice {} is marked done in {}.partial but {}: computing it again", r.index, outPath, why);
+    }
     // Symmetry (symmetry.h): one tile per ring (or per n-th of a ring) of a symmetric surface;
     // queued if any slice of its ring is missing (a kill may fall between a ring's slices).
     if (job.symmetryReduced()) symmetry_.emplace(job, grid);

@@ -89,6 +89,22 @@ std::pair<hsize_t, hsize_t> sliceChunkShape(hsize_t n1, hsize_t n2, size_t typeS
 // slice rewrites a few kilobytes per dataset.
 constexpr hsize_t kStatsChunkSlices = 64;
 
+// A per-slice row dataset of scalars (one per incidence), its initial values `v`: chunked by
+// kStatsChunkSlices with a Fletcher-32 checksum per chunk, which HDF5 verifies on every read.
+template <class T>
+H5Dataset writeRows1D(hid_t loc, const std::string& name, hid_t type, const std::vector<T>& v, const std::string& units,
+                      const std::string& longName) {
+  hsize_t n = v.size(), chunk = std::max<hsize_t>(1, std::min(n, kStatsChunkSlices));
+  H5Dataspace s(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
+  H5Plist p(H5Pcreate(H5P_DATASET_CREATE), "H5Pcreate");
+  h5check(H5Pset_chunk(p, 1, &chunk), "H5Pset_chunk");
+  h5check(H5Pset_fletcher32(p), "H5Pset_fletcher32");
+  H5Dataset d(H5Dcreate2(loc, name.c_str(), type, s, H5P_DEFAULT, p, H5P_DEFAULT), "create " + name);
+  if (n) h5check(H5Dwrite(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), "write " + name);
+  describe(d, units, longName);
+  return d;
+}
+
 // The square blocks of a table whose pairs are stored once: kPairBlock incidences x kPairBlock exit
 // bins per chunk, so that a slice (a row of blocks) and its mirrored half (a column of blocks) each
 // touch n/kPairBlock chunks of a few tens of kilobytes.
@@ -108,9 +124,13 @@ H5Dataset create3D(hid_t loc, const std::string& name, hid_t type, hsize_t n0, h
                                  : std::min<hsize_t>(n0, kStatsChunkSlices),
                       c1, c2};
   h5check(H5Pset_chunk(p, 3, chunk), "H5Pset_chunk");
+  // Every chunk carries a checksum HDF5 verifies on reading, so that a resume or a reader finds a
+  // damaged chunk: zlib's Adler-32 inside each deflated one, Fletcher-32 on the rest.
   if (compress) {
     h5check(H5Pset_shuffle(p), "H5Pset_shuffle");
     h5check(H5Pset_deflate(p, kTableDeflateLevel), "H5Pset_deflate");
+  } else {
+    h5check(H5Pset_fletcher32(p), "H5Pset_fletcher32");
   }
   if (H5Tequal(type, H5T_NATIVE_FLOAT) > 0) {
     float f = float(fill);
@@ -635,7 +655,50 @@ auto readingPartial(const std::string& partial, const std::string& journal, Read
   }
 }
 
+// Slice t of the old partial file into `rows`, verified: every chunk read passes HDF5's checksum
+// (Adler-32 inside each deflated table chunk, Fletcher-32 on the statistics), the energies are
+// finite (a done flag over rows never written is forged or damaged) and no table holds a value the
+// program cannot have written. A fault says which, and the slice is computed again.
+std::optional<RecomputedSlice> readKeptSlice(hid_t old, const OutputSchema& schema, int t,
+                                             std::map<std::string, std::vector<double>>& rows) {
+  const UnfilledHalf unfilled = schema.halvesWaveByReciprocity ? UnfilledHalf::Allowed : UnfilledHalf::Refused;
+  for (const auto& d : rowDatasets(schema)) {
+    // (a partial file of an older version lacks some statistics)
+    if (H5Lexists(old, d.substr(0, d.rfind('/')).c_str(), H5P_DEFAULT) <= 0 ||
+        H5Lexists(old, d.c_str(), H5P_DEFAULT) <= 0)
+      continue;
+    try {
+      rows[d] = readRowImpl(old, d, t);
+    } catch (const std::runtime_error&) {
+      return RecomputedSlice{t, KeptSliceFault::Unreadable, d};
+    }
+    const std::vector<double>& v = rows[d];
+    if (d.rfind("/stats/energy_", 0) == 0 &&
+        !std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }))
+      return RecomputedSlice{t, KeptSliceFault::EnergiesNotFinite, ""};
+    const bool table = (d.rfind("/bsdf/", 0) == 0 && d != "/bsdf/done") || d.rfind("/bsdf_stderr/", 0) == 0;
+    if (table && damagedValueOf(d, v, unfilled)) return RecomputedSlice{t, KeptSliceFault::ValuesDamaged, d};
+  }
+  return std::nullopt;
+}
+
 }  // namespace
+
+std::optional<DamagedValue> damagedValueOf(const std::string& path, const std::vector<double>& v,
+                                           UnfilledHalf unfilled) {
+  // Path tallies (coherent, multiple, geo_masked) and every standard error are sums of
+  // non-negative terms; incoherent and lost are differences and may be negative. Only the
+  // incoherent tables wait for the reciprocity fill.
+  const bool nonNegative = path.rfind("/bsdf_stderr/", 0) == 0 || path == "/bsdf/coherent" ||
+                           path == "/bsdf/multiple" || path == "/bsdf/geo_masked";
+  const bool mayWait =
+      unfilled == UnfilledHalf::Allowed && path.size() >= 11 && path.compare(path.size() - 11, 11, "/incoherent") == 0;
+  for (size_t k = 0; k < v.size(); ++k) {
+    if (std::isnan(v[k]) && mayWait) continue;
+    if (!std::isfinite(v[k]) || (nonNegative && v[k] < 0)) return DamagedValue{k, v[k]};
+  }
+  return std::nullopt;
+}
 
 bool isFinishedOutputOf(const std::string& path, const OutputSchema& schema) {
   if (!std::filesystem::is_regular_file(path) || H5Fis_hdf5(path.c_str()) <= 0) return false;
@@ -695,23 +758,9 @@ BsdfFileWriter::BsdfFileWriter(const std::string& path, OutputSchema outputSchem
     create(fresh);
     for (int t : journaled) {
       if (t < 0 || t >= int(done.size()) || !done[t]) continue;
-      using Rows = std::map<std::string, std::vector<double>>;
-      Rows kept = fromOld([&] {
-        Rows rows;
-        for (const auto& d : rowDatasets(schema))  // (a partial file of an older version lacks some statistics)
-          if (H5Lexists(old, d.substr(0, d.rfind('/')).c_str(), H5P_DEFAULT) > 0 &&
-              H5Lexists(old, d.c_str(), H5P_DEFAULT) > 0)
-            rows[d] = readRowImpl(old, d, t);
-        return rows;
-      });
-      // A finished slice has finite energies; a `done` flag over rows never written (fill values) is
-      // a forged or damaged flag: the slice is computed again.
-      const bool finite = std::all_of(kept.begin(), kept.end(), [](const auto& row) {
-        return row.first.rfind("/stats/energy_", 0) != 0 ||
-               std::all_of(row.second.begin(), row.second.end(), [](double x) { return std::isfinite(x); });
-      });
-      if (!finite) {
-        recomputed_.push_back(t);
+      std::map<std::string, std::vector<double>> kept;
+      if (std::optional<RecomputedSlice> fault = readKeptSlice(old, schema, t, kept)) {
+        recomputed_.push_back(*fault);
         continue;
       }
       for (const auto& [d, row] : kept) writeRow(file_, d, t, row, H5T_NATIVE_DOUBLE);
@@ -934,35 +983,36 @@ static void createTables(hid_t f, const OutputSchema& schema, const DirectionGri
     }
     {
       std::vector<uint8_t> zeros(nI, 0);
-      write1D(b, "done", H5T_NATIVE_UINT8, zeros, "1", "1 when the incidence slice is complete");
+      writeRows1D(b, "done", H5T_NATIVE_UINT8, zeros, "1", "1 when the incidence slice is complete");
     }
-    write1D(s, "samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1", "paths per wavelength");
-    write1D(s, "wave_samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1",
-            "Kirchhoff samples (point x exit direction) per wavelength");
-    write1D(s, "rays", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1",
-            "ray casts through the scene (paths, facet sums, the wave term's visibility): the tile's work, "
-            "independent of the machine");
-    write1D(s, "seconds", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "s", "wall time of the tile");
-    write1D(s, "sampling_stop", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
-            "0: fixed budget; 1: target_rel_error reached; 2: max_paths_per_slice spent first");
+    writeRows1D(s, "samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1", "paths per wavelength");
+    writeRows1D(s, "wave_samples", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1",
+                "Kirchhoff samples (point x exit direction) per wavelength");
+    writeRows1D(s, "rays", H5T_NATIVE_UINT64, std::vector<uint64_t>(nI, 0), "1",
+                "ray casts through the scene (paths, facet sums, the wave term's visibility): the tile's work, "
+                "independent of the machine");
+    writeRows1D(s, "seconds", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "s", "wall time of the tile");
+    writeRows1D(s, "sampling_stop", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
+                "0: fixed budget; 1: target_rel_error reached; 2: max_paths_per_slice spent first");
     if (schema.guarded.has(Component::Multiple)) {
-      write1D(s, "multiple_check", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "1",
-              "multiple scattering the effects planner skipped, verified on the slice: its energy + 3 standard "
-              "errors (largest over wavelengths; by a few thousand full-depth paths where single scattering came "
-              "from the facet sum)");
-      write1D(s, "multiple_reenabled", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
-              "1 when multiple_check exceeded [scene] tolerance: the slice holds multiple scattering after all "
-              "(elsewhere /bsdf/multiple is the traced value, or 0 where the facet sum computed single scattering)");
+      writeRows1D(s, "multiple_check", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "1",
+                  "multiple scattering the effects planner skipped, verified on the slice: its energy + 3 standard "
+                  "errors (largest over wavelengths; by a few thousand full-depth paths where single scattering came "
+                  "from the facet sum)");
+      writeRows1D(
+          s, "multiple_reenabled", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
+          "1 when multiple_check exceeded [scene] tolerance: the slice holds multiple scattering after all "
+          "(elsewhere /bsdf/multiple is the traced value, or 0 where the facet sum computed single scattering)");
     }
     if (schema.guarded.has(Component::Incoherent)) {
-      write1D(s, "diffraction_check", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "1",
-              "diffraction the effects planner skipped, verified on the slice: the upper estimate beyond noise of "
-              "sum over the renderer's cells of |sum (f_ws - f_coherent) * projected_solid_angle| (largest over "
-              "wavelengths), from the pilot that ran this slice as the job does or from the slice's own wave term");
-      write1D(s, "diffraction_reenabled", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
-              "1 when diffraction_check exceeded [scene] tolerance: the slice holds its diffraction after all "
-              "(/bsdf/incoherent is the computed wave term wherever the slice computed it, 0 where a pilot "
-              "confirmed the skip)");
+      writeRows1D(s, "diffraction_check", H5T_NATIVE_DOUBLE, std::vector<double>(nI, nan), "1",
+                  "diffraction the effects planner skipped, verified on the slice: the upper estimate beyond noise of "
+                  "sum over the renderer's cells of |sum (f_ws - f_coherent) * projected_solid_angle| (largest over "
+                  "wavelengths), from the pilot that ran this slice as the job does or from the slice's own wave term");
+      writeRows1D(s, "diffraction_reenabled", H5T_NATIVE_UINT8, std::vector<uint8_t>(nI, 0), "1",
+                  "1 when diffraction_check exceeded [scene] tolerance: the slice holds its diffraction after all "
+                  "(/bsdf/incoherent is the computed wave term wherever the slice computed it, 0 where a pilot "
+                  "confirmed the skip)");
     }
     {
       H5Dataset d = create3D(s, "energy_balance", H5T_NATIVE_DOUBLE, nI, nL, 1, nan, false);
@@ -2018,20 +2068,10 @@ const BsdfFileReader::OpenTable& BsdfFileReader::table(const std::string& path) 
 std::vector<double> BsdfFileReader::readTable(const std::string& path, int incidence) const {
   std::vector<double> v = readTableValues(path, incidence);
   if (doneCount() != incidenceCount()) return v;
-  // Path tallies (coherent, multiple, geo_masked) and every standard error are sums of
-  // non-negative terms; incoherent and lost are differences and may be negative.
-  const bool nonNegative = path.rfind("/bsdf_stderr/", 0) == 0 || path == "/bsdf/coherent" ||
-                           path == "/bsdf/multiple" || path == "/bsdf/geo_masked";
-  for (size_t k = 0; k < v.size(); ++k) {
-    if (!std::isfinite(v[k]))
-      throw InputError(fmt::format("{}: {} of slice {} holds {} at value {}: the table is damaged; compute it again",
-                                   path_, path, incidence, v[k], k));
-    if (nonNegative && v[k] < 0)
-      throw InputError(
-          fmt::format("{}: {} of slice {} holds {} at value {}, which a sum of non-negative terms "
-                      "cannot: the table is damaged; compute it again",
-                      path_, path, incidence, v[k], k));
-  }
+  if (const std::optional<DamagedValue> bad = damagedValueOf(path, v, UnfilledHalf::Refused))
+    throw InputError(fmt::format("{}: {} of slice {} holds {} at value {}{}: the table is damaged; compute it again",
+                                 path_, path, incidence, bad->value, bad->at,
+                                 std::isfinite(bad->value) ? ", which a sum of non-negative terms cannot" : ""));
   return v;
 }
 

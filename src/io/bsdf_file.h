@@ -51,6 +51,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -114,6 +115,29 @@ PreparedSlice deserializePrepared(const std::vector<unsigned char>& bytes);
 // nothing to compute.
 bool isFinishedOutputOf(const std::string& path, const OutputSchema& schema);
 
+// Why `--resume` computes a slice again that the journal lists as done.
+enum class KeptSliceFault {
+  EnergiesNotFinite,  // its energies were never written: a forged or damaged done flag
+  Unreadable,         // a chunk fails its checksum (Adler-32 of the deflated tables, Fletcher-32 of the rest)
+  ValuesDamaged,      // a table holds NaN, an infinity, or a negative value where it cannot
+};
+struct RecomputedSlice {
+  int index = 0;
+  KeptSliceFault fault = KeptSliceFault::EnergiesNotFinite;
+  std::string dataset;  // the dataset found damaged (empty for EnergiesNotFinite)
+};
+
+// The first value of a table row that the program cannot have written: not finite (where
+// `unfilled` allows, NaN stands for a mirrored half the reciprocity fill has yet to write), or
+// negative in a table of sums of non-negative terms (path tallies, standard errors).
+enum class UnfilledHalf { Refused, Allowed };
+struct DamagedValue {
+  size_t at = 0;
+  double value = 0;
+};
+std::optional<DamagedValue> damagedValueOf(const std::string& path, const std::vector<double>& v,
+                                           UnfilledHalf unfilled);
+
 class BsdfFileWriter {
  public:
   // resume: keep the finished slices of an earlier run of the same job (see above). Throws
@@ -148,8 +172,8 @@ class BsdfFileWriter {
   const std::vector<int>& resumedTiles() const { return resumed_; }
   // finish() renamed the partial file to the output (even if syncing its folder then failed).
   bool outputInPlace() const { return inPlace_; }
-  // Slices the journal listed whose energies in the partial file are not finite: computed again.
-  const std::vector<int>& recomputedTiles() const { return recomputed_; }
+  // Slices the journal listed that the partial file does not hold intact: computed again.
+  const std::vector<RecomputedSlice>& recomputedTiles() const { return recomputed_; }
 
  private:
   void create(const std::string& file);
@@ -198,7 +222,8 @@ class BsdfFileWriter {
   H5File file_;
   std::map<std::string, OpenDataset> datasets_;                        // declared after file_: closed before it
   std::map<std::string, std::map<int, std::vector<double>>> pending_;  // path → row → values (putRow)
-  std::vector<int> resumed_, recomputed_;
+  std::vector<int> resumed_;
+  std::vector<RecomputedSlice> recomputed_;
   bool inPlace_ = false;
   nlohmann::json pairsReport_ = nlohmann::json::object();
   bool finished_ = false;

@@ -236,6 +236,57 @@ def test_damaged_partials():
           "again, the table identical to a clean run")
 
 
+def kept_slices(out):
+    """The slices the journal of `out` lists as done."""
+    with open(os.path.join(TMP, out + ".journal")) as f:
+        return [int(line.split()[1]) for line in f if line.startswith("tile ")]
+
+
+def test_damaged_kept_slices():
+    """--resume verifies every slice it keeps: a flipped byte in a deflated table chunk (Adler-32), in
+    a chunk of the per-slice statistics (Fletcher-32), and a NaN or negative value written with valid
+    checksums into a kept slice's table: each slice is computed again with a warning naming it and
+    the dataset, and the finished table is identical to a clean run (the resume kept them before: a
+    finished table with NaN, exit 0, or a refusal of the whole partial file)."""
+    job = small_job(os.path.join(TMP, "job.toml"), output="out.h5")
+    run(["run", job, "-o", "ref.h5"])
+    with h5py.File(os.path.join(TMP, "ref.h5"), "r") as h:
+        table = "/bsdf/" + next(c for c in ("coherent", "multiple", "geo_masked") if c in h["/bsdf"])
+
+    def flip(partial, dataset, t):
+        with h5py.File(partial, "r") as h:
+            d = h[dataset]
+            info = d.id.get_chunk_info_by_coord((t,) + (0,) * (d.ndim - 1))
+        with open(partial, "r+b") as f:
+            f.seek(info.byte_offset + info.size // 2)
+            b = f.read(1)
+            f.seek(info.byte_offset + info.size // 2)
+            f.write(bytes([b[0] ^ 0x5A]))
+
+    def overwrite(partial, dataset, t, value):
+        with h5py.File(partial, "r+") as h:
+            row = h[dataset][t]
+            row.flat[len(row.flat) // 2] = value
+            h[dataset][t] = row
+
+    cases = [("table chunk", lambda p, t: flip(p, table, t), "cannot be read back", table),
+             ("statistics chunk", lambda p, t: flip(p, "/stats/samples", t), "cannot be read back", "/stats/samples"),
+             ("NaN in a table", lambda p, t: overwrite(p, table, t, np.nan), "cannot have written", table),
+             ("negative value", lambda p, t: overwrite(p, table, t, -1.0), "cannot have written", table)]
+    for name, damage, phrase, dataset in cases:
+        out = name.replace(" ", "_") + ".h5"
+        killed_partial(job, out)
+        partial = os.path.join(TMP, out + ".partial")
+        subprocess.run(["h5clear", "-s", partial], check=True, capture_output=True)
+        t = kept_slices(out)[0]
+        damage(partial, t)
+        text = expect(["run", job, "-o", out, "--resume"], 0, f"slice {t} is marked done", phrase, dataset,
+                      "computing it again", mpi=2)
+        assert datasets(os.path.join(TMP, out)) == datasets(os.path.join(TMP, "ref.h5")), f"{name}: the table differs"
+        print(f"{name} of kept slice {t}: computed again with a warning naming {dataset}; the table identical to a "
+              "clean run")
+
+
 def test_damaged_tables():
     """Readers do not trust what they read: a foreign HDF5 file, a table without /bsdf/done or its
     grid's attributes, a finished table with one NaN, and a path-traced table with one negative value
