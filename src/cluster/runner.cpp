@@ -10,8 +10,10 @@
 #include <numeric>
 #include <deque>
 #include <filesystem>
+#include <future>
 #include <optional>
 #include <set>
+#include <thread>
 
 #include "cluster/output_schema_of.h"
 #include "core/log.h"
@@ -30,7 +32,7 @@
 namespace mbsdf {
 namespace {
 
-constexpr int kTagRequest = 11, kTagResult = 12, kTagStopped = 13, kTagPrepared = 14, kTagAssign = 21;
+constexpr int kTagRequest = 11, kTagResult = 12, kTagStopped = 13, kTagPrepared = 14, kTagAlive = 15, kTagAssign = 21;
 
 // How a rank ends; the maximum over the ranks is the run's.
 enum RankStatus : int { kRankOk = 0, kRankWriteFailed = 1 };
@@ -38,6 +40,11 @@ enum RankStatus : int { kRankOk = 0, kRankWriteFailed = 1 };
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+// A worker's heartbeat interval: a tenth of the timeout rank 0 judges it by, at most 2 s.
+double heartbeatSecondsFor(double rankTimeoutSeconds) {
+  return rankTimeoutSeconds > 0 ? std::min(2.0, rankTimeoutSeconds / 10) : 0.0;
 }
 
 // Memory: a footprint this node cannot hold is refused before anything is written ("" if it fits).
@@ -121,12 +128,26 @@ std::function<void()> prepareSlices(const Job& job, const TileResult& r,
   };
 }
 
+// A worker's work on a tile (computing it, preparing its slices), done on a thread of its own while
+// this thread (the one that calls MPI) tells rank 0 every `heartbeatSeconds` that the rank is alive
+// (kTagAlive), however long the tile's inner loops run between progress callbacks: rank 0 can then
+// tell a long tile from a rank that is stopped, frozen or cut off (TileServer::checkSilence). The
+// work's exceptions (a stop) reach the caller.
+template <class Work>
+auto withHeartbeat(Work work, int t, double heartbeatSeconds) -> decltype(work()) {
+  if (heartbeatSeconds <= 0) return work();
+  auto done = std::async(std::launch::async, std::move(work));
+  const auto interval = std::chrono::milliseconds(int64_t(heartbeatSeconds * 1000));
+  while (done.wait_for(interval) != std::future_status::ready) MPI_Send(&t, 1, MPI_INT, 0, kTagAlive, MPI_COMM_WORLD);
+  return done.get();
+}
+
 // A worker rank: asks rank 0 for tiles until told there are none (or a stop abandons one), sends
 // each result back (and its prepared slices, prepareSlicesOf), then joins the ranks' agreement on
 // how the run ended (RankStatus).
 void serveAsWorker(const std::function<TileResult(int)>& computeTile,
                    const std::function<std::function<void()>(const TileResult&)>& prepareSlicesOf,
-                   RunSummary& summary) {
+                   double heartbeatSeconds, RunSummary& summary) {
   int request = -1;
   MPI_Send(&request, 1, MPI_INT, 0, kTagRequest, MPI_COMM_WORLD);
   while (true) {
@@ -139,8 +160,13 @@ void serveAsWorker(const std::function<TileResult(int)>& computeTile,
       break;
     }
     try {
-      TileResult r = computeTile(t);
-      const std::function<void()> sendSlices = prepareSlicesOf(r);
+      auto [r, sendSlices] = withHeartbeat(
+          [&] {
+            TileResult computed = computeTile(t);
+            std::function<void()> send = prepareSlicesOf(computed);
+            return std::make_pair(std::move(computed), std::move(send));
+          },
+          t, heartbeatSeconds);
       std::vector<double> buf = r.serialize();
       MPI_Send(buf.data(), int(buf.size()), MPI_DOUBLE, 0, kTagResult, MPI_COMM_WORLD);
       sendSlices();
@@ -261,7 +287,10 @@ class TileServer {
         t0_(t0),
         finished_(writer.resumedTiles().begin(), writer.resumedTiles().end()),
         progress_("slices written", uint64_t(job.incidence.size())),  // symmetry copies count
-        activeWorkers_(mpi.size() - 1) {
+        activeWorkers_(mpi.size() - 1),
+        lastHeard_(size_t(mpi.size()), Clock::now()),
+        holdsTile_(size_t(mpi.size()), 1) {
+    holdsTile_[0] = 0;
     const int nTiles = int(job.incidence.size());
     summary_.resumed = int(finished_.size());
     written_ = int(finished_.size());
@@ -303,6 +332,7 @@ class TileServer {
     auto serveAll = [&] {
       while (serveOne(false)) {
       }
+      checkSilence();
     };
     while (true) {
       serveAll();
@@ -361,6 +391,14 @@ class TileServer {
   void noteSliceChecks(int slice, const EnergyBalance& b);
   void writeResult(const TileResult& r, int worker = 0);
   bool serveOne(bool blocking);
+  // Waits for a message from `source` (or any) with `tag` (or any), watching for silent workers
+  // meanwhile: a short sleep between probes, so that waiting costs rank 0 no core.
+  MPI_Status waitForMessage(int source, int tag);
+  // Ends the run if a worker that holds a tile has sent nothing for --rank-timeout seconds: its
+  // tile would never come, and every other rank would wait for it in the collectives that end the
+  // run. Called only after every waiting message was received, so a busy rank 0 misjudges no one.
+  void checkSilence();
+  [[noreturn]] void abandonSilentRank(int rank, double seconds);
 
   const Job& job_;
   const DirectionGrid& grid_;
@@ -385,9 +423,11 @@ class TileServer {
   int nonphysical_ = 0, worstSlice_ = -1;
   unsigned worstFlags_ = 0;
   double worstBadness_ = 0;
-  double writeSeconds_ = 0;                  // rank 0's time in the writer (slices, their flags, the journal)
-  double prepareSeconds_ = 0;                // rank 0 preparing the slices of its own tiles (prepareSlice)
-  std::map<std::string, double> energySum_;  // Σ over the slices written now of each component's Σ f Ω⊥
+  double writeSeconds_ = 0;                   // rank 0's time in the writer (slices, their flags, the journal)
+  double prepareSeconds_ = 0;                 // rank 0 preparing the slices of its own tiles (prepareSlice)
+  std::vector<Clock::time_point> lastHeard_;  // per rank: its last message (a request, result or heartbeat)
+  std::vector<char> holdsTile_;               // per rank: a worker that has a tile (or asked for its first)
+  std::map<std::string, double> energySum_;   // Σ over the slices written now of each component's Σ f Ω⊥
 };
 
 // What makes a slice non-physical (SliceFlag, stored in /stats/nonphysical): the log names the slice
@@ -435,8 +475,8 @@ void TileServer::writeResult(const TileResult& r, int worker) {
   auto nextPrepared = [&]() -> std::optional<PreparedSlice> {
     if (received >= expected) return std::nullopt;
     ++received;
-    MPI_Status st;
-    MPI_Probe(worker, kTagPrepared, MPI_COMM_WORLD, &st);
+    MPI_Status st = waitForMessage(worker, kTagPrepared);
+    lastHeard_[size_t(worker)] = Clock::now();
     int count = 0;
     MPI_Get_count(&st, MPI_BYTE, &count);
     std::vector<unsigned char> bytes(static_cast<size_t>(count));
@@ -490,12 +530,18 @@ bool TileServer::serveOne(bool blocking) {
   MPI_Status st;
   int flag = 0;
   if (blocking) {
-    MPI_Probe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &st);
+    st = waitForMessage(MPI_ANY_SOURCE, MPI_ANY_TAG);
     flag = 1;
   } else {
     MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &st);
   }
   if (!flag) return false;
+  lastHeard_[size_t(st.MPI_SOURCE)] = Clock::now();
+  if (st.MPI_TAG == kTagAlive) {  // a heartbeat: nothing to answer
+    int tile = 0;
+    MPI_Recv(&tile, 1, MPI_INT, st.MPI_SOURCE, kTagAlive, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    return true;
+  }
   if (st.MPI_TAG == kTagResult) {
     int count = 0;
     MPI_Get_count(&st, MPI_DOUBLE, &count);
@@ -515,8 +561,46 @@ bool TileServer::serveOne(bool blocking) {
   }
   const int t = takeTile(false);
   MPI_Send(&t, 1, MPI_INT, st.MPI_SOURCE, kTagAssign, MPI_COMM_WORLD);
+  holdsTile_[size_t(st.MPI_SOURCE)] = t >= 0;
   if (t < 0) --activeWorkers_;
   return true;
+}
+
+MPI_Status TileServer::waitForMessage(int source, int tag) {
+  MPI_Status st;
+  int flag = 0;
+  while (true) {
+    MPI_Iprobe(source, tag, MPI_COMM_WORLD, &flag, &st);
+    if (flag) return st;
+    checkSilence();
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+}
+
+void TileServer::checkSilence() {
+  if (options_.rankTimeoutSeconds <= 0) return;
+  for (size_t w = 1; w < lastHeard_.size(); ++w)
+    if (holdsTile_[w] && since(lastHeard_[w]) > options_.rankTimeoutSeconds)
+      abandonSilentRank(int(w), since(lastHeard_[w]));
+}
+
+// The partial file is closed cleanly (every journaled slice stays), then the job is aborted: the
+// silent rank cannot join the collectives of a clean end, and only the launcher can end it.
+void TileServer::abandonSilentRank(int rank, double seconds) {
+  spdlog::error(
+      "rank {} sent nothing for {:.0f} s (no result and no heartbeat; --rank-timeout {}): it is stopped, frozen or cut "
+      "off. {}/{} slices are safe in {}.partial (listed in its journal); run the same command with --resume "
+      "(exit code {})",
+      rank, seconds, options_.rankTimeoutSeconds, written_, int(job_.incidence.size()), outPath_,
+      exitCode(ExitCode::RankSilent));
+  try {
+    writer_.close();
+  } catch (const std::exception& e) {
+    spdlog::error("closing {}.partial: {} (the journal lists only slices on disk)", outPath_, e.what());
+  }
+  spdlog::default_logger()->flush();
+  MPI_Abort(MPI_COMM_WORLD, exitCode(ExitCode::RankSilent));
+  std::abort();  // MPI_Abort does not return
 }
 
 void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
@@ -635,7 +719,8 @@ RunSummary runJob(const Job& job, const MpiSession& mpi, const RunOptions& optio
     if (job.symmetryReduced()) symmetry.emplace(job, grid);
     const OutputSchema schema = outputSchemaOf(job);
     serveAsWorker([&](int t) { return own.compute(t, {}); },
-                  [&](const TileResult& r) { return prepareSlices(job, r, symmetry, schema, grid); }, summary);
+                  [&](const TileResult& r) { return prepareSlices(job, r, symmetry, schema, grid); },
+                  heartbeatSecondsFor(options.rankTimeoutSeconds), summary);
     double times[2] = {own.pathSeconds, own.waveSeconds};
     MPI_Reduce(times, nullptr, 2, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     int outcome = 0;  // rank 0's ExitCode, once it has finished or closed the file

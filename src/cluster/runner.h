@@ -43,6 +43,9 @@ struct RunOptions {
   int threads = 0;         // 0: all cores
   bool resume = false;
   double maxHours = 0;  // 0: no limit
+  // Rank 0 ends the run (exit code 6, the partial file resumable) when a worker with a tile sends
+  // nothing, neither a result nor a heartbeat, for this long; 0: never.
+  double rankTimeoutSeconds = 120;
   // What the effects planner's pilots computed on this rank (planEffects): paths and wave terms of
   // tiles it need not compute again.
   PilotResults pilots;

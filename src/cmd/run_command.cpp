@@ -1,8 +1,9 @@
-// `microbsdf run JOB.toml [-o OUT.h5] [--threads N] [--log-dir DIR] [--resume] [--max-hours H] [-v]`,
-// under mpirun or srun for several ranks: every rank loads the job (while MPI starts, when it can:
-// EarlyStart); rank 0 checks the output location and takes its lock before any tile, runs the
-// effects planner's pilots, then all ranks run the tiles (cluster/runner.h). Foreseeable failures
-// end every rank with the same exit code and one message; only an unexpected one aborts the job.
+// `microbsdf run JOB.toml [-o OUT.h5] [--threads N] [--log-dir DIR] [--resume] [--max-hours H]
+// [--rank-timeout S] [-v]`, under mpirun or srun for several ranks: every rank loads the job (while
+// MPI starts, when it can: EarlyStart); rank 0 checks the output location and takes its lock before
+// any tile, runs the effects planner's pilots, then all ranks run the tiles (cluster/runner.h).
+// Foreseeable failures end every rank with the same exit code and one message; only an unexpected
+// one aborts the job.
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
@@ -40,6 +41,7 @@ struct RunArgs {
   int threads = 0;
   bool resume = false, verbose = false;
   double maxHours = 0;
+  double rankTimeout = 120;
 };
 
 // A step's outcome on rank 0 ("" to go on, else "<exit code> <message>") made every rank's: the
@@ -242,6 +244,7 @@ int runCommand(int argc, char** argv, RunArgs a) {
     opt.threads = a.threads;
     opt.resume = a.resume;
     opt.maxHours = a.maxHours;
+    opt.rankTimeoutSeconds = a.rankTimeout;
     if (pre.setupError) std::rethrow_exception(pre.setupError);
     opt.setup = pre.setup;
     opt.setupDuringMpiStart = pre.setup != nullptr;
@@ -285,6 +288,12 @@ Command addRunCommand(CLI::App& app, int argc, char** argv) {
                   "keep the finished slices of an interrupted run of the same job (harmless on a fresh run)");
   c.app->add_option("--max-hours", o->maxHours, "stop cleanly (exit code 3) before this wall time, in hours")
       ->check(CLI::NonNegativeNumber);
+  c.app
+      ->add_option("--rank-timeout", o->rankTimeout,
+                   "end the run (exit code 6, resumable) when a rank computing a tile sends nothing for this many "
+                   "seconds (0: never)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   c.run = [o, argc, argv] { return runCommand(argc, argv, *o); };
   c.handlesOwnErrors = true;
   return c;

@@ -15,6 +15,7 @@ enum class ExitCode : int {
   Stopped = 3,      // stopped cleanly (signal, --max-hours): the same command with --resume completes it
   WriteFailed = 4,  // the output could not be written (disk full, quota, I/O error): resumable
   OutputBusy = 5,   // another run holds the output path
+  RankSilent = 6,   // a rank sent nothing for --rank-timeout seconds (stopped, frozen, cut off): resumable
 };
 constexpr int exitCode(ExitCode c) {
   return static_cast<int>(c);

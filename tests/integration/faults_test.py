@@ -287,6 +287,61 @@ def test_damaged_kept_slices():
               "clean run")
 
 
+def rank_pids(session):
+    """{MPI rank: PID} of the ranks mpirun started in `session`."""
+    pids = {}
+    found = subprocess.run(["pgrep", "-s", str(session), "-x", "microbsdf"], capture_output=True, text=True)
+    for pid in map(int, found.stdout.split()):
+        try:
+            env = open(f"/proc/{pid}/environ", "rb").read().split(b"\0")
+        except OSError:
+            continue
+        for item in env:
+            if item.startswith(b"OMPI_COMM_WORLD_RANK="):
+                pids[int(item.split(b"=")[1])] = pid
+    return pids
+
+
+def test_silent_rank():
+    """A worker that goes silent with a tile (SIGSTOP: to rank 0 a hung process, a frozen node and a
+    cut link look alike) ends the run after --rank-timeout with exit 6, a message naming the rank, the
+    slices safe in the partial file and --resume; --resume completes a table identical to a clean run.
+    (Before, rank 0 waited for the tile until Open MPI noticed, or forever: a stopped process keeps its
+    sockets.) Bounded waits only: the stop is observed, not timed."""
+    job = many_tiles_job(os.path.join(TMP, "job.toml"), 12, "out.h5", paths=40000)
+    run(["run", job, "-o", "ref.h5"])
+    p = start(["run", job, "-o", "out.h5", "--rank-timeout", "10"], mpi=2)
+    t0 = time.time()
+    while journal_count(os.path.join(TMP, "out.h5")) < 2:
+        assert p.poll() is None, "the run ended before the stop:\n" + p.stdout.read()
+        assert time.time() - t0 < 300, "no slice finished"
+        time.sleep(0.02)
+    worker = rank_pids(p.pid)[1]
+    os.kill(worker, signal.SIGSTOP)
+    try:
+        out, _ = p.communicate(timeout=300)
+    finally:
+        subprocess.run(["pkill", "-KILL", "-s", str(p.pid)])
+        wait_session_gone(p.pid)
+    assert p.returncode == 6, f"exit {p.returncode}, expected 6:\n{out}"
+    print(next(line for line in out.splitlines() if "sent nothing" in line))
+    for phrase in ("rank 1 sent nothing for", "--rank-timeout 10", "slices are safe in out.h5.partial", "--resume"):
+        assert phrase in out, f"'{phrase}' not in the output:\n{out}"
+    kept = journal_count(os.path.join(TMP, "out.h5"))
+    text = expect(["run", job, "-o", "out.h5", "--resume"], 0, f"resuming: {kept} of 48 slices", mpi=2)
+    assert datasets(os.path.join(TMP, "out.h5")) == datasets(os.path.join(TMP, "ref.h5")), "the resumed table differs"
+    print(f"rank 1 stopped with a tile: exit 6 after {time.time() - t0:.0f} s naming it; {kept} slices kept, "
+          "--resume identical to a clean run")
+    # A live rank whose tiles each take longer than the timeout is not taken for a silent one: its
+    # heartbeat does not wait for the tile's progress callbacks.
+    slow = many_tiles_job(os.path.join(TMP, "slow.toml"), 1, "slow.h5", paths=5000000)
+    t1 = time.time()
+    text = expect(["run", slow, "-o", "slow.h5", "--rank-timeout", "2", "--threads", "1", "-v"], 0, mpi=2)
+    tiles = [float(x) for x in re.findall(r"tile \d+: ([0-9.]+) s \(path tracing", text)]
+    print(f"tiles of {min(tiles):.1f}-{max(tiles):.1f} s under --rank-timeout 2: completed ({time.time() - t1:.0f} s)")
+    assert max(tiles) > 2, f"the tiles took {tiles} s: not longer than the timeout"
+
+
 def test_damaged_tables():
     """Readers do not trust what they read: a foreign HDF5 file, a table without /bsdf/done or its
     grid's attributes, a finished table with one NaN, and a path-traced table with one negative value
