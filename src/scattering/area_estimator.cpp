@@ -6,9 +6,11 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <tuple>
 
 #include "core/rng.h"
 #include "core/stop.h"
+#include "scattering/lobe_shares.h"
 #include "scattering/wave_common.h"
 
 using mbsdf::wave::ExitVisibility;
@@ -19,6 +21,7 @@ namespace {
 constexpr uint32_t kWaveStream = 0x57A7E;  // keeps the wave samples apart from the path tracer's
 constexpr double kUniformFraction = 0.2;   // share of exit directions drawn uniformly in the bin
 constexpr size_t kMaxLobes = 4096;
+constexpr double kMinLobeShare = 1e-4;  // a lobe with less of itself in a bin is not drawn there
 
 // Exit directions inside one bin. A periodic patch under a coherence window much wider than the
 // patch scatters into narrow lobes around the grating orders G = 2π(a/Lx, b/Ly): by Poisson
@@ -33,8 +36,11 @@ constexpr size_t kMaxLobes = 4096;
 // has none), so the estimate stays unbiased.
 class ExitDirectionSampler {
  public:
+  // A Gaussian spot in the plane of direction cosines, and its share of this bin (0: unknown, the
+  // spot is then drawn whole and a draw outside the bin counts 0).
   struct Lobe {
     double cx, cy, sd;
+    double inBin = 0;
   };
   ExitDirectionSampler(const DirectionGrid& grid, int bin) : grid_(grid), bin_(bin) {}
 
@@ -95,12 +101,22 @@ class ExitDirectionSampler {
       addIfReaching({-nI * wi.x / nO, -nI * wi.y / nO, sigmaQ / (nO * k0)}, zs);
     }
   }
-  // Keeps a lobe that reaches into this bin (probes at its centre and ±3 sd).
-  void addIfReaching(const Lobe& L, double zs) {
+  // Keeps a lobe that reaches into this bin (probes at its centre and ±3 sd), with its share of
+  // the bin where the grid gives it in closed form (gaussianLobeShares): the lobe is then drawn
+  // restricted to the bin (every draw lands in it), with its density divided by that share. A
+  // lobe drawn whole puts most draws outside a bin it only grazes: a technique whose draws all
+  // fell outside reported 0 ± 0 for a bin that held a lobe's tail.
+  void addIfReaching(Lobe L, double zs) {
     for (int dx = -1; dx <= 1; ++dx)
       for (int dy = -1; dy <= 1; ++dy) {
         const double px = L.cx + 3 * L.sd * dx, py = L.cy + 3 * L.sd * dy, r2 = px * px + py * py;
         if (r2 < 1 && grid_.binOf({px, py, zs * std::sqrt(1 - r2)}) == bin_) {
+          std::vector<std::pair<int, double>> shares;
+          if (gaussianLobeShares(grid_, L.cx, L.cy, L.sd, zs > 0, &shares)) {
+            for (const auto& [b, share] : shares)
+              if (b == bin_) L.inBin += share;
+            if (L.inBin < kMinLobeShare) return;  // the uniform directions see so small a tail
+          }
           lobes_.push_back(L);
           return;
         }
@@ -118,18 +134,28 @@ class ExitDirectionSampler {
     for (int k = nUniform_; k < M; ++k) counts_[size_t(k - nUniform_) % lobes_.size()]++;
   }
   int technique(int k) const { return k < nUniform_ ? -1 : int(size_t(k - nUniform_) % lobes_.size()); }
-  // Draws ωo with technique t (−1: uniform); false if the draw fell outside the bin (estimate 0).
-  bool sample(int t, double u1, double u2, Vec3* wo) const {
+  // Draws ωo with technique t (−1: uniform) from (u1, u2) and, for a lobe restricted to the bin,
+  // as many further pairs from `next` as it takes; false if the draw fell outside the bin
+  // (estimate 0).
+  template <class Next>
+  bool sample(int t, double u1, double u2, Next next, Vec3* wo) const {
     if (t < 0) {
       *wo = grid_.sampleUniform(bin_, u1, u2).w;
       return true;
     }
     const Lobe& L = lobes_[size_t(t)];
-    double r = L.sd * std::sqrt(-2 * std::log(std::max(u1, 1e-300))), a = 2 * kPi * u2;
-    double x = L.cx + r * std::cos(a), y = L.cy + r * std::sin(a), r2 = x * x + y * y;
-    if (r2 >= 1) return false;
-    *wo = Vec3{x, y, (grid_.isUpper(bin_) ? 1.0 : -1.0) * std::sqrt(1 - r2)};
-    return grid_.binOf(*wo) == bin_;
+    // Restricted to the bin: drawn until a draw lands in it (on average 1 / inBin draws; more
+    // than 50 / inBin fail with probability e^−50).
+    const int tries = L.inBin > 0 ? int(std::ceil(50 / L.inBin)) : 1;
+    for (int i = 0; i < tries; ++i) {
+      if (i > 0) u1 = next(), u2 = next();
+      double r = L.sd * std::sqrt(-2 * std::log(std::max(u1, 1e-300))), a = 2 * kPi * u2;
+      double x = L.cx + r * std::cos(a), y = L.cy + r * std::sin(a), r2 = x * x + y * y;
+      if (r2 >= 1) continue;
+      *wo = Vec3{x, y, (grid_.isUpper(bin_) ? 1.0 : -1.0) * std::sqrt(1 - r2)};
+      if (grid_.binOf(*wo) == bin_) return true;
+    }
+    return false;
   }
   // The effective density of a direction drawn with technique t (−1: uniform) under the power
   // heuristic (β = 2; Veach 1997 §9.2.4): f / density averaged over the M directions is
@@ -144,8 +170,8 @@ class ExitDirectionSampler {
       if (!counts_[c]) continue;
       const Lobe& L = lobes_[c];
       double dx = wo.x - L.cx, dy = wo.y - L.cy;
-      const double nc =
-          counts_[c] * std::exp(-(dx * dx + dy * dy) / (2 * L.sd * L.sd)) / (2 * kPi * L.sd * L.sd) * std::abs(wo.z);
+      const double nc = counts_[c] * std::exp(-(dx * dx + dy * dy) / (2 * L.sd * L.sd)) /
+                        (2 * kPi * L.sd * L.sd * (L.inBin > 0 ? L.inBin : 1.0)) * std::abs(wo.z);
       sum2 += nc * nc;
       if (int(c) == t) own = nc;
     }
@@ -164,6 +190,43 @@ class ExitDirectionSampler {
 
 }  // namespace
 
+// The unbiased pairwise power (|Σ Y|² − Σ |Y|²) / (N (N − 1)) of wavelength l's Y_j (s and p,
+// averaged: unpolarised light), × scale, and its jackknife variance over the N points (Efron and
+// Stein 1981: (N − 1)/N Σ_i (U_(i) − Ū)², U_(i) the same power without point i). The jackknife
+// holds the variance of a signal's power; where E[Y] ≈ 0 (a bin of noise) it is about twice the
+// variance (the degenerate part of a U-statistic is counted 2 (N − 1)/(N − 2) times): conservative.
+static std::pair<double, double> pairwisePower(const std::vector<Complex>& y, int N, int nL, int l, double scale) {
+  Complex S[2] = {0, 0};
+  double Q[2] = {0, 0};
+  for (int j = 0; j < N; ++j)
+    for (int c = 0; c < 2; ++c) {
+      const Complex v = y[(size_t(j) * nL + size_t(l)) * 2 + size_t(c)];
+      S[c] += v;
+      Q[c] += std::norm(v);
+    }
+  auto power = [&](const Complex* s, const double* q, double n) {
+    return 0.5 * ((std::norm(s[0]) - q[0]) + (std::norm(s[1]) - q[1])) / (n * (n - 1)) * scale;
+  };
+  const double P = power(S, Q, N);
+  if (N < 3) return {P, 0.0};
+  std::vector<double> loo(static_cast<size_t>(N));
+  double mean = 0;
+  for (int j = 0; j < N; ++j) {
+    Complex s[2];
+    double q[2];
+    for (int c = 0; c < 2; ++c) {
+      const Complex v = y[(size_t(j) * nL + size_t(l)) * 2 + size_t(c)];
+      s[c] = S[c] - v;
+      q[c] = Q[c] - std::norm(v);
+    }
+    loo[size_t(j)] = power(s, q, N - 1);
+    mean += loo[size_t(j)] / N;
+  }
+  double var = 0;
+  for (double u : loo) var += (u - mean) * (u - mean);
+  return {P, var * (N - 1) / N};
+}
+
 AreaWaveEstimator::AreaWaveEstimator(const WaveContext& ctx)
     : ctx_(ctx),
       sampler_(ctx.geometry),
@@ -173,13 +236,22 @@ AreaWaveEstimator::AreaWaveEstimator(const WaveContext& ctx)
 // Bin b's integral mean_k p_k / pdf_k over the M directions of each wavelength (p: [k * nL + l]) as a
 // bin-averaged BSDF (× toF = 1/Ω⊥) into f, with the standard error of the stratified mean into e.
 // stratum[k] (0 … T−1) names the group of directions drawn the same way.
+//
+// A stratum's variance is the spread of its directions' values, but never less than the mean of
+// their variances over the points (the law of total variance: Var X = E Var(X|ω) + Var E(X|ω)).
+// A stratum has a few directions, so its spread alone has a few degrees of freedom: two values
+// that happened to agree gave a bin of noise −0.31 ± 0.004 where the truth is 0. The variance over
+// a direction's N points (a jackknife) has N − 1 of them, and where the integrand hardly changes
+// across the bin (noise, a flat lobe) it is nearly all of the variance.
 static void binIntegral(const std::vector<int>& stratum, int T, int M, int nL, int nB, int b, double toF,
-                        const std::vector<double>& p, std::vector<double>& f, std::vector<double>& e) {
-  std::vector<double> sum(T), sum2(T);
+                        const std::vector<double>& p, const std::vector<double>& within, std::vector<double>& f,
+                        std::vector<double>& e) {
+  std::vector<double> sum(T), sum2(T), inner(T);
   std::vector<int> n(T);
   for (int l = 0; l < nL; ++l) {
     std::fill(sum.begin(), sum.end(), 0.0);
     std::fill(sum2.begin(), sum2.end(), 0.0);
+    std::fill(inner.begin(), inner.end(), 0.0);
     std::fill(n.begin(), n.end(), 0);
     double mean = 0;
     for (int k = 0; k < M; ++k) {
@@ -187,17 +259,19 @@ static void binIntegral(const std::vector<int>& stratum, int T, int M, int nL, i
       int t = stratum[size_t(k)];
       sum[t] += v;
       sum2[t] += v * v;
+      inner[t] += within[size_t(k) * nL + l];
       n[t]++;
       mean += v;
     }
     mean /= M;
-    // Variance of a stratified sum: Σ_t n_t Var_t / M², Var_t from each stratum's own
-    // samples (a stratum with one sample contributes its square: conservative).
+    // Variance of a stratified sum: Σ_t n_t Var_t / M² (a stratum with one direction contributes
+    // its square, or its variance over the points if larger: conservative).
     double var = 0;
     for (int t = 0; t < T; ++t) {
       if (n[t] == 0) continue;
-      double vt = n[t] > 1 ? std::max(0.0, (sum2[t] - sum[t] * sum[t] / n[t]) / (n[t] - 1)) : sum2[t];
-      var += n[t] * vt;
+      const double spread =
+          n[t] > 1 ? std::max(0.0, (sum2[t] - sum[t] * sum[t] / n[t]) / (n[t] - 1)) : sum2[t];
+      var += n[t] * std::max(spread, inner[t] / n[t]);
     }
     f[size_t(l) * nB + b] = mean * toF;
     e[size_t(l) * nB + b] = std::sqrt(var) / M * toF;
@@ -308,7 +382,8 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     const int extra = int(budget - uint64_t(M) * uint64_t(N));
     if (exactDirection) dirs.allocate(M);
     // p_k per (direction, λ) for the visible and the masked field.
-    std::vector<double> pv(size_t(M) * nL, 0.0), pm(masked ? size_t(M) * nL : 0, 0.0);
+    Powers pv{std::vector<double>(size_t(M) * nL, 0.0), std::vector<double>(size_t(M) * nL, 0.0)};
+    Powers pm{std::vector<double>(masked ? size_t(M) * nL : 0, 0.0), std::vector<double>(masked ? size_t(M) * nL : 0, 0.0)};
     std::vector<int> stratum(size_t(M), 0);
     uint64_t localRays = 0;
     // Strata of the error estimate: per technique with a collimated beam (the same lobes for
@@ -326,7 +401,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
       stratum[size_t(k)] = exactDirection ? dirs.technique(k) + 1 : (k < nUniform ? 0 : 1);
       double u1 = s.get1D(), u2 = s.get1D();
       Vec3 wo;
-      if (!dirs.sample(dirs.technique(k), u1, u2, &wo)) continue;  // outside the bin: estimate 0
+      if (!dirs.sample(dirs.technique(k), u1, u2, [&] { return s.get1D(); }, &wo)) continue;  // outside: 0
       const double pdf = dirs.density(dirs.technique(k), wo);
       const bool transmission = wave::isTransmission(media.conductor(), fromAbove, wo);
       const Direction d{wi, wo, transmission, pdf};
@@ -335,8 +410,8 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     // Bin integral mean_k p_k / pdf_k, as a bin-averaged BSDF (÷ Ω⊥), with the standard error of
     // the mean over the M independent directions.
     const double toF = 1.0 / grid.projectedSolidAngle(b);
-    binIntegral(stratum, T, M, nL, nB, b, toF, pv, r.fws, r.fwsErr);
-    if (masked) binIntegral(stratum, T, M, nL, nB, b, toF, pm, r.pmsk, r.pmskErr);
+    binIntegral(stratum, T, M, nL, nB, b, toF, pv.p, pv.within, r.fws, r.fwsErr);
+    if (masked) binIntegral(stratum, T, M, nL, nB, b, toF, pm.p, pm.within, r.pmsk, r.pmskErr);
     rays += localRays;
   };
 
@@ -354,12 +429,12 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
 }
 
 // p_k / pdf_k for direction k into pv (visible field, with the mean-plane control variate) and pm
-// (masked field), per wavelength, from N points by the unbiased pairwise form of |E Y|².
+// (masked field), per wavelength, from N points by the unbiased pairwise form of |E Y|², with its
+// variance over the points.
 void AreaWaveEstimator::directionPowers(const Direction& d, int k, int nL, int N, bool masked, const wave::Media& media,
-                                        bool fromAbove, Sampler& s, std::vector<double>& pv, std::vector<double>& pm,
-                                        uint64_t* rays) const {
-  std::vector<Complex> sv(2 * nL, Complex(0)), sm(2 * nL, Complex(0));
-  std::vector<double> qv(2 * nL, 0.0), qm(2 * nL, 0.0);
+                                        bool fromAbove, Sampler& s, Powers& pv, Powers& pm, uint64_t* rays) const {
+  // Y_j per point, wavelength and polarisation: [(j nL + l) 2 + s|p].
+  std::vector<Complex> yv(size_t(N) * nL * 2, Complex(0)), ym(masked ? yv.size() : 0, Complex(0));
   std::vector<PlaneTerm> plane(static_cast<size_t>(nL));
   for (int l = 0; l < nL; ++l)
     plane[size_t(l)] = planeTermOf(ctx_, control_, media, l, d.wi, d.wo, fromAbove, d.transmission);
@@ -380,16 +455,15 @@ void AreaWaveEstimator::directionPowers(const Direction& d, int k, int nL, int N
       if (!visible && !(blocked && masked) && !pt.active) continue;
       const Complex cf = area * ctx_.window.copyFactor(sp.x.x, sp.x.y, pt.q.x, pt.q.y);
       Complex ys = 0, yp = 0;
+      const size_t at = (size_t(j) * nL + size_t(l)) * 2;
       if (visible || (blocked && masked)) {
         const double k0 = 2 * kPi / ctx_.lambda_um[size_t(l)];
         const KirchhoffValue kv = wave::integrandAt(media, l, sp.x, m, d.wi, d.wo, k0, fromAbove, d.transmission);
         ys = kv.s * cf;
         yp = kv.p * cf;
         if (blocked) {
-          sm[2 * l] += ys;
-          sm[2 * l + 1] += yp;
-          qm[2 * l] += std::norm(ys);
-          qm[2 * l + 1] += std::norm(yp);
+          ym[at] = ys;
+          ym[at + 1] = yp;
           ys = yp = 0;
         }
       }
@@ -399,24 +473,18 @@ void AreaWaveEstimator::directionPowers(const Direction& d, int k, int nL, int N
         ys -= pt.chS * z - pt.cEzS;
         yp -= pt.chP * z - pt.cEzP;
       }
-      sv[2 * l] += ys;
-      sv[2 * l + 1] += yp;
-      qv[2 * l] += std::norm(ys);
-      qv[2 * l + 1] += std::norm(yp);
+      yv[at] = ys;
+      yv[at + 1] = yp;
     }
   }
-  // Unbiased |E Y|² for s and p, then the mean of the two powers (unpolarised light).
-  const double nn = double(N) * double(N - 1), cosI = std::abs(d.wi.z);
+  const double cosI = std::abs(d.wi.z);
   for (int l = 0; l < nL; ++l) {
     const double nI = media.incident(l, fromAbove), nO = d.transmission ? media.other(l, fromAbove) : nI;
     // p(ωo) / pdf(ωo): an unbiased estimate of ∫_bin p dω.
     const double scale = kirchhoffPowerScale(ctx_.window.w2(), cosI, nI, nO) / d.pdf;
-    auto power = [&](const std::vector<Complex>& S, const std::vector<double>& Q) {
-      double ps = std::norm(S[2 * l]) - Q[2 * l], pp = std::norm(S[2 * l + 1]) - Q[2 * l + 1];
-      return 0.5 * (ps + pp) / nn * scale;
-    };
-    pv[size_t(k) * nL + l] = power(sv, qv);
-    if (masked) pm[size_t(k) * nL + l] = power(sm, qm);
+    const size_t at = size_t(k) * nL + size_t(l);
+    std::tie(pv.p[at], pv.within[at]) = pairwisePower(yv, N, nL, l, scale);
+    if (masked) std::tie(pm.p[at], pm.within[at]) = pairwisePower(ym, N, nL, l, scale);
   }
 }
 

@@ -38,8 +38,13 @@ class AreaWaveEstimator : public WaveEstimator {
     bool transmission;
     double pdf;
   };
+  // Per (direction k, wavelength): p_k / pdf_k, and its variance over the points given the
+  // direction (jackknife of the pairwise power).
+  struct Powers {
+    std::vector<double> p, within;
+  };
   void directionPowers(const Direction& d, int k, int nL, int N, bool masked, const wave::Media& media, bool fromAbove,
-                       Sampler& s, std::vector<double>& pv, std::vector<double>& pm, uint64_t* rays) const;
+                       Sampler& s, Powers& pv, Powers& pm, uint64_t* rays) const;
   int pointsFor(int b, int N0, const wave::Media& media, bool fromAbove, const std::optional<Vec3>& exactDirection,
                 int incidenceBin) const;
   WaveContext ctx_;

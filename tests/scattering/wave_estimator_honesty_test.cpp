@@ -71,12 +71,15 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
       if (op <= 0) continue;
       total += r.fws[size_t(b)] * op;
       h.refTotal += rr.fws[size_t(b)] * op / seeds;
-      const double se = std::hypot(r.fwsErr[size_t(b)], rr.fwsErr[size_t(b)]);
+      // The reference's own accuracy: `exact` holds flat interfaces to 1e-3 of Fresnel, and its lobe
+      // shares put each lobe's tail beyond 5 sd (e^−12.5 of it) in the outermost bins of their
+      // window: bins it leaves below 1e-5 of the peak are not a test of the estimator.
+      const double refSe = std::hypot(rr.fwsErr[size_t(b)], std::max(1e-5 * scale, 1e-3 * std::abs(rr.fws[size_t(b)])));
+      const double se = std::hypot(r.fwsErr[size_t(b)], refSe);
       const double dev = r.fws[size_t(b)] - rr.fws[size_t(b)];
-      if (se <= 1e-9 * scale) {
+      if (r.fwsErr[size_t(b)] <= 1e-9 * scale)
         h.worstZeroErrorDev = std::max(h.worstZeroErrorDev, std::abs(dev) / scale);
-        continue;
-      }
+      if (std::abs(rr.fws[size_t(b)]) <= 1e-5 * scale && r.fwsErr[size_t(b)] <= 1e-5 * scale) continue;
       const double z = dev / se;
       z2 += z * z;
       h.beyond3 += std::abs(z) > 3;
@@ -97,11 +100,19 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
 // too. Over 12 seeds at the default 256 samples per bin, in every case: the mean hemispherical energy
 // equals Fresnel (1 for the mirror, R + T = 1 for glass from either side) within 4 standard errors
 // of that mean (from the seeds' spread), and one seed's energy spreads by at most 0.1 under a
-// collimated beam and 0.6 over the incidence bin (measured 0.02–0.06 and 0.32–0.48; a flat mirror's
-// albedo came out −11 ± 3.9 without the control and the moving lobes). Over the incidence bin a
-// direction's lobe count changes with its ωi, and with it which lobe a direction samples: the
-// spread that remains. The other surfaces' figures and every case's mean z² of the bins against
-// their stored errors (1.2–6.9 on the flat cases: the errors are not yet honest) are recorded.
+// collimated beam and 0.6 over the incidence bin (measured 0.02–0.06 and 0.31–0.46; a flat mirror's
+// albedo came out −11 ± 3.9 without the control and the moving lobes).
+//
+// Under a collimated beam the stored errors hold on every surface: mean z² of the bins against
+// `exact` in [0.4, 2.5] (measured 0.78 mirror, 0.96 and 2.27 glass from above and below, 0.58 sine
+// grating, 0.85 dome lattice; below 1 the jackknife's conservative variance of noise bins, above 1
+// on glass from below a 0.7 % excess of the internal reflection over `exact`). Lobes drawn whole
+// left bins that held a lobe's tail at 0 ± 0 (mean z² 3.7e3 on the sine grating, 2.9e4 on the
+// dome lattice), and errors from a stratum's two or three directions alone called noise
+// −0.31 ± 0.004.
+// Over the incidence bin the errors are not yet honest (mean z² 2.8–9.5 flat, 0.89 sine, 3.6e3
+// dome: a direction's ωi decides which lobes it can sample, and few reach a given exit bin): the
+// figures are recorded.
 TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
   const int seeds = 12;
   for (const HonestyCase& hc : honestyCases())
@@ -114,9 +125,13 @@ TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
       RecordProperty("energy " + key, std::to_string(h.total));
       RecordProperty("energy_sd " + key, std::to_string(h.totalSd));
       RecordProperty("mean_z2 " + key, std::to_string(h.meanZ2));
+      if (collimated) {
+        EXPECT_GT(h.meanZ2, 0.4) << key;
+        EXPECT_LT(h.meanZ2, 2.5) << key;
+        EXPECT_LT(h.worstZeroErrorDev, 1e-5) << key;  // a bin at 0 ± 0: the reference's tails at most
+      }
       if (hc.name.rfind("flat", 0) != 0) continue;
       EXPECT_NEAR(h.total, h.refTotal, 4 * h.totalSd / std::sqrt(double(seeds)) + 1e-3) << key;
       EXPECT_LT(h.totalSd, collimated ? 0.1 : 0.6) << key;
-      EXPECT_LT(h.worstZeroErrorDev, 1e-6) << key;
     }
 }
