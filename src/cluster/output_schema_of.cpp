@@ -34,6 +34,7 @@ OutputSchema outputSchemaOf(const Job& job) {
   s.effectsPlan = job.effectsPlan;
   if (job.components.has(Component::Incoherent) && !job.statistical)
     s.waveEstimator = waveEstimatorName(job.resolvedWaveEstimator());
+  s.waveErrorsCaveat = job.waveErrorsCaveat();
   s.symmetry = symmetryDescription(job);
   s.halvesWaveByReciprocity = job.halvesWaveByReciprocity();
   if (!s.halvesWaveByReciprocity) s.reciprocityOffReason = job.reciprocityOffReason();

@@ -196,6 +196,7 @@ void logJobHeader(const Job& job, const DirectionGrid& grid, const TileComputer&
         job.scene.coherenceLength_um, job.scene.coherenceLength_um > 0 ? "" : " (no window: one copy of the patch)");
     // Reciprocity (docs/physics.md §8): each pair of incidence bins gets the wave term once.
     const std::optional<ReciprocalPairs>& pairs = tiles.pairs();
+    if (const std::optional<std::string> caveat = job.waveErrorsCaveat()) spdlog::warn("{}", *caveat);
     spdlog::info("reciprocity: {}", pairs ? fmt::format("the wave term is computed for {:.1f}% of the same-side bin "
                                                         "pairs, the rest mirrored when every slice is done",
                                                         100 * pairs->computedFraction())
@@ -635,6 +636,7 @@ void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
         summary_.computed, summary_.resumed, since(t0_), writeSeconds_, 100.0 * writeSeconds_ / since(t0_),
         prepareSeconds_, total[0], total[1], summary_.paths, energies);
   }
+  if (const std::optional<std::string> caveat = job_.waveErrorsCaveat()) spdlog::warn("{}", *caveat);
   if (nonphysical_)
     spdlog::warn(
         "{} slice(s) computed now are not physical (the worst: slice {}, {}); `microbsdf info` lists them, "

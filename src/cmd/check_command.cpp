@@ -45,6 +45,7 @@ int checkJob(const std::string& jobPath, const std::string& heightsPath, const s
             << (job.needsWave() ? "  wave estimator " + waveEstimatorName(job.resolvedWaveEstimator()) + " (" +
                                       job.waveEstimatorChoice() + ")\n"
                                 : std::string())
+            << (job.waveErrorsCaveat() ? "  WARNING: " + *job.waveErrorsCaveat() + "\n" : std::string())
             << "  memory about " << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9)
             << " GB per rank before the "
             << "wave estimator's own (`plan` measures it), output up to "

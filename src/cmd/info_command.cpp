@@ -29,6 +29,7 @@ void printInfo(const nlohmann::json& j) {
             << (j["wave_samples"].get<uint64_t>()
                     ? "wave term:   " + j["wave_samples"].dump() + " Kirchhoff samples per wavelength\n"
                     : "")
+            << (j.contains("wave_errors") ? "WARNING:     " + j["wave_errors"].get<std::string>() + "\n" : "")
             << (j["complete"].get<bool>()
                     ? "complete:    " + j["done_count"].dump() + "/" + j["incidence_count"].dump() + " slices\n"
                     : "incomplete:  " + j["done_count"].dump() + " of " + j["incidence_count"].dump() +

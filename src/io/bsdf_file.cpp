@@ -808,6 +808,7 @@ static void writeProvenance(hid_t f, const OutputSchema& schema) {
   setStringAttr(f, "incidence_sampling", schema.exactIncidence ? "exact" : "bin");
   if (!schema.effectsPlan.empty()) setStringAttr(f, "effects_plan", schema.effectsPlan);
   if (!schema.waveEstimator.empty()) setStringAttr(f, "wave_estimator", schema.waveEstimator);
+  if (schema.waveErrorsCaveat) setStringAttr(f, "wave_errors", *schema.waveErrorsCaveat);
   setStringAttr(f, "symmetry", schema.symmetry);
   std::string storage = schema.storage.name() + ": " +
                         (schema.storage.values == TableValues::Float16

@@ -3,6 +3,7 @@
 // writer knows nothing of job files: cluster/output_schema_of.h builds this from a job.
 #pragma once
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,7 +29,9 @@ struct OutputSchema {
   bool exactIncidence = false;  // incidence_sampling = "exact" (else bin-averaged)
   std::string effectsPlan;      // the effects planner's decisions (JSON); empty unless components = "auto"
   std::string waveEstimator;    // the wave estimator's name; empty without a wave term
-  std::string symmetry;         // how the symmetry reduction computed the slices, in words
+  // Why the wave term's stored errors are not vouched for (root attribute `wave_errors`), if so.
+  std::optional<std::string> waveErrorsCaveat;
+  std::string symmetry;  // how the symmetry reduction computed the slices, in words
   // Reciprocity: the wave term computed once per pair of incidence bins (the other half filled by
   // BsdfFileWriter::completeReciprocal), or why not.
   bool halvesWaveByReciprocity = false;

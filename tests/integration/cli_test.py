@@ -1370,6 +1370,41 @@ def test_defaults_closed_form():
                     assert abs(got_r / want_r - 1) < 0.02, (name, theta, got_r, want_r)
 
 
+def test_wave_errors_caveat():
+    """Where the wave term's stored errors are not vouched for (a Monte Carlo estimator over incidence
+    bins; `paper`'s bias estimate), `check`, the run's log (at the start and in the closing summary),
+    the file's `wave_errors` attribute and `info` say so; a collimated `area` job and a deterministic
+    estimator over incidence bins say nothing."""
+    cases = (("area-bin", "area", "bin", "not vouched for"), ("paper-bin", "paper", "bin", "bias estimate"),
+             ("area-exact", "area", "exact", None), ("exact-bin", "exact", "bin", None))
+    for name, estimator, sampling, says in cases:
+        job = os.path.join(TMP, f"we-{name}.toml")
+        with open(job, "w") as f:
+            f.write(f"""[geometry]\nkind = "sine-grating"\nperiod_um = 4.0\namplitude_um = 0.02\nsize_um = [4.0, 4.0]
+[material]\nname = "Al"\n[spectrum]\nwavelengths_nm = [550.0]
+[directions]\nn_theta = 6\nn_phi = 12\nincidence = [[20.0, 10.0]]\nincidence_sampling = "{sampling}"
+[effects]\ncomponents = ["coherent", "incoherent"]\n[sampling]\nwave_estimator = "{estimator}"
+wave_samples_per_bin = 64\n""")
+        out = f"we-{name}.h5"
+        texts = {"check": run(["check", job]).stdout}
+        r = run(["run", job, "-o", out])
+        texts["run"] = r.stdout + r.stderr
+        texts["info"] = run(["info", out]).stdout
+        with h5py.File(os.path.join(TMP, out), "r") as h:
+            attr = h.attrs.get("wave_errors")
+        if says:
+            for where, text in texts.items():
+                assert says in text, f"{name}: '{says}' not in `{where}`:\n{text}"
+            assert texts["run"].count(says) >= 2, f"{name}: the closing summary does not repeat it:\n{texts['run']}"
+            assert attr is not None and says in (attr.decode() if isinstance(attr, bytes) else attr), attr
+        else:
+            for where, text in texts.items():
+                assert "not vouched" not in text and "bias estimate" not in text, f"{name}: `{where}` warns:\n{text}"
+            assert attr is None, f"{name}: wave_errors = {attr}"
+    print("wave errors not vouched for: said by check, the run (start and summary), the file and info; "
+          "collimated area and exact over bins: silent")
+
+
 def test_nonphysical_flags():
     """Every slice the model cannot vouch for is flagged (/stats/nonphysical, a WARN naming the slice
     and figure, the run's closing count, `info`, `report`), and no physical one is: 100 um deep mirror trenches
