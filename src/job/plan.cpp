@@ -290,7 +290,6 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   ws2.samplesPerBin = std::min<int>(int(job.waveSamplesPerBin), 4 * ws.samplesPerBin);
   const bool twoPasses = !waveDeterministic && ws2.samplesPerBin > ws.samplesPerBin;
   std::unique_ptr<WaveEstimator> est2 = twoPasses ? makeJobWaveEstimator(job, grid, *transport.scene(), ws2) : nullptr;
-  const int timedSamples = twoPasses ? ws2.samplesPerBin : ws.samplesPerBin;
   // A deterministic estimator (exact, fft) has no samples to scale: its pilot is the tile's cost,
   // at the job's rule, which makes fewer facet sums than the finer one the pilots ran (their
   // binning over the sub-directions costs the same at any rule). Each pilot's facet sums give a time
@@ -299,7 +298,15 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
   // own and a cost per node of their own (on the paper's HEMISPHERES 1.5 s at the horizon against
   // 3–4 s elsewhere), and the pilots sample them far more often (two of six) than the job has them
   // (two rings of 75).
-  const double scale = waveDeterministic ? 1.0 : double(job.waveSamplesPerBin) / double(timedSamples);
+  // A Monte Carlo pass costs a fixed part (lobes, shares, set-up per bin) and a part per sample:
+  // with two passes both are read off their times (as the path pilot's fixed and per-path parts),
+  // with one the time is scaled with the samples. Each pilot's time is taken at the job's budget.
+  auto atBudget = [&](double t1, double t2) {
+    const double n1 = ws.samplesPerBin, n2 = ws2.samplesPerBin, N = double(job.waveSamplesPerBin);
+    if (!twoPasses) return t1 * N / n1;
+    const double perSample = (t2 - t1) / (n2 - n1), fixed = t2 - perSample * n2;
+    return perSample > 0 && fixed >= 0 ? fixed + perSample * N : t2 * N / n2;
+  };
   double binningSeconds = 0;
   std::vector<double> pilotSeconds, pilotNodes;
   const double N = double(job.waveSamplesPerBin);
@@ -323,7 +330,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
     } else if (!twoPasses) {
       const WavePassErrors pe = monteCarloWaveErrors(w, grid, std::sqrt(double(ws.samplesPerBin) / N));
       waveRelErrors.push_back(pe.relError);
-      waveSeconds += w.seconds;
+      waveSeconds += atBudget(w.seconds, 0.0);
       out.wsL1.push_back(pe.l1);
     } else {
       // The rate from the absolute errors (monteCarloWaveErrors: the relative ones are flat where
@@ -338,7 +345,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
       waveRate = std::min(waveRate, rate);
       const WavePassErrors pe = monteCarloWaveErrors(w2, grid, std::pow(N / double(ws2.samplesPerBin), -rate));
       waveRelErrors.push_back(pe.relError);
-      waveSeconds += w2.seconds;
+      waveSeconds += atBudget(w.seconds, w2.seconds);
       out.wsL1.push_back(pe.l1);
     }
     pilotSeconds.push_back(waveSeconds - secondsBefore);
@@ -366,7 +373,7 @@ WavePilotCost waveTermPilots(const Job& job, const DirectionGrid& grid, const Ge
       perTile +=
           rate[grid.atPoleOrHorizon(inc.bin) ? 1 : 0] * (finerRule ? job.incidenceRuleNodesAt(grid, inc.bin) : 1.0);
     perTile /= double(job.incidence.size());
-    waveSeconds = (perTile + binningSeconds / double(pilots.size())) * scale;
+    waveSeconds = perTile + binningSeconds / double(pilots.size());
   }
   out.bytes = est->memoryBytes();
   return out;
