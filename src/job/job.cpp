@@ -725,8 +725,8 @@ std::optional<std::string> Job::waveErrorsCaveat() const {
   if (exactIncidence) return std::nullopt;
   return fmt::format(
       "the wave term's standard errors are not vouched for: `{}` over incidence bins misses lobes that only some "
-      "incidence directions of a bin send into an exit bin (mean z² against `exact` 2.8-9.5 on flat interfaces, "
-      "up to 3.6e3 on a dome lattice). Use incidence_sampling = \"exact\", or a deterministic estimator "
+      "incidence directions of a bin send into an exit bin (mean z² against `exact` 3.6-9.8 on flat interfaces, "
+      "up to 1.1e4 on a dome lattice). Use incidence_sampling = \"exact\", or a deterministic estimator "
       "(wave_estimator = \"exact\" or \"fft\") where it applies",
       waveEstimatorName(e));
 }

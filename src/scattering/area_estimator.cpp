@@ -42,7 +42,11 @@ class ExitDirectionSampler {
     double cx, cy, sd;
     double inBin = 0;
   };
-  ExitDirectionSampler(const DirectionGrid& grid, int bin) : grid_(grid), bin_(bin) {}
+  // How a lobe is drawn: restricted to the bin (under a collimated beam: its lobes are found once
+  // per bin), or whole (over an incidence bin, where every direction finds the lobes of its own ωi
+  // and their shares would be integrated per direction).
+  enum class LobeDraw { WithinBin, Whole };
+  ExitDirectionSampler(const DirectionGrid& grid, int bin, LobeDraw draw) : grid_(grid), bin_(bin), draw_(draw) {}
 
   void findLobes(const WaveContext& ctx, const wave::Media& media, const Vec3& wi, bool fromAbove) {
     lobes_.clear();
@@ -101,18 +105,18 @@ class ExitDirectionSampler {
       addIfReaching({-nI * wi.x / nO, -nI * wi.y / nO, sigmaQ / (nO * k0)}, zs);
     }
   }
-  // Keeps a lobe that reaches into this bin (probes at its centre and ±3 sd), with its share of
-  // the bin where the grid gives it in closed form (gaussianLobeShares): the lobe is then drawn
-  // restricted to the bin (every draw lands in it), with its density divided by that share. A
-  // lobe drawn whole puts most draws outside a bin it only grazes: a technique whose draws all
-  // fell outside reported 0 ± 0 for a bin that held a lobe's tail.
+  // Keeps a lobe that reaches into this bin (probes at its centre and ±3 sd). Drawn within the bin,
+  // it carries its share of the bin where the grid gives it in closed form (gaussianLobeShares):
+  // every draw lands in the bin, and the density is divided by that share. A lobe drawn whole puts
+  // most draws outside a bin it only grazes: a technique whose draws all fell outside reported
+  // 0 ± 0 for a bin that held a lobe's tail.
   void addIfReaching(Lobe L, double zs) {
     for (int dx = -1; dx <= 1; ++dx)
       for (int dy = -1; dy <= 1; ++dy) {
         const double px = L.cx + 3 * L.sd * dx, py = L.cy + 3 * L.sd * dy, r2 = px * px + py * py;
         if (r2 < 1 && grid_.binOf({px, py, zs * std::sqrt(1 - r2)}) == bin_) {
           std::vector<std::pair<int, double>> shares;
-          if (gaussianLobeShares(grid_, L.cx, L.cy, L.sd, zs > 0, &shares)) {
+          if (draw_ == LobeDraw::WithinBin && gaussianLobeShares(grid_, L.cx, L.cy, L.sd, zs > 0, &shares)) {
             for (const auto& [b, share] : shares)
               if (b == bin_) L.inBin += share;
             if (L.inBin < kMinLobeShare) return;  // the uniform directions see so small a tail
@@ -183,6 +187,7 @@ class ExitDirectionSampler {
  private:
   const DirectionGrid& grid_;
   int bin_;
+  LobeDraw draw_;
   std::vector<Lobe> lobes_;
   std::vector<int> counts_;
   int M_ = 1, nUniform_ = 1;
@@ -269,8 +274,7 @@ static void binIntegral(const std::vector<int>& stratum, int T, int M, int nL, i
     double var = 0;
     for (int t = 0; t < T; ++t) {
       if (n[t] == 0) continue;
-      const double spread =
-          n[t] > 1 ? std::max(0.0, (sum2[t] - sum[t] * sum[t] / n[t]) / (n[t] - 1)) : sum2[t];
+      const double spread = n[t] > 1 ? std::max(0.0, (sum2[t] - sum[t] * sum[t] / n[t]) / (n[t] - 1)) : sum2[t];
       var += n[t] * std::max(spread, inner[t] / n[t]);
     }
     f[size_t(l) * nB + b] = mean * toF;
@@ -373,7 +377,8 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
   r.computed = exitMask;
   std::atomic<uint64_t> rays{0};
   auto doBin = [&](int b) {
-    ExitDirectionSampler dirs(grid, b);
+    using LobeDraw = ExitDirectionSampler::LobeDraw;
+    ExitDirectionSampler dirs(grid, b, exactDirection ? LobeDraw::WithinBin : LobeDraw::Whole);
     // Lobes of the beam, or of the incidence bin's centre to size the allocation.
     dirs.findLobes(ctx_, media, exactDirection ? normalize(*exactDirection) : grid.centre(incidenceBin), fromAbove);
     const auto [M, N] =
@@ -383,7 +388,8 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     if (exactDirection) dirs.allocate(M);
     // p_k per (direction, λ) for the visible and the masked field.
     Powers pv{std::vector<double>(size_t(M) * nL, 0.0), std::vector<double>(size_t(M) * nL, 0.0)};
-    Powers pm{std::vector<double>(masked ? size_t(M) * nL : 0, 0.0), std::vector<double>(masked ? size_t(M) * nL : 0, 0.0)};
+    Powers pm{std::vector<double>(masked ? size_t(M) * nL : 0, 0.0),
+              std::vector<double>(masked ? size_t(M) * nL : 0, 0.0)};
     std::vector<int> stratum(size_t(M), 0);
     uint64_t localRays = 0;
     // Strata of the error estimate: per technique with a collimated beam (the same lobes for
@@ -401,7 +407,9 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
       stratum[size_t(k)] = exactDirection ? dirs.technique(k) + 1 : (k < nUniform ? 0 : 1);
       double u1 = s.get1D(), u2 = s.get1D();
       Vec3 wo;
-      if (!dirs.sample(dirs.technique(k), u1, u2, [&] { return s.get1D(); }, &wo)) continue;  // outside: 0
+      if (!dirs.sample(
+              dirs.technique(k), u1, u2, [&] { return s.get1D(); }, &wo))
+        continue;  // outside: 0
       const double pdf = dirs.density(dirs.technique(k), wo);
       const bool transmission = wave::isTransmission(media.conductor(), fromAbove, wo);
       const Direction d{wi, wo, transmission, pdf};

@@ -593,9 +593,9 @@ def test_path_allocation():
 def wm_excess_beyond_noise(a, b, brdf_only=False):
     """Per slice and wavelength, how far the auto table `a` (h5py file) differs from the WM model of
     the full table `b` (the same seeds) beyond noise: sum|f_WM - f_auto| * proj. solid angle, less
-    the expected L1 of pure noise and 3 standard deviations. A component auto skipped contributes its
-    full-table noise; one both computed with the same estimator shares its noise (same seeds); with
-    different wave estimators (the planner's choice) both errors count. brdf_only: the reflected
+    the expected L1 of pure noise and 3 standard deviations. A component auto skipped (on a slice, for
+    a guarded one) contributes its full-table noise; one both computed with the same estimator and
+    components shares its noise (same seeds); otherwise both errors count. brdf_only: the reflected
     hemisphere only (light from below, inside a dielectric, reflects into the lower half)."""
     op = a["/grid/projected_solid_angle"][:]
     nh = len(op) // 2
@@ -617,9 +617,16 @@ def wm_excess_beyond_noise(a, b, brdf_only=False):
                 full_c = b[f"/bsdf/{c}"][i, l].astype(float)
                 auto_c = a[f"/bsdf/{c}"][i, l].astype(float) if c in a["bsdf"] else 0 * full_c
                 diff += full_c - auto_c
-                if c not in a["bsdf"]:
+                # A guarded component auto skipped on this slice (held as 0, the check confirmed the
+                # skip) is skipped there: its full-table noise counts as for one auto never held.
+                skipped_here = c == "incoherent" and "/stats/diffraction_reenabled" in a and \
+                    not a["/stats/diffraction_reenabled"][i]
+                if c not in a["bsdf"] or skipped_here:
                     var += b[f"/bsdf_stderr/{c}"][i, l].astype(float) ** 2
-                elif c == "incoherent" and a_est != b_est:
+                elif c == "incoherent" and (a_est != b_est or ("lost" in a["bsdf"]) != ("lost" in b["bsdf"])):
+                    # Different estimators, or one that also computed the masked field (`lost`): the
+                    # same seeds give other samples (measured: incoherent tables up to 100 apart in
+                    # a bin), so the noise is independent.
                     var += (b[f"/bsdf_stderr/{c}"][i, l].astype(float) ** 2
                             + a[f"/bsdf_stderr/{c}"][i, l].astype(float) ** 2)
             l1 = np.sum(np.abs(diff) * op_i)

@@ -100,7 +100,7 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
 // too. Over 12 seeds at the default 256 samples per bin, in every case: the mean hemispherical energy
 // equals Fresnel (1 for the mirror, R + T = 1 for glass from either side) within 4 standard errors
 // of that mean (from the seeds' spread), and one seed's energy spreads by at most 0.1 under a
-// collimated beam and 0.6 over the incidence bin (measured 0.02–0.06 and 0.31–0.46; a flat mirror's
+// collimated beam and 0.6 over the incidence bin (measured 0.02–0.06 and 0.32–0.48; a flat mirror's
 // albedo came out −11 ± 3.9 without the control and the moving lobes).
 //
 // Under a collimated beam the stored errors hold on every surface: mean z² of the bins against
@@ -110,9 +110,9 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
 // left bins that held a lobe's tail at 0 ± 0 (mean z² 3.7e3 on the sine grating, 2.9e4 on the
 // dome lattice), and errors from a stratum's two or three directions alone called noise
 // −0.31 ± 0.004.
-// Over the incidence bin the errors are not yet honest (mean z² 2.8–9.5 flat, 0.89 sine, 3.6e3
-// dome: a direction's ωi decides which lobes it can sample, and few reach a given exit bin): the
-// figures are recorded.
+// Over the incidence bin the errors are not yet honest (mean z² 3.6–9.8 flat, 36 sine, 1.1e4 dome:
+// a direction's ωi decides which lobes it can sample, and few reach a given exit bin; the run says
+// so, Job::waveErrorsCaveat): the figures are recorded.
 TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
   const int seeds = 12;
   for (const HonestyCase& hc : honestyCases())
