@@ -330,17 +330,14 @@ class TileServer {
 
   // Computes and serves until every tile is written or the run stops.
   void run() {
-    auto serveAll = [&] {
+    while (true) {
       while (serveOne(false)) {
       }
       checkSilence();
-    };
-    while (true) {
-      serveAll();
       const int t = takeTile(true);
       if (t < 0) break;
       try {
-        const TileResult r = own_.compute(t, serveAll);
+        const TileResult r = computeWhileServing(t);
         summary_.paths += r.samples;
         ++summary_.computed;
         writeResult(r);
@@ -365,7 +362,7 @@ class TileServer {
   // --max-hours: stop when the next tile would not finish in time (with a 1.5x margin).
   bool outOfTime() const {
     if (options_.maxHours <= 0) return false;
-    const double mean = own_.done ? own_.tileSeconds / own_.done : 0.0;
+    const double mean = ownDone_ ? ownTileSeconds_ / ownDone_ : 0.0;
     return since(t0_) + 1.5 * mean > options_.maxHours * 3600.0;
   }
   // The next tile for rank 0 itself (own) or for a worker; -1 when none is left or the run stops.
@@ -390,6 +387,10 @@ class TileServer {
     return t.value_or(-1);
   }
   void noteSliceChecks(int slice, const EnergyBalance& b);
+  // Rank 0's own tile, computed on a thread of its own while this thread (the one that calls MPI
+  // and writes) serves the workers: a worker that returns a tile gets its next one at once, not
+  // after rank 0's next batch of paths, and a tile's inner loops need no callback to serve.
+  TileResult computeWhileServing(int t);
   void writeResult(const TileResult& r, int worker = 0);
   bool serveOne(bool blocking);
   // Waits for a message from `source` (or any) with `tag` (or any), watching for silent workers
@@ -424,8 +425,10 @@ class TileServer {
   int nonphysical_ = 0, worstSlice_ = -1;
   unsigned worstFlags_ = 0;
   double worstBadness_ = 0;
-  double writeSeconds_ = 0;                   // rank 0's time in the writer (slices, their flags, the journal)
-  double prepareSeconds_ = 0;                 // rank 0 preparing the slices of its own tiles (prepareSlice)
+  double writeSeconds_ = 0;    // rank 0's time in the writer (slices, their flags, the journal)
+  double prepareSeconds_ = 0;  // rank 0 preparing the slices of its own tiles (prepareSlice)
+  double ownTileSeconds_ = 0;  // rank 0's own tiles (computeWhileServing), for --max-hours
+  int ownDone_ = 0;
   std::vector<Clock::time_point> lastHeard_;  // per rank: its last message (a request, result or heartbeat)
   std::vector<char> holdsTile_;               // per rank: a worker that has a tile (or asked for its first)
   std::map<std::string, double> energySum_;   // Σ over the slices written now of each component's Σ f Ω⊥
@@ -565,6 +568,19 @@ bool TileServer::serveOne(bool blocking) {
   holdsTile_[size_t(st.MPI_SOURCE)] = t >= 0;
   if (t < 0) --activeWorkers_;
   return true;
+}
+
+TileResult TileServer::computeWhileServing(int t) {
+  auto tile = std::async(std::launch::async, [this, t] { return own_.compute(t, {}); });
+  while (tile.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+    if (serveOne(false)) continue;
+    checkSilence();
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  TileResult r = tile.get();  // a stop in the tile is thrown here
+  ownTileSeconds_ += r.seconds;
+  ++ownDone_;
+  return r;
 }
 
 MPI_Status TileServer::waitForMessage(int source, int tag) {
