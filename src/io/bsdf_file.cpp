@@ -63,10 +63,10 @@ void describe(hid_t obj, const std::string& units, const std::string& longName) 
 
 template <class T>
 H5Dataset write1D(hid_t loc, const std::string& name, hid_t type, const std::vector<T>& v, const std::string& units,
-                  const std::string& longName) {
+                  const std::string& longName, hid_t dcpl = H5P_DEFAULT) {
   hsize_t n = v.size();
   H5Dataspace s(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
-  H5Dataset d(H5Dcreate2(loc, name.c_str(), type, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create " + name);
+  H5Dataset d(H5Dcreate2(loc, name.c_str(), type, s, H5P_DEFAULT, dcpl, H5P_DEFAULT), "create " + name);
   if (n) h5check(H5Dwrite(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), "write " + name);
   describe(d, units, longName);
   return d;
@@ -94,15 +94,11 @@ constexpr hsize_t kStatsChunkSlices = 64;
 template <class T>
 H5Dataset writeRows1D(hid_t loc, const std::string& name, hid_t type, const std::vector<T>& v, const std::string& units,
                       const std::string& longName) {
-  hsize_t n = v.size(), chunk = std::max<hsize_t>(1, std::min(n, kStatsChunkSlices));
-  H5Dataspace s(H5Screate_simple(1, &n, nullptr), "H5Screate_simple");
+  const hsize_t chunk = std::max<hsize_t>(1, std::min<hsize_t>(v.size(), kStatsChunkSlices));
   H5Plist p(H5Pcreate(H5P_DATASET_CREATE), "H5Pcreate");
   h5check(H5Pset_chunk(p, 1, &chunk), "H5Pset_chunk");
   h5check(H5Pset_fletcher32(p), "H5Pset_fletcher32");
-  H5Dataset d(H5Dcreate2(loc, name.c_str(), type, s, H5P_DEFAULT, p, H5P_DEFAULT), "create " + name);
-  if (n) h5check(H5Dwrite(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), "write " + name);
-  describe(d, units, longName);
-  return d;
+  return write1D(loc, name, type, v, units, longName, p);
 }
 
 // The square blocks of a table whose pairs are stored once: kPairBlock incidences x kPairBlock exit
