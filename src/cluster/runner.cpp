@@ -400,6 +400,11 @@ class TileServer {
   // tile would never come, and every other rank would wait for it in the collectives that end the
   // run. Called only after every waiting message was received, so a busy rank 0 misjudges no one.
   void checkSilence();
+  // Nothing waits: watch for silent workers, then sleep 200 µs (a poll that costs no core).
+  void idle() {
+    checkSilence();
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
   [[noreturn]] void abandonSilentRank(int rank, double seconds);
 
   const Job& job_;
@@ -573,9 +578,7 @@ bool TileServer::serveOne(bool blocking) {
 TileResult TileServer::computeWhileServing(int t) {
   auto tile = std::async(std::launch::async, [this, t] { return own_.compute(t, {}); });
   while (tile.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
-    if (serveOne(false)) continue;
-    checkSilence();
-    std::this_thread::sleep_for(std::chrono::microseconds(200));
+    if (!serveOne(false)) idle();
   }
   TileResult r = tile.get();  // a stop in the tile is thrown here
   ownTileSeconds_ += r.seconds;
@@ -589,8 +592,7 @@ MPI_Status TileServer::waitForMessage(int source, int tag) {
   while (true) {
     MPI_Iprobe(source, tag, MPI_COMM_WORLD, &flag, &st);
     if (flag) return st;
-    checkSilence();
-    std::this_thread::sleep_for(std::chrono::microseconds(200));
+    idle();
   }
 }
 
