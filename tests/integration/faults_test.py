@@ -446,6 +446,8 @@ def test_two_writers():
         while journal_count(os.path.join(TMP, "out.h5")) < 1:
             assert p.poll() is None, p.communicate()[0]
             time.sleep(0.02)
+        # Frozen, the run holds its lock however long the second runs take.
+        os.killpg(p.pid, signal.SIGSTOP)
         t0 = time.time()
         text = expect(["run", job, "-o", "out.h5"], EXIT_BUSY, "is being written by another run", "PID")
         seconds = time.time() - t0
@@ -676,8 +678,8 @@ def test_pilot_signal():
 
 
 def test_partial_readers():
-    """info, slice, sheet, render and plot_lobes.py read a partial file while its run writes it and
-    after the run was killed; they say it is incomplete and never draw a missing slice as black."""
+    """info, slice, sheet, render and plot_lobes.py read a partial file while its run holds it open
+    mid-write and after the run was killed; they say it is incomplete and never draw a missing slice as black."""
     job = many_tiles_job(os.path.join(TMP, "job.toml"), 30, "p.h5", paths=200000)
     p = start(["run", job, "-o", "p.h5"], mpi=2)
     partial = os.path.join(TMP, "p.h5.partial")
@@ -710,7 +712,9 @@ def test_partial_readers():
         while journal_count(os.path.join(TMP, "p.h5")) < 2:
             assert p.poll() is None, p.communicate()[0]
             time.sleep(0.02)
-        read_all("while the run writes it")
+        # Frozen with its file open, the run stays mid-write however long the readers take.
+        os.killpg(p.pid, signal.SIGSTOP)
+        read_all("while the run writes it (stopped with the file open)")
     finally:
         os.killpg(p.pid, signal.SIGKILL)
         p.wait()
