@@ -598,29 +598,6 @@ void renameChecked(const std::string& from, const std::string& to) {
   if (std::rename(from.c_str(), to.c_str()) != 0) throw WriteError(osErrorMessage("rename to " + to, from, errno));
 }
 
-}  // namespace
-
-std::vector<double> energyStdError(const TileResult& r, Component c, int side, const DirectionGrid& grid) {
-  std::vector<double> se = r.pathEnergyStdError({c}, side);
-  if (!se.empty()) return se;
-  // No path moments: the facet sum's per-bin error bounds add up (a bound); a wave estimator's
-  // per-bin errors add in quadrature (bins estimated independently).
-  const bool bound = c == Component::Coherent;
-  se.assign(size_t(r.nLambda), 0.0);
-  for (int l = 0; l < r.nLambda; ++l) {
-    double sum = 0;
-    for (int b = 0; b < r.nBins; ++b) {
-      if (grid.isUpper(b) != (side == 0)) continue;
-      const double e = r.stdError[int(c)][size_t(l) * r.nBins + b] * grid.projectedSolidAngle(b);
-      if (std::isfinite(e)) sum += bound ? std::abs(e) : e * e;
-    }
-    se[size_t(l)] = bound ? sum : std::sqrt(sum);
-  }
-  return se;
-}
-
-namespace {
-
 // How the file a run wrote differs from what `schema` would write — identity, not only text: the job
 // text, every input file's content and the geometry built; "" when it is the same job.
 std::string identityDifference(hid_t file, const OutputSchema& schema) {

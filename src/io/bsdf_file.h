@@ -250,12 +250,6 @@ struct SliceStats {
   std::vector<double> nonphysical;                           // SliceFlag bits per wavelength; empty in older files
 };
 
-// The standard error of Σ f Ω⊥ of component c over one hemisphere (side 0 upper, 1 lower), per
-// wavelength: from the per-path energies where the component is path-traced (TileResult::pathMoments:
-// the covariance of the bins included); else the facet sum's bounds summed, or a wave estimator's
-// per-bin errors in quadrature.
-std::vector<double> energyStdError(const TileResult& r, Component c, int side, const DirectionGrid& grid);
-
 // Seconds the writer spends on one slice of this job's layout (a flush and a journal fsync each),
 // measured by writing up to 3 zero slices to a scratch file in the temporary directory: `plan`'s
 // estimate of rank 0's serial writing.

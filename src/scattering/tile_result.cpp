@@ -156,6 +156,46 @@ std::vector<double> energyBalance(const TileResult& r, const DirectionGrid& grid
   return b;
 }
 
+std::vector<double> energyStdError(const TileResult& r, Component c, int side, const DirectionGrid& grid) {
+  std::vector<double> se = r.pathEnergyStdError({c}, side);
+  if (!se.empty()) return se;
+  // No path moments: the facet sum's per-bin error bounds add up (a bound); a wave estimator's
+  // per-bin errors add in quadrature (bins estimated independently).
+  const bool bound = c == Component::Coherent;
+  se.assign(size_t(r.nLambda), 0.0);
+  for (int l = 0; l < r.nLambda; ++l) {
+    double sum = 0;
+    for (int b = 0; b < r.nBins; ++b) {
+      if (grid.isUpper(b) != (side == 0)) continue;
+      const double e = r.stdError[int(c)][size_t(l) * r.nBins + b] * grid.projectedSolidAngle(b);
+      if (std::isfinite(e)) sum += bound ? std::abs(e) : e * e;
+    }
+    se[size_t(l)] = bound ? sum : std::sqrt(sum);
+  }
+  return se;
+}
+
+std::vector<double> energyBalanceStdError(const TileResult& r, const DirectionGrid& grid,
+                                          const std::vector<Component>& model) {
+  std::vector<Component> traced;
+  for (Component c : model)
+    if (r.has(c) && !r.pathMoments[int(c)].empty()) traced.push_back(c);
+  std::vector<double> var(size_t(r.nLambda), 0.0);
+  if (!traced.empty()) {
+    const std::vector<double> se = r.pathEnergyStdError(traced, -1);
+    for (int l = 0; l < r.nLambda; ++l) var[size_t(l)] = se[size_t(l)] * se[size_t(l)];
+  }
+  for (Component c : model) {
+    if (!r.has(c) || (r.samples > 0 && (c == Component::Coherent || c == Component::Multiple))) continue;
+    for (int side : {0, 1}) {
+      const std::vector<double> se = energyStdError(r, c, side, grid);
+      for (int l = 0; l < r.nLambda; ++l) var[size_t(l)] += se[size_t(l)] * se[size_t(l)];
+    }
+  }
+  for (double& v : var) v = std::sqrt(v);
+  return var;
+}
+
 std::vector<double> relativeError(const TileResult& r, const std::vector<Component>& comps, const DirectionGrid& grid) {
   std::vector<double> out(size_t(r.nLambda), 0.0);
   for (int l = 0; l < r.nLambda; ++l) {

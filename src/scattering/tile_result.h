@@ -77,6 +77,18 @@ struct TileResult {
 std::vector<double> energyBalance(const TileResult& r, const DirectionGrid& grid, const std::vector<Component>& model,
                                   bool lossless);
 
+// The standard error of Σ f Ω⊥ of component c over one hemisphere (side 0 upper, 1 lower), per
+// wavelength: from the per-path energies where the component is path-traced (TileResult::pathMoments:
+// the covariance of the bins included); else the facet sum's bounds summed, or a wave estimator's
+// per-bin errors in quadrature.
+std::vector<double> energyStdError(const TileResult& r, Component c, int side, const DirectionGrid& grid);
+
+// The standard error of energyBalance per wavelength, formed as the stored
+// /stats/energy_balance_stderr is: the path-traced components' energy from the per-path energies
+// (their bins and hemispheres covary), every other component's per hemisphere in quadrature.
+std::vector<double> energyBalanceStdError(const TileResult& r, const DirectionGrid& grid,
+                                          const std::vector<Component>& model);
+
 // The estimated relative error of a slice of the table Σ_c∈comps f_c, per wavelength:
 // √(Σ_b Σ_c (σ_c,b Ω⊥_b)²) / Σ_b |Σ_c f_c,b| Ω⊥_b — the expected L2 distance of the slice from its
 // expectation against its mass. The components a path tracer tallies exclude each other in a path,

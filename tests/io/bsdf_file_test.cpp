@@ -11,6 +11,7 @@
 #include <random>
 
 #include "core/error.h"
+#include "job/tile_computer.h"
 
 using namespace mbsdf;
 
@@ -162,6 +163,37 @@ TEST(BsdfFile, EnergyBalanceByMaterial) {
     BsdfFileReader f(path);
     EXPECT_NEAR(f.stats(0).energyBalance[1], lossless ? -0.08 : 0.0, 1e-12);
     EXPECT_NEAR(f.stats(1).energyBalance[0], 0.05, 1e-12);
+  }
+}
+
+// `plan` judges its pilots' energy balance by the run's rule: the balance and standard error it
+// computes from a tile (energyBalance, energyBalanceStdError) are those the run stores for it, on a
+// tile with path-traced, facet-sum and Monte Carlo wave components, lossless and absorbing.
+TEST(BsdfFile, PlanBalanceIsTheStoredOne) {
+  for (const char* material : {"kind = \"dielectric\"\nior = 1.5", "name = \"Al\""}) {
+    const Job job =
+        loadJobFromString(std::string("[geometry]\nkind = \"sine-grating\"\nperiod_um = 4.0\n"
+                                      "amplitude_um = 0.3\nsize_um = [4.0, 4.0]\n[material]\n") +
+                              material +
+                              "\n[spectrum]\nwavelengths_nm = [450.0, 650.0]\n[directions]\nn_theta = 6\n"
+                              "n_phi = 12\nincidence = [[20.0, 0.0]]\n[effects]\ncomponents = "
+                              "[\"coherent\", \"incoherent\", \"multiple\"]\n[sampling]\n"
+                              "paths_per_slice = 4000\nwave_estimator = \"area\"\nwave_samples_per_bin = 16\n",
+                          "t.toml", "");
+    const DirectionGrid g(job.gridLayout);
+    double paths = 0, wave = 0;
+    const TileResult r = TileComputer(job, g).compute(0, {}, &paths, &wave, {});
+    const PreparedSlice stored = prepareSlice(r, outputSchemaOf(job), g);
+    std::vector<Component> model;
+    for (Component c : job.components.list())
+      if (c != Component::Lost && c != Component::GeoMasked) model.push_back(c);
+    const std::vector<double> b = energyBalance(r, g, model, job.material.lossless());
+    const std::vector<double> se = energyBalanceStdError(r, g, model);
+    for (size_t l = 0; l < 2; ++l) {
+      EXPECT_NEAR(b[l], stored.rows.at("/stats/energy_balance")[l], 1e-12) << material;
+      EXPECT_NEAR(se[l], stored.rows.at("/stats/energy_balance_stderr")[l], 1e-12) << material;
+      EXPECT_GT(se[l], 0) << material;
+    }
   }
 }
 
