@@ -2,6 +2,7 @@
 
 #include <optional>
 
+#include "job/scalar_validity.h"
 #include "job/symmetry.h"
 
 namespace mbsdf {
@@ -35,6 +36,7 @@ OutputSchema outputSchemaOf(const Job& job) {
   if (job.components.has(Component::Incoherent) && !job.statistical)
     s.waveEstimator = waveEstimatorName(job.resolvedWaveEstimator());
   s.waveErrorsCaveat = job.waveErrorsCaveat();
+  s.scalarModelCaveat = scalarModelCaveat(job);
   s.symmetry = symmetryDescription(job);
   s.halvesWaveByReciprocity = job.halvesWaveByReciprocity();
   if (!s.halvesWaveByReciprocity) s.reciprocityOffReason = job.reciprocityOffReason();

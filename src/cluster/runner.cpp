@@ -23,6 +23,7 @@
 #include "io/output_target.h"
 #include "job/effects_planner.h"
 #include "job/plan.h"
+#include "job/scalar_validity.h"
 #include "job/symmetry.h"
 #include "job/tile_computer.h"
 #include "job/transport.h"
@@ -655,6 +656,7 @@ void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
         prepareSeconds_, total[0], total[1], summary_.paths, energies);
   }
   if (const std::optional<std::string> caveat = job_.waveErrorsCaveat()) spdlog::warn("{}", *caveat);
+  if (const std::optional<std::string> caveat = scalarModelCaveat(job_)) spdlog::warn("{}", *caveat);
   if (nonphysical_)
     spdlog::warn(
         "{} slice(s) computed now are not physical (the worst: slice {}, {}); `microbsdf info` lists them, "

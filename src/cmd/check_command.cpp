@@ -13,6 +13,7 @@
 #include "io/output_target.h"
 #include "job/job.h"
 #include "job/plan.h"
+#include "job/scalar_validity.h"
 #include "microflake/ndf.h"
 
 namespace mbsdf {
@@ -46,6 +47,7 @@ int checkJob(const std::string& jobPath, const std::string& heightsPath, const s
                                       job.waveEstimatorChoice() + ")\n"
                                 : std::string())
             << (job.waveErrorsCaveat() ? "  WARNING: " + *job.waveErrorsCaveat() + "\n" : std::string())
+            << (scalarModelCaveat(job) ? "  WARNING: " + *scalarModelCaveat(job) + "\n" : std::string())
             << "  memory about " << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9)
             << " GB per rank before the "
             << "wave estimator's own (`plan` measures it), output up to "

@@ -30,6 +30,7 @@ void printInfo(const nlohmann::json& j) {
                     ? "wave term:   " + j["wave_samples"].dump() + " Kirchhoff samples per wavelength\n"
                     : "")
             << (j.contains("wave_errors") ? "WARNING:     " + j["wave_errors"].get<std::string>() + "\n" : "")
+            << (j.contains("scalar_model") ? "WARNING:     " + j["scalar_model"].get<std::string>() + "\n" : "")
             << (j["complete"].get<bool>()
                     ? "complete:    " + j["done_count"].dump() + "/" + j["incidence_count"].dump() + " slices\n"
                     : "incomplete:  " + j["done_count"].dump() + " of " + j["incidence_count"].dump() +

@@ -782,6 +782,7 @@ static void writeProvenance(hid_t f, const OutputSchema& schema) {
   if (!schema.effectsPlan.empty()) setStringAttr(f, "effects_plan", schema.effectsPlan);
   if (!schema.waveEstimator.empty()) setStringAttr(f, "wave_estimator", schema.waveEstimator);
   if (schema.waveErrorsCaveat) setStringAttr(f, "wave_errors", *schema.waveErrorsCaveat);
+  if (schema.scalarModelCaveat) setStringAttr(f, "scalar_model", *schema.scalarModelCaveat);
   setStringAttr(f, "symmetry", schema.symmetry);
   std::string storage = schema.storage.name() + ": " +
                         (schema.storage.values == TableValues::Float16

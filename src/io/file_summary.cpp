@@ -18,6 +18,7 @@ nlohmann::json fileSummary(const BsdfFileReader& f, const std::string& path) {
   j["components"] = f.components();
   if (f.hasAttribute("reciprocity")) j["reciprocity"] = f.attribute("reciprocity");
   if (f.hasAttribute("wave_errors")) j["wave_errors"] = f.attribute("wave_errors");
+  if (f.hasAttribute("scalar_model")) j["scalar_model"] = f.attribute("scalar_model");
   j["storage_profile"] = f.storageProfile();
   // components = "auto": the effects planner's decisions, their reasons, pilots and pilot budget.
   if (f.hasAttribute("effects_plan")) j["effects_plan"] = nlohmann::json::parse(f.attribute("effects_plan"));

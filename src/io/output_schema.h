@@ -31,6 +31,8 @@ struct OutputSchema {
   std::string waveEstimator;    // the wave estimator's name; empty without a wave term
   // Why the wave term's stored errors are not vouched for (root attribute `wave_errors`), if so.
   std::optional<std::string> waveErrorsCaveat;
+  // Where the scalar model is not vouched for to the tolerance (root attribute `scalar_model`), if so.
+  std::optional<std::string> scalarModelCaveat;
   std::string symmetry;  // how the symmetry reduction computed the slices, in words
   // Reciprocity: the wave term computed once per pair of incidence bins (the other half filled by
   // BsdfFileWriter::completeReciprocal), or why not.

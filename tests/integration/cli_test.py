@@ -1377,6 +1377,46 @@ def test_defaults_closed_form():
                     assert abs(got_r / want_r - 1) < 0.02, (name, theta, got_r, want_r)
 
 
+def test_scalar_model_caveat():
+    """A periodic structure the rigorous validity map places beyond the tolerance (oblique light on a
+    glass grating, a metal grating past the validated angles) is said by check, the run (start and
+    summary), the file's `scalar_model` attribute and info, with the map's figure; one the map
+    vouches for says nothing of it."""
+    cases = [("glass-50", 'kind = "dielectric"\nior = 1.5', 50.0, 0.25, "off by up to"),
+             ("al-70", 'name = "Al"', 70.0, 0.05, "error here is unknown"),
+             ("glass-0", 'kind = "dielectric"\nior = 1.5', 0.0, 0.1, None)]
+    for name, material, theta, depth, says in cases:
+        job = os.path.join(TMP, f"sm-{name}.toml")
+        with open(job, "w") as f:
+            f.write(f"""[geometry]\nkind = "binary-grating"\nperiod_um = 5.0\ndepth_um = {depth}\nduty = 0.5
+size_um = [5.0, 0.2]\n[material]\n{material}\n[spectrum]\nwavelengths_nm = [500.0]
+[directions]\nn_theta = 90\nn_phi = 4\nincidence = [[{theta}, 0.0]]\nincidence_sampling = "exact"
+[scene]\ncoherence_length_um = 50.0\n[effects]\ncomponents = ["coherent", "incoherent"]
+[sampling]\npaths_per_slice = 2000\nwave_estimator = "exact"\n""")
+        out = f"sm-{name}.h5"
+        texts = {"check": run(["check", job]).stdout}
+        r = run(["run", job, "-o", out])
+        texts["run"] = r.stdout + r.stderr
+        texts["info"] = run(["info", out]).stdout
+        with h5py.File(os.path.join(TMP, out), "r") as h:
+            attr = h.attrs.get("scalar_model")
+        attr = attr.decode() if isinstance(attr, bytes) else attr
+        if says:
+            for where, text in texts.items():
+                assert "scalar model:" in text and says in text, f"{name}: '{says}' not in `{where}`:\n{text}"
+            warned = [x for x in texts["run"].splitlines() if "scalar model:" in x and "warn" in x]
+            assert len(warned) >= 2, f"{name}: not a warning at the start and in the summary:\n{texts['run']}"
+            assert attr is not None and says in attr, attr
+            m = re.search(r"off by up to ([0-9.]+)", attr)
+            assert m is None or float(m.group(1)) > 0.01, attr
+        else:
+            assert attr is None, f"{name}: scalar_model = {attr}"
+            assert not [x for x in texts["run"].splitlines() if "scalar model:" in x and "warn" in x], texts["run"]
+            assert "WARNING" not in texts["info"] and "WARNING" not in texts["check"], texts
+    print("scalar model beyond the tolerance: said by check, the run (start and summary), the file and info; "
+          "a grating the map vouches for: silent")
+
+
 def test_wave_errors_caveat():
     """Where the wave term's stored errors are not vouched for (a Monte Carlo estimator over incidence
     bins; `paper`'s bias estimate), `check`, the run's log (at the start and in the closing summary),
