@@ -34,6 +34,9 @@ int checkJob(const std::string& jobPath, const std::string& heightsPath, const s
   if (!slicePathsPath.empty()) checkOutputPath(slicePathsPath);  // an unusable location is named at once
   Job job = loadJob(jobPath);
   DirectionGrid grid(job.gridLayout);
+  auto warning = [](const std::optional<std::string>& caveat) {
+    return caveat ? "  WARNING: " + *caveat + "\n" : std::string();
+  };
   std::cout << jobPath << ": ok\n  geometry " << job.geometryKind << ", "
             << (job.statistical
                     ? MicroflakeDistribution(job.statistical->ndf).describe()
@@ -46,10 +49,8 @@ int checkJob(const std::string& jobPath, const std::string& heightsPath, const s
             << (job.needsWave() ? "  wave estimator " + waveEstimatorName(job.resolvedWaveEstimator()) + " (" +
                                       job.waveEstimatorChoice() + ")\n"
                                 : std::string())
-            << (job.waveErrorsCaveat() ? "  WARNING: " + *job.waveErrorsCaveat() + "\n" : std::string())
-            << (scalarModelCaveat(job) ? "  WARNING: " + *scalarModelCaveat(job) + "\n" : std::string())
-            << "  memory about " << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9)
-            << " GB per rank before the "
+            << warning(job.waveErrorsCaveat()) << warning(scalarModelCaveat(job)) << "  memory about "
+            << fmt::format("{:.3g}", memoryBytesPerRank(job, 0) / 1e9) << " GB per rank before the "
             << "wave estimator's own (`plan` measures it), output up to "
             << fmt::format("{:.3g}", outputBytesUncompressed(job) / 1e9) << " GB\n";
   if (job.topography) {

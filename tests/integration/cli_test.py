@@ -1377,6 +1377,17 @@ def test_defaults_closed_form():
                     assert abs(got_r / want_r - 1) < 0.02, (name, theta, got_r, want_r)
 
 
+def caveat_texts(job, out, attribute):
+    """What `check`, the run's log and `info` print for `job`, and the table's root attribute."""
+    texts = {"check": run(["check", job]).stdout}
+    r = run(["run", job, "-o", out])
+    texts["run"] = r.stdout + r.stderr
+    texts["info"] = run(["info", out]).stdout
+    with h5py.File(os.path.join(TMP, out), "r") as h:
+        attr = h.attrs.get(attribute)
+    return texts, attr.decode() if isinstance(attr, bytes) else attr
+
+
 def test_scalar_model_caveat():
     """A periodic structure the rigorous validity map places beyond the tolerance (oblique light on a
     glass grating, a metal grating past the validated angles) is said by check, the run (start and
@@ -1393,14 +1404,7 @@ size_um = [5.0, 0.2]\n[material]\n{material}\n[spectrum]\nwavelengths_nm = [500.
 [directions]\nn_theta = 90\nn_phi = 4\nincidence = [[{theta}, 0.0]]\nincidence_sampling = "exact"
 [scene]\ncoherence_length_um = 50.0\n[effects]\ncomponents = ["coherent", "incoherent"]
 [sampling]\npaths_per_slice = 2000\nwave_estimator = "exact"\n""")
-        out = f"sm-{name}.h5"
-        texts = {"check": run(["check", job]).stdout}
-        r = run(["run", job, "-o", out])
-        texts["run"] = r.stdout + r.stderr
-        texts["info"] = run(["info", out]).stdout
-        with h5py.File(os.path.join(TMP, out), "r") as h:
-            attr = h.attrs.get("scalar_model")
-        attr = attr.decode() if isinstance(attr, bytes) else attr
+        texts, attr = caveat_texts(job, f"sm-{name}.h5", "scalar_model")
         if says:
             for where, text in texts.items():
                 assert "scalar model:" in text and says in text, f"{name}: '{says}' not in `{where}`:\n{text}"
@@ -1432,18 +1436,12 @@ def test_wave_errors_caveat():
 [directions]\nn_theta = 6\nn_phi = 12\nincidence = [[20.0, 10.0]]\nincidence_sampling = "{sampling}"
 [effects]\ncomponents = ["coherent", "incoherent"]\n[sampling]\nwave_estimator = "{estimator}"
 wave_samples_per_bin = 64\n""")
-        out = f"we-{name}.h5"
-        texts = {"check": run(["check", job]).stdout}
-        r = run(["run", job, "-o", out])
-        texts["run"] = r.stdout + r.stderr
-        texts["info"] = run(["info", out]).stdout
-        with h5py.File(os.path.join(TMP, out), "r") as h:
-            attr = h.attrs.get("wave_errors")
+        texts, attr = caveat_texts(job, f"we-{name}.h5", "wave_errors")
         if says:
             for where, text in texts.items():
                 assert says in text, f"{name}: '{says}' not in `{where}`:\n{text}"
             assert texts["run"].count(says) >= 2, f"{name}: the closing summary does not repeat it:\n{texts['run']}"
-            assert attr is not None and says in (attr.decode() if isinstance(attr, bytes) else attr), attr
+            assert attr is not None and says in attr, attr
         else:
             for where, text in texts.items():
                 assert "not vouched" not in text and "bias estimate" not in text, f"{name}: `{where}` warns:\n{text}"
