@@ -740,6 +740,17 @@ double waveTermShare(const Job& job, const EffectsPlan* effects, const Direction
   return fraction;
 }
 
+// A rank's start-up before its first tile: MPI_Init, the job read and its tile computer built. The
+// run reads a job whose geometry is made from parameters while MPI starts, and builds its tile
+// computer then too when no effects pilots are to decide its components (cmd/run_command.cpp
+// EarlyStart); files are read after MPI_Init, which sets environment variables their readers read.
+double runStartSeconds(const Job& job, const PlanOptions& options, double sceneSeconds) {
+  const bool fromParameters = job.geometryKind != "mesh" && job.geometryKind != "heightfield";
+  if (!fromParameters) return options.mpiStartSeconds + options.jobLoadSeconds + sceneSeconds;
+  if (job.autoComponents) return std::max(options.mpiStartSeconds, options.jobLoadSeconds) + sceneSeconds;
+  return std::max(options.mpiStartSeconds, options.jobLoadSeconds + sceneSeconds);
+}
+
 }  // namespace
 
 nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
@@ -861,19 +872,22 @@ nlohmann::json planJob(const Job& requested, const PlanOptions& options) {
   if (effects && effects->pilotTilesKept && (job.statistical || effects->components.has(Component::Multiple)))
     keptPilotSeconds = double(effects->pilots.size()) * paths.cost.perPath *
                        double(std::min<uint64_t>(effects->pilotPaths, job.pathsPerSlice));
-  p["estimate"] = {{"seconds_per_tile", tileSeconds},
-                   {"kept_pilot_path_seconds", keptPilotSeconds},
-                   {"path_seconds_per_tile", pathSeconds},
-                   {"path_seconds_per_tile_fixed", paths.cost.fixed},
-                   {"path_seconds_per_path", paths.cost.perPath},
-                   {"wave_seconds_per_tile", waveSeconds},
-                   {"wave_setup_seconds_per_rank", waveSetupSeconds},
-                   {"write_seconds_per_slice", writeSeconds},
-                   {"wall_seconds_on_these_cores", tileSeconds * computedTiles + waveSetupSeconds +
-                                                       writeSeconds * nTiles + sceneSeconds + options.jobLoadSeconds +
-                                                       (effects ? effects->pilotSeconds : 0.0) - keptPilotSeconds},
-                   {"job_load_seconds", options.jobLoadSeconds},
-                   {"core_hours", coreHours}};
+  const double startSeconds = runStartSeconds(job, options, sceneSeconds);
+  p["estimate"] = {
+      {"seconds_per_tile", tileSeconds},
+      {"kept_pilot_path_seconds", keptPilotSeconds},
+      {"path_seconds_per_tile", pathSeconds},
+      {"path_seconds_per_tile_fixed", paths.cost.fixed},
+      {"path_seconds_per_path", paths.cost.perPath},
+      {"wave_seconds_per_tile", waveSeconds},
+      {"wave_setup_seconds_per_rank", waveSetupSeconds},
+      {"write_seconds_per_slice", writeSeconds},
+      {"wall_seconds_on_these_cores", tileSeconds * computedTiles + waveSetupSeconds + writeSeconds * nTiles +
+                                          startSeconds + (effects ? effects->pilotSeconds : 0.0) - keptPilotSeconds},
+      {"job_load_seconds", options.jobLoadSeconds},
+      {"mpi_start_seconds", options.mpiStartSeconds},
+      {"start_seconds", startSeconds},
+      {"core_hours", coreHours}};
   const double memoryBytes = memoryBytesPerRank(job, waveBytes);
   p["output_bytes_uncompressed"] = outputBytesUncompressed(job);
   if (options.storedBytesPerSlice) {
@@ -1051,7 +1065,9 @@ std::string formatPlan(const nlohmann::json& p) {
             ? "scalar model:   " + p["scalar_validity"]["note"].get<std::string>() + "\n"
             : std::string())
     << "total:          " << n(p["estimate"]["core_hours"]) << " core-hours; "
-    << n(p["estimate"]["wall_seconds_on_these_cores"]) << " s on these cores\n"
+    << n(p["estimate"]["wall_seconds_on_these_cores"]) << " s on these cores, of which start-up "
+    << n(p["estimate"]["start_seconds"]) << " s (MPI_Init " << n(p["estimate"]["mpi_start_seconds"])
+    << " s for one process here; more under a launcher of many ranks)\n"
     << (p.contains("progressive")
             ? "progressive:    target " + n(p["progressive"]["target_rel_error"]) + " relative error; at most " +
                   n(p["progressive"]["path_seconds_per_tile_max"]) + " s of paths per tile (" +

@@ -134,6 +134,9 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
   const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
   const Vec3 q = wi * (-nI * k0) - ord.wo * (nO * k0);  // k1 − k2, as in kirchhoffIntegrand
   Complex Hc[4] = {0, 0, 0, 0};
+  // Rays counted here and added once: the orders run in parallel and their counters are neighbours
+  // (threads counting into one cache line serialise on it).
+  uint64_t raysHere = 0;
   // On a heightfield, directions above its steepest slope need no ray (SlopeBound): the light
   // reaches every facing point, and an order leaving on its own side is seen from every point of a
   // facet that faces it.
@@ -155,8 +158,8 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
                 : kirchhoffIntegrand(Vec3{0, 0, 0}, m, wi, ord.wo, k0, nI, nO,
                                      facets.fresnel[size_t(l) * cell.facets.size() + slot], ord.transmission);
     const bool tableAnswers = table && table->answers(exitCell, t, ord.transmission ? -m : m);
-    const FacetVisibility vis{ctx,      table,     exitCell, tableAnswers, lit, shadow, ord, wi, fromAbove,
-                              litClear, exitClear, t,        slot,         m,   rays};
+    const FacetVisibility vis{ctx,      table,     exitCell, tableAnswers, lit, shadow,   ord, wi, fromAbove,
+                              litClear, exitClear, t,        slot,         m,   &raysHere};
     auto add = [&](const Vec3& a, const Vec3& b, const Vec3& c, int st) {
       if (st == 0 || (st == 2 && !masked)) return;
       const Complex f = triangleFourier(a, b, c, q);
@@ -209,6 +212,7 @@ void exactAmplitude(const WaveContext& ctx, const LatticeCell& cell, const Visib
       element(element, g.vertices[tri[0]], g.vertices[tri[1]], g.vertices[tri[2]], 0, 0, st0);
   }
   for (int i = 0; i < 4; ++i) H[i] += double(cell.copies()) * Hc[i];
+  *rays += raysHere;
 }
 
 }  // namespace mbsdf::wave

@@ -262,7 +262,9 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
       tbb::parallel_for(size_t(0), grazing.size(), [&](size_t g) {
         const Order& ord = orders[grazing[g]];
         const Vec3 k2 = ord.wo * (nO * k0), q = wi * (-nI * k0) - k2;
-        Complex* h = H + 4 * grazing[g];
+        // Summed here and added once: neighbouring orders' amplitudes and counters share cache lines.
+        Complex h[4] = {0, 0, 0, 0};
+        uint64_t raysHere = 0;
         const Microgeometry& geo = ctx.geometry;
         for (size_t p = 0; p < spectrum.parents(); ++p) {
           if (!anyLit[p]) continue;
@@ -270,8 +272,7 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
           const Vec3 n = spectrum.normal(*spectrum.childrenBegin(p));
           const Vec3 m = fromAbove ? n : -n;
           auto visibility = [&](const Vec3& x) {
-            return wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(p), fromAbove, ord.transmission,
-                                     &grazingRays[g]);
+            return wave::visibleExit(ctx.scene, x, m, ord.wo, unsigned(p), fromAbove, ord.transmission, &raysHere);
           };
           // The triangle's four first-level points decide for all its facets when they agree;
           // otherwise each facet by its own centroid.
@@ -292,6 +293,8 @@ void fourierAmplitudes(const WaveContext& ctx, const HeightfieldSpectrum& spectr
           if (!ord.below) h[0] -= ts, h[1] -= tp;
           if (masked) h[2] += ms, h[3] += mp;
         }
+        for (int c = 0; c < 4; ++c) H[4 * grazing[g] + c] += h[c];
+        grazingRays[g] = raysHere;
       });
       for (uint64_t r : grazingRays) *rays += r;
     }
@@ -354,6 +357,11 @@ void accumulateGroupSums(const WaveContext& ctx, const SurfaceSampler& sampler, 
   const double area = sampler.totalArea();
   tbb::parallel_for(0, kGroups, [&](int g) {
     if (stopRequested()) return;
+    // Each group sums into its own buffer, copied out once: the groups' slots of S interleave, and
+    // threads adding into neighbouring slots share cache lines (two threads spent 10 times the CPU
+    // of one here). S is zero on entry, so the sums' bits are those of adding into S directly.
+    std::vector<Complex> local(orders.size() * 4, 0.0);
+    uint64_t rays = 0;
     const int j0 = g * N / kGroups, j1 = (g + 1) * N / kGroups;
     for (int j = j0; j < j1; ++j) {
       Sampler ps(ctx.settings.seed, uint32_t(tile), (uint64_t(k) << 32) | uint64_t(j), kOrdersStream + 1);
@@ -364,12 +372,12 @@ void accumulateGroupSums(const WaveContext& ctx, const SurfaceSampler& sampler, 
       const Vec3 m = fromAbove ? sp.n : -sp.n;
       const double cosLocal = dot(m, wi);
       if (cosLocal <= 0) continue;
-      ++blockRays[g];
+      ++rays;
       if (!wave::escapes(ctx.scene, sp.x, m, wi, sp.prim, fromAbove)) continue;
       for (size_t o = 0; o < orders.size(); ++o) {
         const Order& ord = orders[o];
         const ExitVisibility vis =
-            wave::visibleExit(ctx.scene, sp.x, m, ord.wo, sp.prim, fromAbove, ord.transmission, &blockRays[g]);
+            wave::visibleExit(ctx.scene, sp.x, m, ord.wo, sp.prim, fromAbove, ord.transmission, &rays);
         if (vis == ExitVisibility::BackFacing || (vis == ExitVisibility::Blocked && !masked)) continue;
         const bool visible = vis == ExitVisibility::Visible;
         const int l = ord.lambda;
@@ -379,10 +387,14 @@ void accumulateGroupSums(const WaveContext& ctx, const SurfaceSampler& sampler, 
         // the e^{i (G·x_xy + q_z z)} of Ĥ_G.
         const int msk = visible ? 0 : 1;
         const Complex xs = kv.s * area, xp = kv.p * area;
-        S[groupSlot(o, 0, g, msk)] += xs;
-        S[groupSlot(o, 1, g, msk)] += xp;
+        local[(o * 2 + 0) * 2 + msk] += xs;
+        local[(o * 2 + 1) * 2 + msk] += xp;
       }
     }
+    for (size_t o = 0; o < orders.size(); ++o)
+      for (int pol = 0; pol < 2; ++pol)
+        for (int msk = 0; msk < 2; ++msk) S[groupSlot(o, pol, g, msk)] += local[(o * 2 + pol) * 2 + msk];
+    blockRays[g] += rays;
   });
 }
 
