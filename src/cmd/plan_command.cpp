@@ -4,6 +4,9 @@
 #include <chrono>
 #include <iostream>
 
+#include <tbb/task_arena.h>
+
+#include "cluster/mpi_session.h"
 #include "cluster/output_schema_of.h"
 #include "cmd/command.h"
 #include "core/log.h"
@@ -27,12 +30,23 @@ Command addPlanCommand(CLI::App& app) {
   c.app->add_option("--json", o->json, "also write the plan as JSON to this file");
   addThreadsOption(c.app, o->threads, "threads for the pilot (default: all cores)");
   c.run = [o] {
+    auto since = [](std::chrono::steady_clock::time_point t0) {
+      return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    };
+    // MPI_Init as every rank of the run meets it, timed for the estimate (0.3 s for one process
+    // here: half of a small job's run). TBB counts its cores first, as `run` has it, before MPI's
+    // hardware discovery moves this thread from core to core.
+    tbb::this_task_arena::max_concurrency();
+    const auto starting = std::chrono::steady_clock::now();
+    MpiSession mpi(nullptr, nullptr);
+    const double mpiStartSeconds = since(starting);
     installStopHandlers();
     setupLogging(0, "", "", false);
     const auto loading = std::chrono::steady_clock::now();
     Job job = loadJob(o->jobPath);
     PlanOptions po;
-    po.jobLoadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loading).count();
+    po.jobLoadSeconds = since(loading);
+    po.mpiStartSeconds = mpiStartSeconds;
     po.threads = o->threads;
     po.writeSecondsPerSlice = [](const Job& j, const DirectionGrid& g, int slicesPerCommit) {
       return measureWriteSecondsPerSlice(outputSchemaOf(j), g, slicesPerCommit);

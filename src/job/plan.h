@@ -27,6 +27,10 @@ struct PlanOptions {
   // Seconds the caller spent loading the job (its geometry built and checked), which every rank of
   // the run spends again before its first tile; 0: not counted.
   double jobLoadSeconds = 0;
+  // Seconds MPI_Init took in the caller's process (one process, not under a launcher), which every
+  // rank of the run spends before its first tile, its job read meanwhile where the geometry is made
+  // from parameters; 0: not counted.
+  double mpiStartSeconds = 0;
 };
 
 // Resident memory of one rank running `job`: the scene (Embree + double copies), one tile result

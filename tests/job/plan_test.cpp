@@ -329,3 +329,25 @@ TEST(Plan, WaveRuleErrorFromTheFinerRuleBoundsTheTrueOne) {
     EXPECT_LE(predicted, 3 * d / mass) << "theta_i " << pilot["theta_deg"].get<double>();
   }
 }
+
+// The run's start-up in the wall-time estimate: MPI_Init overlaps the job read and tile computer of
+// a job made from parameters (the run prepares them on a second thread meanwhile), and precedes a
+// mesh's read (whose readers read the environment MPI_Init sets).
+TEST(Plan, StartUpCountsMpiAsTheRunOverlapsIt) {
+  const Job job = sceneJob("kind = \"flat\"\nsize_um = [4.0, 4.0]", "name = \"Al\"", 2000);
+  PlanOptions options;
+  options.pilotPaths = 2000;
+  options.jobLoadSeconds = 0.5;
+  const nlohmann::json without = planJob(job, options);
+  EXPECT_GE(without["estimate"]["start_seconds"].get<double>(), 0.5);  // the job's load, and its scene
+  options.mpiStartSeconds = 7.0;
+  const nlohmann::json with = planJob(job, options);
+  EXPECT_DOUBLE_EQ(with["estimate"]["mpi_start_seconds"].get<double>(), 7.0);
+  EXPECT_DOUBLE_EQ(with["estimate"]["start_seconds"].get<double>(), 7.0);  // the rest hidden behind it
+  EXPECT_GT(with["estimate"]["wall_seconds_on_these_cores"].get<double>(), 7.0);
+  // A mesh is read after MPI_Init: the two add up.
+  Job mesh = job;
+  mesh.geometryKind = "mesh";
+  const nlohmann::json after = planJob(mesh, options);
+  EXPECT_GE(after["estimate"]["start_seconds"].get<double>(), 7.5);
+}
