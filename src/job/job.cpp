@@ -625,9 +625,8 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
   auto [lo, hi] = job.material.validRange_nm();
   for (double l : job.lambda_nm)
     if (l < lo || l > hi)
-      spec.fail("wavelengths_nm", "wavelength " + std::to_string(l) + " nm is outside the table of material " +
-                                      job.material.describe() + " (" + std::to_string(lo) + "–" + std::to_string(hi) +
-                                      " nm)");
+      spec.fail("wavelengths_nm", fmt::format("wavelength {:g} nm is outside the table of material {} ({:g}–{:g} nm)",
+                                              l, job.material.describe(), lo, hi));
 
   // The sections in the order their checks depend on each other (the incidences need the material;
   // the scene, the wavelengths and incidences; the geometry's checks, the components).

@@ -1,5 +1,7 @@
 #include "job/params.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -171,12 +173,12 @@ std::vector<std::string> ParamDict::getStrings(const std::string& key, const std
 
 double ParamDict::positive(const std::string& key, double def) const {
   double v = getDouble(key, def);
-  if (!(v > 0)) fail(key, "must be > 0 (got " + std::to_string(v) + ")");
+  if (!(v > 0)) fail(key, fmt::format("must be > 0 (got {:g})", v));
   return v;
 }
 double ParamDict::nonNegative(const std::string& key, double def) const {
   double v = getDouble(key, def);
-  if (!(v >= 0)) fail(key, "must be >= 0 (got " + std::to_string(v) + ")");
+  if (!(v >= 0)) fail(key, fmt::format("must be >= 0 (got {:g})", v));
   return v;
 }
 int64_t ParamDict::positiveInt(const std::string& key, int64_t def) const {

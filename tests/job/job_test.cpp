@@ -105,6 +105,11 @@ TEST(Job, BadValuesNameTheKey) {
   std::string e = errorOf("[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [1500.0]\n");
   EXPECT_NE(e.find("spectrum.wavelengths_nm"), std::string::npos) << e;
   EXPECT_NE(e.find("test.toml:4"), std::string::npos) << e;
+  // Extreme values are printed as numbers a reader can read, not as 300 digits or "0.000000".
+  e = errorOf("[material]\nname = \"Al\"\n[spectrum]\nwavelengths_nm = [1e300]\n");
+  EXPECT_NE(e.find("wavelength 1e+300 nm"), std::string::npos) << e;
+  e = errorOf("[geometry]\nkind = \"sine-grating\"\nperiod_um = -1e-300\n");
+  EXPECT_NE(e.find("(got -1e-300)"), std::string::npos) << e;
   // Patch not holding a whole number of periods.
   e = errorOf("[geometry]\nkind = \"ridged\"\nsize_um = [10.0, 10.0]\nperiod_um = 3.0\n");
   EXPECT_NE(e.find("geometry.period_um"), std::string::npos) << e;
