@@ -145,7 +145,7 @@ const std::vector<JobKey>& jobKeys() {
       {"sampling.single_scattering", String, "\"auto\"", "auto, paths, facets",
        "how single scattering is computed without deeper paths"},
       {"sampling.wave_incidence_directions", Integer, "4", "[1, 1e6]",
-       "orders, bin-averaged: incidence directions per bin"},
+       "bin-averaged: n x n Gauss-Legendre incidence nodes per bin, n^2 >= this"},
       {"sampling.wave_incidence_directions_pole_horizon", Integer, "wave_incidence_directions", "[1, 1e6]",
        "the same for the incidence bins that reach normal incidence or the horizon (a theta-phi grid's first "
        "and last rings, a disk grid's centre pixels and those its rim cuts), where the bin's average "

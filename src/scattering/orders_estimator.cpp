@@ -50,6 +50,7 @@ struct Order {
 struct NodePowers {
   Order ord;
   std::vector<double> q;         // [node * 2 + msk], the high rule's n² nodes first
+  std::vector<double> var;       // the Monte Carlo variance of q (orders), else empty
   std::vector<uint8_t> present;  // [node]
 };
 
@@ -474,7 +475,7 @@ uint64_t deterministicAmplitudes(const WaveContext& ctx, OrderAmplitudes amplitu
 }
 
 // The average over the K incidence samples of the power per (λ, bin) as f (÷ Ω⊥); the error
-// combines the point error and the spread over the samples.
+// combines the point error and the spread over the samples (a collimated beam: K = 1).
 void averageOverIncidences(const DirectionGrid& grid, int K, const std::vector<std::vector<double>>& p,
                            const std::vector<std::vector<double>>& v, std::vector<double>& f, std::vector<double>& e) {
   const int nB = grid.binCount();
@@ -637,6 +638,53 @@ std::vector<SubDirection> subDirections(const DirectionGrid& grid, int incidence
 
 }  // namespace
 
+// Sampled powers (orders): each node's coefficient c_m in a bin's value per (msk, bin), merged per
+// key as an order's parts are (its image covers a few bins).
+struct NodeCoefficients {
+  struct Entry {
+    size_t node;
+    int msk;
+    size_t at;
+    double c;
+  };
+  std::vector<Entry> entries;
+  void add(size_t node, int msk, size_t at, double c) {
+    auto hit = std::find_if(entries.rbegin(), entries.rend(),
+                            [&](const Entry& q) { return q.at == at && q.node == node && q.msk == msk; });
+    if (hit != entries.rend())
+      hit->c += c;
+    else
+      entries.push_back({node, msk, at, c});
+  }
+};
+
+// The binned tables into f and its error: acc[table * nMsk + msk], tables 0 (the n-node rule on
+// M × M sub-directions), 1 (the (n − 1)-node rule), 2 (the n-node rule on M/2 × M/2) and, for
+// sampled powers, 3 and 4 (the variances of 0 and 1).
+static void storeBinned(const DirectionGrid& grid, int nMsk, bool sampled, const std::vector<std::vector<double>>& acc,
+                        WaveTileResult* r) {
+  const int nB = grid.binCount();
+  for (int msk = 0; msk < nMsk; ++msk) {
+    std::vector<double>& f = msk ? r->pmsk : r->fws;
+    std::vector<double>& e = msk ? r->pmskErr : r->fwsErr;
+    const std::vector<double>&hi = acc[size_t(msk)], &lo = acc[size_t(nMsk + msk)], &half = acc[size_t(2 * nMsk + msk)];
+    for (size_t i = 0; i < f.size(); ++i) {
+      const double op = grid.projectedSolidAngle(int(i % size_t(nB)));
+      if (op <= 0) continue;  // disk pixels outside the unit disk
+      f[i] = hi[i] / op;
+      if (!sampled) {
+        e[i] = (std::abs(hi[i] - lo[i]) + std::abs(hi[i] - half[i])) / op;
+        continue;
+      }
+      // The sampling error, and the rule's: the two rules' difference less what their sampling
+      // noise explains (an unbiased estimate of the squared bias), and the binning's.
+      const double varHi = acc[size_t(3 * nMsk + msk)][i], varLo = acc[size_t(4 * nMsk + msk)][i];
+      const double d = hi[i] - lo[i], h = hi[i] - half[i];
+      e[i] = std::sqrt(varHi + std::max(0.0, d * d - varHi - varLo) + h * h) / op;
+    }
+  }
+}
+
 static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& grid, int incidenceBin, bool fromAbove,
                                 const wave::Media& media, const std::vector<NodePowers>& nodePower, bool masked,
                                 WaveTileResult* r) {
@@ -656,6 +704,9 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     double value;
   };
   std::vector<std::vector<Part>> parts(nodePower.size());
+  // Monte Carlo node powers (orders): each bin's value is linear in them, Σ_m c_m q_m, so its
+  // variance is Σ_m c_m² var_m, per order (tables 3 and 4: of tables 0 and 1).
+  const bool sampled = !nodePower.empty() && !nodePower[0].var.empty();
   // Orders whose power stays below 1e-13 of the strongest order's at every node are left out (a flat
   // patch's orders G != 0 carry rounding noise of 1e-30: binning each of them over M x M
   // sub-directions was the whole cost of a flat mirror's tile); they change no bin by more than
@@ -666,7 +717,8 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
   tbb::parallel_for(size_t(0), nodePower.size(), [&](size_t o) {
     const Order& ord = nodePower[o].ord;
     const std::vector<double>& Q = nodePower[o].q;
-    if (std::all_of(Q.begin(), Q.end(), [&](double v) { return v <= 1e-13 * strongest; }))
+    // (A sampled power below zero is as much a part of the estimate as one above.)
+    if (std::all_of(Q.begin(), Q.end(), [&](double v) { return (sampled ? std::abs(v) : v) <= 1e-13 * strongest; }))
       return;  // negligible everywhere
     const std::vector<uint8_t>& present = nodePower[o].present;
     // Lagrange over a rule's nodes where the order propagates at all of them; else (it crosses the
@@ -698,6 +750,7 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     // The lobe's share of each bin at one sub-direction, integrated (lobe_shares.h); at a disk
     // grid's rim, the bin of the lobe point paired with the sub-direction.
     std::vector<std::pair<int, double>> spread;
+    NodeCoefficients coefficients;
     // One sub-direction of `set`: its exit direction and the lobe's bins once, then the power of
     // each table in `tables` (0 and 1 share the fine sub-directions).
     auto bin = [&](const Sub& sub, std::initializer_list<int> tables, const std::vector<Sub>& set) {
@@ -716,16 +769,26 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
         const bool high = table != 1;
         const size_t near = (high ? allHi : allLo) ? SIZE_MAX : nearest(sub, high);
         if (!(high ? allHi : allLo) && near == SIZE_MAX) continue;
+        // The node weights of this sub-direction: the nearest node's alone, or the rule's Lagrange weights.
+        auto forEachWeight = [&](auto&& fn) {
+          if (near != SIZE_MAX) return fn(near, 1.0);
+          const std::vector<double>& w = high ? sub.wh : sub.wl;
+          const size_t first = high ? 0 : size_t(n * n);
+          for (size_t m = 0; m < w.size(); ++m) fn(first + m, w[m]);
+        };
         for (int msk = 0; msk < nMsk; ++msk) {
           double v = 0;
-          if (near != SIZE_MAX)
-            v = Q[near * 2 + size_t(msk)];
-          else if (high)
-            for (size_t m = 0; m < sub.wh.size(); ++m) v += sub.wh[m] * Q[m * 2 + size_t(msk)];
-          else
-            for (size_t m = 0; m < sub.wl.size(); ++m) v += sub.wl[m] * Q[(size_t(n * n) + m) * 2 + size_t(msk)];
-          if (v <= 0) continue;
+          forEachWeight([&](size_t m, double w) { v += w * Q[m * 2 + size_t(msk)]; });
+          // A sampled power may be negative (the pairwise estimate is unbiased, not positive):
+          // dropping those would bias every weak order's bins upwards.
+          if (sampled ? v == 0 : v <= 0) continue;
           const double perSub = v * secant / double(set.size());
+          if (sampled && table != 2)
+            for (const auto& [b, share] : spread) {
+              const size_t at = size_t(l) * nB + size_t(b);
+              const double c = secant / double(set.size()) * share;
+              forEachWeight([&](size_t m, double w) { coefficients.add(m, msk, at, w * c); });
+            }
           for (const auto& [b, share] : spread) {
             // Merged per (table, bin): an order's image covers a few bins, so the list stays short.
             const size_t at = size_t(l) * nB + size_t(b);
@@ -743,23 +806,18 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     };
     for (const Sub& sub : fine) bin(sub, {0, 1}, fine);
     for (const Sub& sub : coarse) bin(sub, {2}, coarse);
+    for (const NodeCoefficients::Entry& q : coefficients.entries)
+      parts[o].push_back(
+          {q.node < size_t(n * n) ? 3 : 4, q.msk, q.at, q.c * q.c * nodePower[o].var[q.node * 2 + size_t(q.msk)]});
   });
   // table 0: the n-node interpolation on M × M sub-directions; 1: the (n − 1)-node one; 2: the
   // n-node one on M/2 × M/2.
-  std::vector<std::vector<double>> acc(size_t(3 * nMsk), std::vector<double>(r->fws.size(), 0.0));
+  // 3, 4 (sampled powers): the variances of 0 and 1.
+  const int tables = sampled ? 5 : 3;
+  std::vector<std::vector<double>> acc(size_t(tables * nMsk), std::vector<double>(r->fws.size(), 0.0));
   for (const auto& list : parts)
     for (const Part& p : list) acc[size_t(p.table * nMsk + p.msk)][p.at] += p.value;
-  for (int msk = 0; msk < nMsk; ++msk) {
-    std::vector<double>& f = msk ? r->pmsk : r->fws;
-    std::vector<double>& e = msk ? r->pmskErr : r->fwsErr;
-    const std::vector<double>&hi = acc[size_t(msk)], &lo = acc[size_t(nMsk + msk)], &half = acc[size_t(2 * nMsk + msk)];
-    for (size_t i = 0; i < f.size(); ++i) {
-      const double op = grid.projectedSolidAngle(int(i % size_t(nB)));
-      if (op <= 0) continue;  // disk pixels outside the unit disk
-      f[i] = hi[i] / op;
-      e[i] = (std::abs(hi[i] - lo[i]) + std::abs(hi[i] - half[i])) / op;
-    }
-  }
+  storeBinned(grid, nMsk, sampled, acc, r);
 }
 
 // One incidence sample's |Ĥ_G|² per order, its lobe shared among the bins: power and variance per
@@ -792,15 +850,17 @@ WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::f
   const DirectionGrid& grid = ctx_.grid;
   const int nL = int(ctx_.lambda_um.size()), nB = grid.binCount();
   const int N = std::max(2 * kGroups, ctx_.settings.samplesPerBin);
-  // Incidence directions: one collimated beam; else K random ones (orders), or the nodes of the
-  // Gauss–Legendre rules over the incidence bin (exact, fft: wave::incidenceRule).
+  // Incidence directions: one collimated beam, or the nodes of the Gauss–Legendre rules over the
+  // incidence bin (wave::incidenceRule).
   const bool deterministic = amplitudes_ != OrderAmplitudes::MonteCarlo;
   const int directions = incidenceDirectionsOf(ctx_.settings, grid, incidenceBin);
-  const std::vector<wave::IncidenceNode> rule =
-      deterministic ? wave::incidenceRule(grid, incidenceBin, exactDirection, directions)
-                    : std::vector<wave::IncidenceNode>{};
-  const bool quadrature = deterministic && !exactDirection;
-  const int K = deterministic ? int(rule.size()) : exactDirection ? 1 : std::max(2, directions);
+  // Over an incidence bin every estimator takes the rule's nodes and bins their order powers through
+  // the bin's sub-directions (binOverIncidenceBin): an exit bin that only a strip of the incidence
+  // bin reaches gets its share of every order; K random directions, each lobe at its own, leave it
+  // at 0 ± 0 in most runs (mean z² 447 on flat glass lit from inside, 3.1e3 on a dome lattice).
+  const std::vector<wave::IncidenceNode> rule = wave::incidenceRule(grid, incidenceBin, exactDirection, directions);
+  const bool quadrature = !exactDirection;
+  const int K = int(rule.size());
   const bool masked = ctx_.settings.computeMasked;
   const bool fromAbove = exactDirection ? exactDirection->z >= 0 : grid.isUpper(incidenceBin);
   const bool transmissionWanted = wave::otherSideWanted(grid, fromAbove, exitMask);
@@ -812,18 +872,12 @@ WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::f
   std::atomic<uint64_t> rays{0};
   uint64_t pointOrderPairs = 0;
 
-  // exact/fft over an incidence bin: every order's power at every node (P at node k, visible and
-  // masked), keyed by (λ, side, a, b); binned after the loop.
+  // Over an incidence bin: every order's power at every node (P at node k, visible and masked, and
+  // its variance where sampled), keyed by (λ, side, a, b); binned after the loop.
   std::map<std::tuple<int, int, long, long>, size_t> slotOf;
   std::vector<NodePowers> nodePower;
-  auto incidence = [&](int k) {
-    if (deterministic) return rule[size_t(k)].wi;
-    if (exactDirection) return normalize(*exactDirection);
-    Sampler s(ctx_.settings.seed, uint32_t(tile), uint64_t(k), kOrdersStream);
-    return grid.sampleCosine(incidenceBin, s).w;
-  };
   for (int k = 0; k < K; ++k) {
-    const Vec3 wi = incidence(k);
+    const Vec3 wi = rule[size_t(k)].wi;
     const std::vector<Order> orders = propagatingOrders(ctx_, media, cell_, wi, fromAbove, transmissionWanted, masked);
     const size_t nO = orders.size();
     pointOrderPairs += uint64_t(amplitudes_ == OrderAmplitudes::Exact ? cell_.facets.size()
@@ -868,10 +922,13 @@ WaveTileResult OrdersWaveEstimator::run(const TileRequest& request, const std::f
         const auto key = std::make_tuple(ord.lambda, int(ord.transmission) + 2 * int(ord.below), ord.a, ord.b);
         auto [it, fresh] = slotOf.emplace(key, nodePower.size());
         if (fresh)
-          nodePower.push_back({ord, std::vector<double>(size_t(K) * 2, 0.0), std::vector<uint8_t>(size_t(K), 0)});
+          nodePower.push_back({ord, std::vector<double>(size_t(K) * 2, 0.0),
+                               std::vector<double>(deterministic ? 0 : size_t(K) * 2, 0.0),
+                               std::vector<uint8_t>(size_t(K), 0)});
         NodePowers& np = nodePower[it->second];
         np.q[size_t(k) * 2] = op[o].P[0];
         np.q[size_t(k) * 2 + 1] = op[o].P[1];
+        if (!deterministic) np.var[size_t(k) * 2] = op[o].var[0], np.var[size_t(k) * 2 + 1] = op[o].var[1];
         np.present[size_t(k)] = 1;
       }
     } else {

@@ -135,3 +135,26 @@ TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
       EXPECT_LT(h.totalSd, collimated ? 0.1 : 0.6) << key;
     }
 }
+
+// `orders` over an incidence bin: its order powers sampled at the nodes of `exact`'s rules and binned
+// through the bin's sub-directions, each bin's variance propagated from the nodes' (the bin is
+// linear in them). Over 8 seeds at 256 samples per bin: mean z² against `exact` at most 1.6 on every
+// surface and above 0.05 (measured 0.11 mirror, 0.28 and 0.31 glass from above and below, 0.40 sine
+// grating, 0.85 dome lattice: the rules' difference is a conservative error on flat interfaces), no
+// bin at 0 ± 0 that the reference fills, and the energy within 4 standard errors of the mean of
+// `exact`'s. K random incidence directions, each lobe drawn at its own direction, gave mean z² 2.5,
+// 1.5, 447, 6.6 and 3.1e3, and bins at 0 ± 0 holding 0.91 of the peak (glass from below).
+TEST(WaveHonesty, OrdersErrorsHoldOverIncidenceBins) {
+  const int seeds = 8;
+  for (const HonestyCase& hc : honestyCases()) {
+    const Honesty h = honesty(hc, "orders", false, seeds);
+    std::printf(
+        "orders %-18s averaged mean z² %.3f (%d bins, %d beyond 3)  energy %.4f ± %.4f (one seed), exact %.4f\n",
+        hc.name.c_str(), h.meanZ2, h.tested, h.beyond3, h.total, h.totalSd, h.refTotal);
+    RecordProperty("mean_z2 " + hc.name, std::to_string(h.meanZ2));
+    EXPECT_LT(h.meanZ2, 1.6) << hc.name;
+    EXPECT_GT(h.meanZ2, 0.05) << hc.name;
+    EXPECT_LT(h.worstZeroErrorDev, 1e-5) << hc.name;
+    EXPECT_NEAR(h.total, h.refTotal, 4 * h.totalSd / std::sqrt(double(seeds)) + 1e-3) << hc.name;
+  }
+}
