@@ -12,8 +12,8 @@
 #include <functional>
 #include <initializer_list>
 #include <map>
-#include <tuple>
 #include <stdexcept>
+#include <tuple>
 
 #include "core/stop.h"
 #include "core/quadrature.h"
@@ -638,24 +638,31 @@ std::vector<SubDirection> subDirections(const DirectionGrid& grid, int incidence
 
 }  // namespace
 
-// Sampled powers (orders): each node's coefficient c_m in a bin's value per (msk, bin), merged per
-// key as an order's parts are (its image covers a few bins).
-struct NodeCoefficients {
-  struct Entry {
-    size_t node;
-    int msk;
-    size_t at;
-    double c;
-  };
-  std::vector<Entry> entries;
-  void add(size_t node, int msk, size_t at, double c) {
-    auto hit = std::find_if(entries.rbegin(), entries.rend(),
-                            [&](const Entry& q) { return q.at == at && q.node == node && q.msk == msk; });
-    if (hit != entries.rend())
-      hit->c += c;
-    else
-      entries.push_back({node, msk, at, c});
-  }
+// Adds `entry` to the list's entry of the same key, searched from the end: an order's image covers
+// a few bins, so its lists stay short.
+template <class Entry>
+void addMerged(std::vector<Entry>& list, const Entry& entry) {
+  auto hit = std::find_if(list.rbegin(), list.rend(), [&](const Entry& q) { return q.key() == entry.key(); });
+  if (hit != list.rend())
+    hit->value += entry.value;
+  else
+    list.push_back(entry);
+}
+
+// An order's contribution to one binned table (binOverIncidenceBin) at (λ, bin) `at`.
+struct BinPart {
+  int table, msk;
+  size_t at;
+  double value;
+  auto key() const { return std::make_tuple(table, msk, at); }
+};
+// Sampled powers (orders): a node's coefficient c_m in the value of (msk, λ, bin) `at`.
+struct NodeCoefficient {
+  size_t node;
+  int msk;
+  size_t at;
+  double value;
+  auto key() const { return std::make_tuple(node, msk, at); }
 };
 
 // The binned tables into f and its error: acc[table * nMsk + msk], tables 0 (the n-node rule on
@@ -698,12 +705,7 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
   const double Lx = ctx.scene.sizeX(), Ly = ctx.scene.sizeY();
   const int nMsk = masked ? 2 : 1;
   // Per order: (table, msk, λ·nB + bin, value) contributions, accumulated below in order.
-  struct Part {
-    int table, msk;
-    size_t at;
-    double value;
-  };
-  std::vector<std::vector<Part>> parts(nodePower.size());
+  std::vector<std::vector<BinPart>> parts(nodePower.size());
   // Monte Carlo node powers (orders): each bin's value is linear in them, Σ_m c_m q_m, so its
   // variance is Σ_m c_m² var_m, per order (tables 3 and 4: of tables 0 and 1).
   const bool sampled = !nodePower.empty() && !nodePower[0].var.empty();
@@ -750,7 +752,7 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
     // The lobe's share of each bin at one sub-direction, integrated (lobe_shares.h); at a disk
     // grid's rim, the bin of the lobe point paired with the sub-direction.
     std::vector<std::pair<int, double>> spread;
-    NodeCoefficients coefficients;
+    std::vector<NodeCoefficient> coefficients;
     // One sub-direction of `set`: its exit direction and the lobe's bins once, then the power of
     // each table in `tables` (0 and 1 share the fine sub-directions).
     auto bin = [&](const Sub& sub, std::initializer_list<int> tables, const std::vector<Sub>& set) {
@@ -787,28 +789,19 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
             for (const auto& [b, share] : spread) {
               const size_t at = size_t(l) * nB + size_t(b);
               const double c = secant / double(set.size()) * share;
-              forEachWeight([&](size_t m, double w) { coefficients.add(m, msk, at, w * c); });
+              forEachWeight([&](size_t m, double w) { addMerged(coefficients, {m, msk, at, w * c}); });
             }
           for (const auto& [b, share] : spread) {
-            // Merged per (table, bin): an order's image covers a few bins, so the list stays short.
-            const size_t at = size_t(l) * nB + size_t(b);
-            const double add = perSub * share;
-            auto& list = parts[o];
-            auto hit = std::find_if(list.rbegin(), list.rend(),
-                                    [&](const Part& q) { return q.at == at && q.table == table && q.msk == msk; });
-            if (hit != list.rend())
-              hit->value += add;
-            else
-              list.push_back({table, msk, at, add});
+            addMerged(parts[o], {table, msk, size_t(l) * nB + size_t(b), perSub * share});
           }
         }
       }
     };
     for (const Sub& sub : fine) bin(sub, {0, 1}, fine);
     for (const Sub& sub : coarse) bin(sub, {2}, coarse);
-    for (const NodeCoefficients::Entry& q : coefficients.entries)
-      parts[o].push_back(
-          {q.node < size_t(n * n) ? 3 : 4, q.msk, q.at, q.c * q.c * nodePower[o].var[q.node * 2 + size_t(q.msk)]});
+    for (const NodeCoefficient& q : coefficients)
+      parts[o].push_back({q.node < size_t(n * n) ? 3 : 4, q.msk, q.at,
+                          q.value * q.value * nodePower[o].var[q.node * 2 + size_t(q.msk)]});
   });
   // table 0: the n-node interpolation on M × M sub-directions; 1: the (n − 1)-node one; 2: the
   // n-node one on M/2 × M/2.
@@ -816,7 +809,7 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
   const int tables = sampled ? 5 : 3;
   std::vector<std::vector<double>> acc(size_t(tables * nMsk), std::vector<double>(r->fws.size(), 0.0));
   for (const auto& list : parts)
-    for (const Part& p : list) acc[size_t(p.table * nMsk + p.msk)][p.at] += p.value;
+    for (const BinPart& p : list) acc[size_t(p.table * nMsk + p.msk)][p.at] += p.value;
   storeBinned(grid, nMsk, sampled, acc, r);
 }
 
