@@ -657,6 +657,7 @@ void TileServer::complete(const std::optional<ReciprocalPairs>& pairs) {
   }
   if (const std::optional<std::string> caveat = job_.waveErrorsCaveat()) spdlog::warn("{}", *caveat);
   if (const std::optional<std::string> caveat = scalarModelCaveat(job_)) spdlog::warn("{}", *caveat);
+  if (options_.outputFolderCaveat) spdlog::warn("{}", *options_.outputFolderCaveat);
   if (nonphysical_)
     spdlog::warn(
         "{} slice(s) computed now are not physical (the worst: slice {}, {}); `microbsdf info` lists them, "

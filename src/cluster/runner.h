@@ -14,6 +14,7 @@
 #include <chrono>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "cluster/mpi_session.h"
@@ -53,6 +54,9 @@ struct RunOptions {
   // while MPI started (for the start-up log line).
   std::shared_ptr<const RunSetup> setup;
   bool setupDuringMpiStart = false;
+  // Rank 0: why the output folder or its lock does not reach every rank's node (shared_output.h),
+  // repeated in the run's closing summary.
+  std::optional<std::string> outputFolderCaveat;
 };
 
 struct RunSummary {

@@ -23,6 +23,7 @@
 
 #include "cluster/mpi_session.h"
 #include "cluster/runner.h"
+#include "cluster/shared_output.h"
 #include "cmd/allocator.h"
 #include "cmd/command.h"
 #include "core/error.h"
@@ -219,6 +220,9 @@ int runCommand(int argc, char** argv, RunArgs a) {
   }
   if (lock && !lock->previousHolder().empty())
     spdlog::info("output lock {}: the run that held it ({}) is gone; taken over", lock->path(), lock->previousHolder());
+  const std::optional<std::string> folderCaveat =
+      outputFolderCaveat(mpi, lock ? lock->path() : std::string(), lock ? lock->record() : std::string());
+  if (folderCaveat) spdlog::warn("{}", *folderCaveat);
   if (mpi.rank() == 0) {
     const ScalarValidity validity = scalarValidity(*job);
     if (validity.applies) {
@@ -241,6 +245,7 @@ int runCommand(int argc, char** argv, RunArgs a) {
         pre.setup ? fmt::format(", the tile computer {:.3f} s while MPI started", pre.setup->seconds) : "",
         jobReady - mpiReady, outputChecked - jobReady, planned - outputChecked, planned, allocatorNote());
     opt.outputPath = out;
+    opt.outputFolderCaveat = folderCaveat;
     opt.threads = a.threads;
     opt.resume = a.resume;
     opt.maxHours = a.maxHours;

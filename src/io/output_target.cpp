@@ -158,12 +158,30 @@ OutputLock::OutputLock(const std::string& outPath) : path_(outPath + ".lock") {
   std::strftime(when, sizeof when, "%Y-%m-%d %H:%M:%S", std::localtime(&now));
   const std::string record =
       "host " + std::string(host) + ", PID " + std::to_string(::getpid()) + ", since " + when + "\n";
-  if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, record.data(), record.size(), 0) != ssize_t(record.size())) {
+  // Synced, so that ranks on other nodes of a network file system read the record (viewOfLock).
+  if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, record.data(), record.size(), 0) != ssize_t(record.size()) ||
+      ::fsync(fd_) != 0) {
     const int err = errno;
     ::close(fd_);
     fd_ = -1;
     throw WriteError(osErrorMessage("write", path_, err));
   }
+  record_ = readAll(fd_);
+}
+
+LockView viewOfLock(const std::string& lockPath, const std::string& record) {
+  const int fd = ::open(lockPath.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return LockView::Missing;
+  LockView view = LockView::Foreign;
+  if (readAll(fd) == record) {
+    view = LockView::Held;
+    if (::flock(fd, LOCK_EX | LOCK_NB) == 0) {
+      ::flock(fd, LOCK_UN);
+      view = LockView::Unenforced;
+    }
+  }
+  ::close(fd);
+  return view;
 }
 
 OutputLock::~OutputLock() {

@@ -43,10 +43,24 @@ class OutputLock {
   // Who held the lock before, if a process that is gone left its record ("" otherwise).
   const std::string& previousHolder() const { return previous_; }
   const std::string& path() const { return path_; }
+  // What this run wrote into the lock file (host, PID, start time): how another node's rank tells
+  // this lock file from one of its own folder's.
+  const std::string& record() const { return record_; }
 
  private:
-  std::string path_, previous_;
+  std::string path_, previous_, record_;
   int fd_ = -1;
 };
+
+// How a rank sees the lock file another rank holds (`record` being what the holder wrote in it).
+enum class LockView {
+  Held,       // the file is there, with the record, and flock(2) refuses it: shared and enforced
+  Missing,    // no such file here: this rank's file system is not the holder's
+  Foreign,    // a file with other contents: a folder of the same name on another file system
+  Unenforced  // the file with the record, yet flock(2) granted it: the lock does not reach this node
+};
+// Looks at `lockPath` as a rank other than the holder; takes and at once releases the lock when the
+// file system grants it.
+LockView viewOfLock(const std::string& lockPath, const std::string& record);
 
 }  // namespace mbsdf

@@ -16,9 +16,11 @@ SUBNET = "10.77.0"
 
 
 @contextlib.contextmanager
-def two_nodes():
+def two_nodes(local_folder=None):
     """Yields the two namespaces' names (also their hostnames) and an mpirun command prefix that
-    starts in the first and places ranks on both; removes namespaces, links and host files after."""
+    starts in the first and places ranks on both; removes namespaces, links and host files after.
+    With `local_folder`, the second node sees an empty file system of its own there (a tmpfs in
+    its own mount namespace), as a node sees its local scratch."""
     tag = str(os.getpid())
     names = [f"mbn{tag}a", f"mbn{tag}b"]
     links = [f"mbv{tag}a", f"mbv{tag}b"]
@@ -30,8 +32,9 @@ def two_nodes():
     with open(agent, "w") as f:
         # Open MPI calls its rsh agent as `agent HOST COMMAND…`, like ssh: the command runs on the
         # node (the namespace named HOST) under that hostname.
+        local = f"mount -t tmpfs node-local {local_folder}; " if local_folder else ""
         f.write('#!/bin/sh\nhost="$1"\nshift\n'
-                'exec ip netns exec "$host" unshare --uts sh -c "hostname $host; $*"\n')
+                f'exec ip netns exec "$host" unshare --uts --mount sh -c "{local}hostname $host; $*"\n')
     os.chmod(agent, 0o755)
     try:
         for n in names:
@@ -94,9 +97,31 @@ def test_two_nodes():
         out = p.stdout.read()
         assert p.returncode == 0, f"exit {p.returncode}:\n{out}"
         assert "on 4 ranks" in out, out
+        assert "not shared" not in out and "does not carry its lock" not in out, out
     assert len(seen) == 2, f"ranks seen on the second node: {sorted(seen)}"
     assert datasets(os.path.join(TMP, "out.h5")) == datasets(os.path.join(TMP, "ref.h5")), "the two-node table differs"
     print("4 ranks on 2 nodes (2 of them seen on the second): datasets identical to one node's")
+
+
+def test_node_local_output():
+    """An output folder the second node does not share (its own empty file system there): the run
+    computes the table on rank 0's node and says, at its start and in its closing summary, which
+    ranks and node do not see the output's lock file and what follows. A shared folder whose lock
+    every node sees held raises nothing (test_two_nodes runs one)."""
+    local = os.path.join(TMP, "local")
+    os.makedirs(local, exist_ok=True)
+    job = many_tiles_job(os.path.join(TMP, "job.toml"), 2, "out.h5", paths=20000)
+    out_h5 = os.path.join(local, "out.h5")
+    with two_nodes(local) as (names, mpirun):
+        p = start_on_nodes(mpirun, ["run", job, "-o", out_h5])
+        out, _ = p.communicate(timeout=600)
+    assert p.returncode == 0, f"exit {p.returncode}:\n{out}"
+    said = f"the output folder is not shared with 2 ranks on {names[1]} (they do not see {out_h5}.lock"
+    warned = [line for line in out.splitlines() if said in line]
+    assert len(warned) == 2 and all("[warning]" in line for line in warned), out
+    assert "does not carry its lock" not in out, out
+    assert os.path.exists(out_h5), "no table on rank 0's node"
+    print(f"node-local output: warned twice ({warned[0].split('] ', 1)[-1][:90]}…)")
 
 
 def test_node_lost():

@@ -53,3 +53,27 @@ TEST(OutputTarget, OneLockHolderAndItsRecord) {
   OutputLock third(out);
   EXPECT_EQ(third.previousHolder(), "host elsewhere, PID 1, since yesterday");
 }
+
+// What another rank sees of a held lock: held where the file system carries the lock, missing or
+// foreign where its folder is another file system, unenforced where flock(2) grants it anyway. A
+// lock file with the record but nobody holding it is what a rank on a node the lock does not
+// reach sees.
+TEST(OutputTarget, ViewsOfTheLockFromAnotherRank) {
+  const std::string out = scratch("viewed.h5");
+  std::filesystem::remove(out + ".lock");
+  EXPECT_EQ(viewOfLock(out + ".lock", "anything"), LockView::Missing);
+  std::string record;
+  {
+    OutputLock lock(out);
+    record = lock.record();
+    EXPECT_NE(record.find("PID"), std::string::npos) << record;
+    EXPECT_EQ(viewOfLock(lock.path(), record), LockView::Held);
+    EXPECT_EQ(viewOfLock(lock.path(), "host elsewhere, PID 1, since yesterday"), LockView::Foreign);
+    // The view released what it did not get: the holder's lock stands.
+    EXPECT_THROW(OutputLock second(out), OutputBusyError);
+  }
+  std::ofstream(out + ".lock") << record << "\n";
+  EXPECT_EQ(viewOfLock(out + ".lock", record), LockView::Unenforced);
+  OutputLock again(out);  // the unenforced view let go of the lock it took
+  EXPECT_EQ(viewOfLock(again.path(), again.record()), LockView::Held);
+}
