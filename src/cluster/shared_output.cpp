@@ -37,7 +37,10 @@ std::optional<std::string> outputFolderCaveat(const MpiSession& mpi, const std::
                                               const std::string& record) {
   if (mpi.size() < 2) return std::nullopt;
   const std::string path = mpi.broadcast(lockPath), held = mpi.broadcast(record);
-  const int view = int(mpi.rank() == 0 ? LockView::Held : viewOfLock(path, held));
+  LockView seen = mpi.rank() == 0 ? LockView::Held : viewOfLock(path, held);
+  // A folder of the same name holding another file is as far from rank 0's as none.
+  if (seen == LockView::Foreign) seen = LockView::Missing;
+  const int view = int(seen);
   std::string node = nodeName();
   node.resize(MPI_MAX_PROCESSOR_NAME, '\0');
   std::vector<int> views(size_t(mpi.rank() == 0 ? mpi.size() : 0));
@@ -48,24 +51,20 @@ std::optional<std::string> outputFolderCaveat(const MpiSession& mpi, const std::
   if (mpi.rank() != 0) return std::nullopt;
   std::vector<std::string> nodes;
   for (int r = 0; r < mpi.size(); ++r) nodes.emplace_back(names.data() + size_t(r) * MPI_MAX_PROCESSOR_NAME);
-  // A folder of the same name holding another file is as far from rank 0's as none.
-  std::vector<int> seen = views;
-  for (int& v : seen)
-    if (v == int(LockView::Foreign)) v = int(LockView::Missing);
-  auto count = [&](LockView v) { return std::count(seen.begin(), seen.end(), int(v)); };
+  auto count = [&](LockView v) { return std::count(views.begin(), views.end(), int(v)); };
   std::string caveat;
   if (count(LockView::Missing))
     caveat = fmt::format(
         "the output folder is not shared with {} (they do not see {}, which rank 0 on {} holds): the table is "
         "written on {} only, those ranks' logs stay on their nodes, and a requeue whose rank 0 lands elsewhere "
         "starts afresh; give an output on a file system every node mounts",
-        ranksOn(seen, nodes, LockView::Missing), path, nodes[0], nodes[0]);
+        ranksOn(views, nodes, LockView::Missing), path, nodes[0], nodes[0]);
   if (count(LockView::Unenforced))
     caveat += fmt::format(
         "{}the file system of the output does not carry its lock between nodes ({} could take {} while rank 0 "
         "held it): a second run on another node would not be stopped from writing the same output; mount it with "
         "flock (Lustre `-o flock`, NFS without `nolock`)",
-        caveat.empty() ? "" : "; ", ranksOn(seen, nodes, LockView::Unenforced), path);
+        caveat.empty() ? "" : "; ", ranksOn(views, nodes, LockView::Unenforced), path);
   if (caveat.empty()) return std::nullopt;
   return caveat;
 }

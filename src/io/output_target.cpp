@@ -156,8 +156,8 @@ OutputLock::OutputLock(const std::string& outPath) : path_(outPath + ".lock") {
   const std::time_t now = std::time(nullptr);
   char when[64];
   std::strftime(when, sizeof when, "%Y-%m-%d %H:%M:%S", std::localtime(&now));
-  const std::string record =
-      "host " + std::string(host) + ", PID " + std::to_string(::getpid()) + ", since " + when + "\n";
+  record_ = "host " + std::string(host) + ", PID " + std::to_string(::getpid()) + ", since " + when;
+  const std::string record = record_ + "\n";
   // Synced, so that ranks on other nodes of a network file system read the record (viewOfLock).
   if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, record.data(), record.size(), 0) != ssize_t(record.size()) ||
       ::fsync(fd_) != 0) {
@@ -166,7 +166,6 @@ OutputLock::OutputLock(const std::string& outPath) : path_(outPath + ".lock") {
     fd_ = -1;
     throw WriteError(osErrorMessage("write", path_, err));
   }
-  record_ = readAll(fd_);
 }
 
 LockView viewOfLock(const std::string& lockPath, const std::string& record) {

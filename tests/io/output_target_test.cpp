@@ -69,7 +69,7 @@ TEST(OutputTarget, ViewsOfTheLockFromAnotherRank) {
     EXPECT_NE(record.find("PID"), std::string::npos) << record;
     EXPECT_EQ(viewOfLock(lock.path(), record), LockView::Held);
     EXPECT_EQ(viewOfLock(lock.path(), "host elsewhere, PID 1, since yesterday"), LockView::Foreign);
-    // The view released what it did not get: the holder's lock stands.
+    // Looking left the holder's lock as it was.
     EXPECT_THROW(OutputLock second(out), OutputBusyError);
   }
   std::ofstream(out + ".lock") << record << "\n";
