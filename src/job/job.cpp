@@ -725,9 +725,10 @@ std::optional<std::string> Job::waveErrorsCaveat() const {
   // does: its errors hold over incidence bins too (WaveHonesty.OrdersErrorsHoldOverIncidenceBins).
   if (exactIncidence || e == WaveEstimatorKind::Orders) return std::nullopt;
   return fmt::format(
-      "the wave term's standard errors are not vouched for: `{}` over incidence bins misses lobes that only some "
-      "incidence directions of a bin send into an exit bin (mean z² against `exact` 3.6-9.8 on flat interfaces, "
-      "up to 1.1e4 on a dome lattice). Use incidence_sampling = \"exact\", or the `orders` or a deterministic "
+      "the wave term's standard errors are not vouched for: `{}` over incidence bins misses the lobes' tails that "
+      "only a strip at the incidence bin's edge sends into a neighbouring exit bin (mean z² against `exact` "
+      "0.74-3.8 on gratings and flat interfaces, 658 on a dome lattice). Use incidence_sampling = \"exact\", or the "
+      "`orders` or a deterministic "
       "estimator (wave_estimator = \"orders\", \"exact\" or \"fft\") where it applies",
       waveEstimatorName(e));
 }

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <tuple>
 
 #include "core/rng.h"
@@ -49,11 +50,24 @@ class ExitDirectionSampler {
   ExitDirectionSampler(const DirectionGrid& grid, int bin, LobeDraw draw) : grid_(grid), bin_(bin), draw_(draw) {}
 
   void findLobes(const WaveContext& ctx, const wave::Media& media, const Vec3& wi, bool fromAbove) {
-    lobes_.clear();
-    const CoherenceWindow& w = ctx.window;
     const bool transmission = !media.conductor() && grid_.isUpper(bin_) != fromAbove;
-    if (!w.active() || !ctx.scene.periodic()) {
-      findApertureLobes(ctx, media, wi, fromAbove, transmission);
+    std::vector<double> nFrom, nTo;
+    for (size_t l = 0; l < ctx.lambda_um.size(); ++l) {
+      nFrom.push_back(media.incident(int(l), fromAbove));
+      nTo.push_back(transmission ? media.other(int(l), fromAbove) : nFrom.back());
+    }
+    findLobesFrom(ctx, wi, nFrom, nTo);
+  }
+  // The lobes in this bin of light scattered from direction w (in a medium of index nFrom[l]) into
+  // this bin's medium (nTo[l]): n_to k0 ω_xy = −(G + n_from k0 w_xy). The condition is symmetric in
+  // the two directions, so the same lobes give the incidence directions whose orders reach an exit
+  // direction w (nFrom the exit side's index, nTo the incident side's).
+  void findLobesFrom(const WaveContext& ctx, const Vec3& w, const std::vector<double>& nFrom,
+                     const std::vector<double>& nTo) {
+    lobes_.clear();
+    const CoherenceWindow& win = ctx.window;
+    if (!win.active() || !ctx.scene.periodic()) {
+      findApertureLobes(ctx, w, nFrom, nTo);
       return;
     }
     const double Lx = ctx.scene.sizeX(), Ly = ctx.scene.sizeY();
@@ -62,13 +76,12 @@ class ExitDirectionSampler {
     const double zs = grid_.isUpper(bin_) ? 1.0 : -1.0;
     for (size_t l = 0; l < ctx.lambda_um.size(); ++l) {
       const double k0 = 2 * kPi / ctx.lambda_um[l];
-      const double nI = media.incident(int(l), fromAbove);
-      const double nO = transmission ? media.other(int(l), fromAbove) : nI;
-      const double sd = 1.0 / (std::sqrt(2.0) * w.sigma() * nO * k0);
+      const double nI = nFrom[l], nO = nTo[l];
+      const double sd = 1.0 / (std::sqrt(2.0) * win.sigma() * nO * k0);
       const double m = 4 * sd;
-      // ωo_xy = −(G + nI k0 ωi_xy)/(nO k0) inside the widened box <=> G in this range:
-      const double gx0 = -nO * k0 * (x1 + m) - nI * k0 * wi.x, gx1 = -nO * k0 * (x0 - m) - nI * k0 * wi.x;
-      const double gy0 = -nO * k0 * (y1 + m) - nI * k0 * wi.y, gy1 = -nO * k0 * (y0 - m) - nI * k0 * wi.y;
+      // ω_xy = −(G + nI k0 w_xy)/(nO k0) inside the widened box <=> G in this range:
+      const double gx0 = -nO * k0 * (x1 + m) - nI * k0 * w.x, gx1 = -nO * k0 * (x0 - m) - nI * k0 * w.x;
+      const double gy0 = -nO * k0 * (y1 + m) - nI * k0 * w.y, gy1 = -nO * k0 * (y0 - m) - nI * k0 * w.y;
       const long a0 = long(std::ceil(gx0 * Lx / (2 * kPi))), a1 = long(std::floor(gx1 * Lx / (2 * kPi)));
       const long b0 = long(std::ceil(gy0 * Ly / (2 * kPi))), b1 = long(std::floor(gy1 * Ly / (2 * kPi)));
       if ((a1 - a0 + 1) * (b1 - b0 + 1) > long(kMaxLobes)) {
@@ -77,8 +90,8 @@ class ExitDirectionSampler {
       }
       for (long a = a0; a <= a1; ++a)
         for (long b = b0; b <= b1; ++b) {
-          const double cx = -(2 * kPi * a / Lx + nI * k0 * wi.x) / (nO * k0);
-          const double cy = -(2 * kPi * b / Ly + nI * k0 * wi.y) / (nO * k0);
+          const double cx = -(2 * kPi * a / Lx + nI * k0 * w.x) / (nO * k0);
+          const double cy = -(2 * kPi * b / Ly + nI * k0 * w.y) / (nO * k0);
           addIfReaching({cx, cy, sd}, zs);
           if (lobes_.size() > kMaxLobes) {
             lobes_.clear();
@@ -92,17 +105,15 @@ class ExitDirectionSampler {
   // mean plane's specular lobe, the Fourier transform of the lit aperture. |∫_{−L/2}^{L/2} e^{iqx}|²
   // = (2 sin(qL/2)/q)² ≈ L²(1 − q²L²/12): a Gaussian of the same curvature has σ_q = √6/L; under
   // a window narrower than the patch, σ_q = 1/(√2 σ). The wider of the two, on the shorter side.
-  void findApertureLobes(const WaveContext& ctx, const wave::Media& media, const Vec3& wi, bool fromAbove,
-                         bool transmission) {
+  void findApertureLobes(const WaveContext& ctx, const Vec3& w, const std::vector<double>& nFrom,
+                         const std::vector<double>& nTo) {
     const double L = std::min(ctx.scene.sizeX(), ctx.scene.sizeY());
     const double sigmaQ =
         std::max(std::sqrt(6.0) / L, ctx.window.active() ? 1 / (std::sqrt(2.0) * ctx.window.sigma()) : 0.0);
     const double zs = grid_.isUpper(bin_) ? 1.0 : -1.0;
     for (size_t l = 0; l < ctx.lambda_um.size(); ++l) {
       const double k0 = 2 * kPi / ctx.lambda_um[l];
-      const double nI = media.incident(int(l), fromAbove);
-      const double nO = transmission ? media.other(int(l), fromAbove) : nI;
-      addIfReaching({-nI * wi.x / nO, -nI * wi.y / nO, sigmaQ / (nO * k0)}, zs);
+      addIfReaching({-nFrom[l] * w.x / nTo[l], -nFrom[l] * w.y / nTo[l], sigmaQ / (nTo[l] * k0)}, zs);
     }
   }
   // Keeps a lobe that reaches into this bin (probes at its centre and ±3 sd). Drawn within the bin,
@@ -181,10 +192,44 @@ class ExitDirectionSampler {
     }
     return own > 0 ? sum2 / (M_ * own) : std::numeric_limits<double>::infinity();
   }
+  // Over this bin as an incidence bin, for one exit direction: ω drawn cosine-weighted in the bin
+  // (share kUniformFraction, all of it without lobes) or from one lobe restricted to the bin, chosen
+  // with probability proportional to its share of the bin. False: a lobe's draws missed the bin.
+  bool sampleMixture(Sampler& s, Vec3* w) const {
+    const double alpha = lobes_.empty() ? 1.0 : kUniformFraction;
+    const double u = s.get1D();
+    if (u < alpha) {
+      *w = grid_.sampleCosine(bin_, s).w;
+      return true;
+    }
+    double pick = (u - alpha) / (1 - alpha) * lobeShares();
+    size_t t = 0;
+    while (t + 1 < lobes_.size() && (pick -= (lobes_[t].inBin > 0 ? lobes_[t].inBin : 1.0)) > 0) ++t;
+    const double u1 = s.get1D(), u2 = s.get1D();
+    return sample(
+        int(t), u1, u2, [&] { return s.get1D(); }, w);
+  }
+  // That mixture's density in the plane of direction cosines at w (in the bin), where cos θ dω is
+  // dx dy: a lobe restricted to the bin has density N(w; lobe) / share there.
+  double mixtureDensity(const Vec3& w) const {
+    const double alpha = lobes_.empty() ? 1.0 : kUniformFraction, shares = lobeShares();
+    double density = alpha / grid_.projectedSolidAngle(bin_);
+    for (const Lobe& L : lobes_) {
+      const double dx = w.x - L.cx, dy = w.y - L.cy;
+      density += (1 - alpha) / shares * std::exp(-(dx * dx + dy * dy) / (2 * L.sd * L.sd)) / (2 * kPi * L.sd * L.sd);
+    }
+    return density;
+  }
+  void clearLobes() { lobes_.clear(); }
   int techniques() const { return int(lobes_.size()) + 1; }
   size_t lobeCount() const { return lobes_.size(); }
 
  private:
+  double lobeShares() const {
+    double shares = 0;
+    for (const Lobe& L : lobes_) shares += L.inBin > 0 ? L.inBin : 1.0;
+    return shares;
+  }
   const DirectionGrid& grid_;
   int bin_;
   LobeDraw draw_;
@@ -192,6 +237,44 @@ class ExitDirectionSampler {
   std::vector<int> counts_;
   int M_ = 1, nUniform_ = 1;
 };
+
+// A pair of directions for exit bin `bin` under bin-averaged incidence. Drawing ωi first and ωo from
+// its lobes leaves most ωi with no lobe in a given exit bin, and the few that have one carry the bin
+// (a heavy-tailed estimate whose spread hid its error). The lobes' condition is symmetric, so ωo
+// is drawn first, cosine-weighted in the exit bin (the bin-averaged BSDF is a cosine-weighted
+// average, and p / cos θo is bounded), and ωi from the incidence bin's mixture around the incidence
+// directions whose orders reach that ωo (sampleMixture): every lobe that reaches the exit bin is
+// found. pdf: the pair's density relative to the bin integral's measure dωo × cos θi dωi /
+// Ω⊥(incidence bin).
+struct DirectionPair {
+  Vec3 wi, wo;
+  bool transmission;
+  double pdf;
+};
+std::optional<DirectionPair> averagedPair(const WaveContext& ctx, const wave::Media& media, int incidenceBin, int bin,
+                                          bool fromAbove, ExitDirectionSampler& incidence, Sampler& s) {
+  const DirectionGrid& grid = ctx.grid;
+  DirectionPair d;
+  d.wo = grid.sampleCosine(bin, s).w;
+  d.transmission = wave::isTransmission(media.conductor(), fromAbove, d.wo);
+  std::vector<double> nExit, nIncident;
+  for (size_t l = 0; l < ctx.lambda_um.size(); ++l) {
+    nIncident.push_back(media.incident(int(l), fromAbove));
+    nExit.push_back(d.transmission ? media.other(int(l), fromAbove) : nIncident.back());
+  }
+  // Where the orders' lobes overlap into speckle the integrand is smooth in ωi: cosine-weighted
+  // directions alone (the lobes' shares cost more than they save there).
+  if (!ctx.window.active() || !ctx.scene.periodic() ||
+      orderLobesSeparate(ctx.window.sigma(), ctx.scene.sizeX(), ctx.scene.sizeY()))
+    incidence.findLobesFrom(ctx, d.wo, nExit, nIncident);
+  else
+    incidence.clearLobes();
+  if (!incidence.sampleMixture(s, &d.wi)) return std::nullopt;
+  // cos θo / Ω⊥(bin) × the mixture's density in dx_i dy_i (cos θi dωi = dx_i dy_i), × Ω⊥(incidence).
+  d.pdf = std::abs(d.wo.z) / grid.projectedSolidAngle(bin) * incidence.mixtureDensity(d.wi) *
+          grid.projectedSolidAngle(incidenceBin);
+  return d;
+}
 
 }  // namespace
 
@@ -378,33 +461,35 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
   std::atomic<uint64_t> rays{0};
   auto doBin = [&](int b) {
     using LobeDraw = ExitDirectionSampler::LobeDraw;
-    ExitDirectionSampler dirs(grid, b, exactDirection ? LobeDraw::WithinBin : LobeDraw::Whole);
-    // Lobes of the beam, or of the incidence bin's centre to size the allocation.
+    ExitDirectionSampler dirs(grid, b, LobeDraw::WithinBin), incidence(grid, incidenceBin, LobeDraw::WithinBin);
+    // The beam's lobes, or the lobes of the incidence bin's centre to size the allocation.
     dirs.findLobes(ctx_, media, exactDirection ? normalize(*exactDirection) : grid.centre(incidenceBin), fromAbove);
     const auto [M, N] =
         directionsFor(budget, pointsFor(b, N0, media, fromAbove, exactDirection, incidenceBin), dirs.lobeCount());
     // The first (budget − M N) directions take one point more: every bin spends the budget.
     const int extra = int(budget - uint64_t(M) * uint64_t(N));
-    if (exactDirection) dirs.allocate(M);
+    dirs.allocate(M);
     // p_k per (direction, λ) for the visible and the masked field.
     Powers pv{std::vector<double>(size_t(M) * nL, 0.0), std::vector<double>(size_t(M) * nL, 0.0)};
     Powers pm{std::vector<double>(masked ? size_t(M) * nL : 0, 0.0),
               std::vector<double>(masked ? size_t(M) * nL : 0, 0.0)};
-    std::vector<int> stratum(size_t(M), 0);
-    uint64_t localRays = 0;
     // Strata of the error estimate: per technique with a collimated beam (the same lobes for
-    // every k); uniform and lobe directions with bin-averaged incidence (the lobes move with ωi).
-    const int nUniform = ExitDirectionSampler::uniformCount(M);
-    const int T = exactDirection ? dirs.techniques() : 2;
+    // every k); one with bin-averaged incidence, whose M direction pairs are independent draws.
+    std::vector<int> stratum(size_t(M), 0);
+    const int T = exactDirection ? dirs.techniques() : 1;
+    uint64_t localRays = 0;
     for (int k = 0; k < M; ++k) {
       // Keyed by (bin, direction): M differs between bins.
       Sampler s(ctx_.settings.seed, uint32_t(tile), (uint64_t(b) << 32) | uint64_t(k), kWaveStream);
-      const Vec3 wi = exactDirection ? normalize(*exactDirection) : grid.sampleCosine(incidenceBin, s).w;
+      const int N_k = N + (k < extra ? 1 : 0);
       if (!exactDirection) {
-        dirs.findLobes(ctx_, media, wi, fromAbove);
-        dirs.allocate(M);
+        if (const std::optional<DirectionPair> d = averagedPair(ctx_, media, incidenceBin, b, fromAbove, incidence, s))
+          directionPowers({d->wi, d->wo, d->transmission, d->pdf}, k, nL, N_k, masked, media, fromAbove, s, pv, pm,
+                          &localRays);
+        continue;
       }
-      stratum[size_t(k)] = exactDirection ? dirs.technique(k) + 1 : (k < nUniform ? 0 : 1);
+      const Vec3 wi = normalize(*exactDirection);
+      stratum[size_t(k)] = dirs.technique(k) + 1;
       double u1 = s.get1D(), u2 = s.get1D();
       Vec3 wo;
       if (!dirs.sample(
@@ -412,8 +497,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
         continue;  // outside: 0
       const double pdf = dirs.density(dirs.technique(k), wo);
       const bool transmission = wave::isTransmission(media.conductor(), fromAbove, wo);
-      const Direction d{wi, wo, transmission, pdf};
-      directionPowers(d, k, nL, N + (k < extra ? 1 : 0), masked, media, fromAbove, s, pv, pm, &localRays);
+      directionPowers({wi, wo, transmission, pdf}, k, nL, N_k, masked, media, fromAbove, s, pv, pm, &localRays);
     }
     // Bin integral mean_k p_k / pdf_k, as a bin-averaged BSDF (÷ Ω⊥), with the standard error of
     // the mean over the M independent directions.

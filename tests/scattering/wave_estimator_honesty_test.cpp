@@ -96,11 +96,11 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
 }  // namespace
 
 // `area` on flat interfaces: the mean plane's control variate makes each direction's |I|² exact, and
-// lobe sampling around each incidence direction's specular finds the lobe with bin-averaged light
-// too. Over 12 seeds at the default 256 samples per bin, in every case: the mean hemispherical energy
-// equals Fresnel (1 for the mirror, R + T = 1 for glass from either side) within 4 standard errors
+// lobe sampling finds the specular lobe, with bin-averaged light too (ωi drawn around the incidence
+// directions whose specular reaches ωo). Over 12 seeds at the default 256 samples per bin, in every case: the mean
+// hemispherical energy equals Fresnel (1 for the mirror, R + T = 1 for glass from either side) within 4 standard errors
 // of that mean (from the seeds' spread), and one seed's energy spreads by at most 0.1 under a
-// collimated beam and 0.6 over the incidence bin (measured 0.02–0.06 and 0.32–0.48; a flat mirror's
+// collimated beam and 0.6 over the incidence bin (measured 0.02–0.06 and 0.19–0.39; a flat mirror's
 // albedo came out −11 ± 3.9 without the control and the moving lobes).
 //
 // Under a collimated beam the stored errors hold on every surface: mean z² of the bins against
@@ -110,9 +110,13 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
 // left bins that held a lobe's tail at 0 ± 0 (mean z² 3.7e3 on the sine grating, 2.9e4 on the
 // dome lattice), and errors from a stratum's two or three directions alone called noise
 // −0.31 ± 0.004.
-// Over the incidence bin the errors are not yet honest (mean z² 3.6–9.8 flat, 36 sine, 1.1e4 dome:
-// a direction's ωi decides which lobes it can sample, and few reach a given exit bin; the run says
-// so, Job::waveErrorsCaveat): the figures are recorded.
+// Over the incidence bin each pair draws ωo in the exit bin and ωi around the incidence directions
+// whose lobes reach it: mean z² in [0.4, 2.5] on the sine grating and glass from below (measured
+// 0.74 and 1.48; drawing ωi first and ωo from its lobes gave 36 and 9.8). Elsewhere the errors are
+// not yet honest (measured 3.4 flat mirror, 3.8 glass from above, 658 dome lattice: an exit bin
+// next to the incidence bin's image is reached only by lobe tails from a strip at the incidence
+// bin's edge, and reads 0 ± 0 where no pair landed there; the run says so, Job::waveErrorsCaveat):
+// those figures are recorded.
 TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
   const int seeds = 12;
   for (const HonestyCase& hc : honestyCases())
@@ -125,11 +129,11 @@ TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
       RecordProperty("energy " + key, std::to_string(h.total));
       RecordProperty("energy_sd " + key, std::to_string(h.totalSd));
       RecordProperty("mean_z2 " + key, std::to_string(h.meanZ2));
-      if (collimated) {
+      if (collimated || hc.name == "sine grating" || hc.name == "flat glass below") {
         EXPECT_GT(h.meanZ2, 0.4) << key;
         EXPECT_LT(h.meanZ2, 2.5) << key;
-        EXPECT_LT(h.worstZeroErrorDev, 1e-5) << key;  // a bin at 0 ± 0: the reference's tails at most
       }
+      if (collimated) EXPECT_LT(h.worstZeroErrorDev, 1e-5) << key;  // a bin at 0 ± 0: the reference's tails at most
       if (hc.name.rfind("flat", 0) != 0) continue;
       EXPECT_NEAR(h.total, h.refTotal, 4 * h.totalSd / std::sqrt(double(seeds)) + 1e-3) << key;
       EXPECT_LT(h.totalSd, collimated ? 0.1 : 0.6) << key;
