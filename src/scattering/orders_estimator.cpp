@@ -692,23 +692,136 @@ static void storeBinned(const DirectionGrid& grid, int nMsk, bool sampled, const
   }
 }
 
+namespace {
+// The binning's shared inputs (binOverIncidenceBin): the rules, their sub-directions and the media.
+struct IncidenceBinning {
+  const WaveContext& ctx;
+  const wave::Media& media;
+  bool fromAbove;
+  int n;  // the n-node rule (and the (n − 1)-node one)
+  QuadratureRule qh, ql;
+  std::vector<SubDirection> fine, coarse;
+  int nMsk;
+  bool sampled;
+};
+}  // namespace
+
+// One order's contributions to the binned tables (binOverIncidenceBin) into `parts`.
+static void binOrder(const IncidenceBinning& in, const NodePowers& np, std::vector<BinPart>& parts) {
+  using Sub = SubDirection;
+  const WaveContext& ctx = in.ctx;
+  const DirectionGrid& grid = ctx.grid;
+  const wave::Media& media = in.media;
+  const int n = in.n, nMsk = in.nMsk, nB = grid.binCount();
+  const bool fromAbove = in.fromAbove, sampled = in.sampled;
+  const QuadratureRule &qh = in.qh, &ql = in.ql;
+  const std::vector<Sub>&fine = in.fine, &coarse = in.coarse;
+  const double Lx = ctx.scene.sizeX(), Ly = ctx.scene.sizeY();
+  const Order& ord = np.ord;
+  const std::vector<double>& Q = np.q;
+  const std::vector<uint8_t>& present = np.present;
+  // Lagrange over a rule's nodes where the order propagates at all of them; else (it crosses the
+  // horizon inside the bin) the nearest node where it propagates.
+  auto complete = [&](size_t first, size_t count) {
+    for (size_t m = first; m < first + count; ++m)
+      if (!present[m]) return false;
+    return true;
+  };
+  const bool allHi = complete(0, size_t(n * n)), allLo = complete(size_t(n * n), size_t((n - 1) * (n - 1)));
+  auto nearest = [&](const Sub& sub, bool high) {
+    const int r = high ? n : n - 1;
+    const std::vector<double>& x = high ? qh.x : ql.x;
+    const size_t first = high ? 0 : size_t(n * n);
+    size_t best = SIZE_MAX;
+    double d2 = 1e300;
+    for (int a = 0; a < r; ++a)
+      for (int b = 0; b < r; ++b) {
+        const size_t m = first + size_t(a * r + b);
+        const double d = std::pow(x[size_t(a)] - sub.u, 2) + std::pow(x[size_t(b)] - sub.v, 2);
+        if (present[m] && d < d2) d2 = d, best = m;
+      }
+    return best;
+  };
+  const int l = ord.lambda;
+  const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
+  const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
+  const double zs = fromAbove != (ord.transmission || ord.below) ? 1.0 : -1.0;
+  // The lobe's share of each bin at one sub-direction, integrated (lobe_shares.h); at a disk
+  // grid's rim, the bin of the lobe point paired with the sub-direction.
+  std::vector<std::pair<int, double>> spread;
+  std::vector<NodeCoefficient> coefficients;
+  // One sub-direction of `set`: its exit direction and the lobe's bins once, then the power of
+  // each table in `tables` (0 and 1 share the fine sub-directions).
+  auto bin = [&](const Sub& sub, std::initializer_list<int> tables, const std::vector<Sub>& set) {
+    const double x = -(2 * kPi * double(ord.a) / Lx + nI * k0 * sub.wi.x) / (nO * k0);
+    const double y = -(2 * kPi * double(ord.b) / Ly + nI * k0 * sub.wi.y) / (nO * k0);
+    if (x * x + y * y >= 1) return;                  // evanescent here
+    const double secant = lobeSecant(x, y, ord.sd);  // 1/cos θ_G, finite at the horizon
+    if (!gaussianLobeShares(grid, x, y, ord.sd, zs > 0, &spread)) {
+      const double bx = x + ord.sd * sub.lx, by = y + ord.sd * sub.ly, r2 = bx * bx + by * by;
+      if (r2 >= 1) return;
+      const int b = grid.binOf({bx, by, zs * std::sqrt(1 - r2)});
+      if (b < 0) return;
+      spread.assign(1, {b, 1.0});
+    }
+    for (const int table : tables) {
+      const bool high = table != 1;
+      const size_t near = (high ? allHi : allLo) ? SIZE_MAX : nearest(sub, high);
+      if (!(high ? allHi : allLo) && near == SIZE_MAX) continue;
+      // The node weights of this sub-direction: the nearest node's alone, or the rule's Lagrange weights.
+      auto forEachWeight = [&](auto&& fn) {
+        if (near != SIZE_MAX) return fn(near, 1.0);
+        const std::vector<double>& w = high ? sub.wh : sub.wl;
+        const size_t first = high ? 0 : size_t(n * n);
+        for (size_t m = 0; m < w.size(); ++m) fn(first + m, w[m]);
+      };
+      for (int msk = 0; msk < nMsk; ++msk) {
+        double v = 0;
+        forEachWeight([&](size_t m, double w) { v += w * Q[m * 2 + size_t(msk)]; });
+        // A sampled power may be negative (the pairwise estimate is unbiased, not positive):
+        // dropping those would bias every weak order's bins upwards.
+        if (sampled ? v == 0 : v <= 0) continue;
+        const double perSub = v * secant / double(set.size());
+        if (sampled && table != 2)
+          for (const auto& [b, share] : spread) {
+            const size_t at = size_t(l) * nB + size_t(b);
+            const double c = secant / double(set.size()) * share;
+            forEachWeight([&](size_t m, double w) { addMerged(coefficients, {m, msk, at, w * c}); });
+          }
+        for (const auto& [b, share] : spread) {
+          addMerged(parts, {table, msk, size_t(l) * nB + size_t(b), perSub * share});
+        }
+      }
+    }
+  };
+  for (const Sub& sub : fine) bin(sub, {0, 1}, fine);
+  for (const Sub& sub : coarse) bin(sub, {2}, coarse);
+  for (const NodeCoefficient& q : coefficients)
+    parts.push_back(
+        {q.node < size_t(n * n) ? 3 : 4, q.msk, q.at, q.value * q.value * np.var[q.node * 2 + size_t(q.msk)]});
+}
+
 static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& grid, int incidenceBin, bool fromAbove,
                                 const wave::Media& media, const std::vector<NodePowers>& nodePower, bool masked,
                                 WaveTileResult* r) {
-  const int nB = grid.binCount();
   const int n = incidenceRuleOrder(incidenceDirectionsOf(ctx.settings, grid, incidenceBin));
   const QuadratureRule qh = gaussLegendre(n, 0.0, 1.0), ql = gaussLegendre(n - 1, 0.0, 1.0);
-  using Sub = SubDirection;
-  const int M = ctx.settings.subdirections;
-  const std::vector<Sub> fine = subDirections(grid, incidenceBin, qh, ql, M),
-                         coarse = subDirections(grid, incidenceBin, qh, ql, M / 2);
-  const double Lx = ctx.scene.sizeX(), Ly = ctx.scene.sizeY();
-  const int nMsk = masked ? 2 : 1;
-  // Per order: (table, msk, λ·nB + bin, value) contributions, accumulated below in order.
-  std::vector<std::vector<BinPart>> parts(nodePower.size());
+  const int M = ctx.settings.subdirections, nMsk = masked ? 2 : 1;
   // Monte Carlo node powers (orders): each bin's value is linear in them, Σ_m c_m q_m, so its
   // variance is Σ_m c_m² var_m, per order (tables 3 and 4: of tables 0 and 1).
   const bool sampled = !nodePower.empty() && !nodePower[0].var.empty();
+  const IncidenceBinning binning{ctx,
+                                 media,
+                                 fromAbove,
+                                 n,
+                                 qh,
+                                 ql,
+                                 subDirections(grid, incidenceBin, qh, ql, M),
+                                 subDirections(grid, incidenceBin, qh, ql, M / 2),
+                                 nMsk,
+                                 sampled};
+  // Per order: (table, msk, λ·nB + bin, value) contributions, accumulated below in order.
+  std::vector<std::vector<BinPart>> parts(nodePower.size());
   // Orders whose power stays below 1e-13 of the strongest order's at every node are left out (a flat
   // patch's orders G != 0 carry rounding noise of 1e-30: binning each of them over M x M
   // sub-directions was the whole cost of a flat mirror's tile); they change no bin by more than
@@ -717,91 +830,11 @@ static void binOverIncidenceBin(const WaveContext& ctx, const DirectionGrid& gri
   for (const NodePowers& np : nodePower)
     for (double q : np.q) strongest = std::max(strongest, q);
   tbb::parallel_for(size_t(0), nodePower.size(), [&](size_t o) {
-    const Order& ord = nodePower[o].ord;
     const std::vector<double>& Q = nodePower[o].q;
     // (A sampled power below zero is as much a part of the estimate as one above.)
     if (std::all_of(Q.begin(), Q.end(), [&](double v) { return (sampled ? std::abs(v) : v) <= 1e-13 * strongest; }))
       return;  // negligible everywhere
-    const std::vector<uint8_t>& present = nodePower[o].present;
-    // Lagrange over a rule's nodes where the order propagates at all of them; else (it crosses the
-    // horizon inside the bin) the nearest node where it propagates.
-    auto complete = [&](size_t first, size_t count) {
-      for (size_t m = first; m < first + count; ++m)
-        if (!present[m]) return false;
-      return true;
-    };
-    const bool allHi = complete(0, size_t(n * n)), allLo = complete(size_t(n * n), size_t((n - 1) * (n - 1)));
-    auto nearest = [&](const Sub& sub, bool high) {
-      const int r = high ? n : n - 1;
-      const std::vector<double>& x = high ? qh.x : ql.x;
-      const size_t first = high ? 0 : size_t(n * n);
-      size_t best = SIZE_MAX;
-      double d2 = 1e300;
-      for (int a = 0; a < r; ++a)
-        for (int b = 0; b < r; ++b) {
-          const size_t m = first + size_t(a * r + b);
-          const double d = std::pow(x[size_t(a)] - sub.u, 2) + std::pow(x[size_t(b)] - sub.v, 2);
-          if (present[m] && d < d2) d2 = d, best = m;
-        }
-      return best;
-    };
-    const int l = ord.lambda;
-    const double k0 = 2 * kPi / ctx.lambda_um[size_t(l)];
-    const double nI = media.incident(l, fromAbove), nO = ord.transmission ? media.other(l, fromAbove) : nI;
-    const double zs = fromAbove != (ord.transmission || ord.below) ? 1.0 : -1.0;
-    // The lobe's share of each bin at one sub-direction, integrated (lobe_shares.h); at a disk
-    // grid's rim, the bin of the lobe point paired with the sub-direction.
-    std::vector<std::pair<int, double>> spread;
-    std::vector<NodeCoefficient> coefficients;
-    // One sub-direction of `set`: its exit direction and the lobe's bins once, then the power of
-    // each table in `tables` (0 and 1 share the fine sub-directions).
-    auto bin = [&](const Sub& sub, std::initializer_list<int> tables, const std::vector<Sub>& set) {
-      const double x = -(2 * kPi * double(ord.a) / Lx + nI * k0 * sub.wi.x) / (nO * k0);
-      const double y = -(2 * kPi * double(ord.b) / Ly + nI * k0 * sub.wi.y) / (nO * k0);
-      if (x * x + y * y >= 1) return;                  // evanescent here
-      const double secant = lobeSecant(x, y, ord.sd);  // 1/cos θ_G, finite at the horizon
-      if (!gaussianLobeShares(grid, x, y, ord.sd, zs > 0, &spread)) {
-        const double bx = x + ord.sd * sub.lx, by = y + ord.sd * sub.ly, r2 = bx * bx + by * by;
-        if (r2 >= 1) return;
-        const int b = grid.binOf({bx, by, zs * std::sqrt(1 - r2)});
-        if (b < 0) return;
-        spread.assign(1, {b, 1.0});
-      }
-      for (const int table : tables) {
-        const bool high = table != 1;
-        const size_t near = (high ? allHi : allLo) ? SIZE_MAX : nearest(sub, high);
-        if (!(high ? allHi : allLo) && near == SIZE_MAX) continue;
-        // The node weights of this sub-direction: the nearest node's alone, or the rule's Lagrange weights.
-        auto forEachWeight = [&](auto&& fn) {
-          if (near != SIZE_MAX) return fn(near, 1.0);
-          const std::vector<double>& w = high ? sub.wh : sub.wl;
-          const size_t first = high ? 0 : size_t(n * n);
-          for (size_t m = 0; m < w.size(); ++m) fn(first + m, w[m]);
-        };
-        for (int msk = 0; msk < nMsk; ++msk) {
-          double v = 0;
-          forEachWeight([&](size_t m, double w) { v += w * Q[m * 2 + size_t(msk)]; });
-          // A sampled power may be negative (the pairwise estimate is unbiased, not positive):
-          // dropping those would bias every weak order's bins upwards.
-          if (sampled ? v == 0 : v <= 0) continue;
-          const double perSub = v * secant / double(set.size());
-          if (sampled && table != 2)
-            for (const auto& [b, share] : spread) {
-              const size_t at = size_t(l) * nB + size_t(b);
-              const double c = secant / double(set.size()) * share;
-              forEachWeight([&](size_t m, double w) { addMerged(coefficients, {m, msk, at, w * c}); });
-            }
-          for (const auto& [b, share] : spread) {
-            addMerged(parts[o], {table, msk, size_t(l) * nB + size_t(b), perSub * share});
-          }
-        }
-      }
-    };
-    for (const Sub& sub : fine) bin(sub, {0, 1}, fine);
-    for (const Sub& sub : coarse) bin(sub, {2}, coarse);
-    for (const NodeCoefficient& q : coefficients)
-      parts[o].push_back({q.node < size_t(n * n) ? 3 : 4, q.msk, q.at,
-                          q.value * q.value * nodePower[o].var[q.node * 2 + size_t(q.msk)]});
+    binOrder(binning, nodePower[o], parts[o]);
   });
   // table 0: the n-node interpolation on M × M sub-directions; 1: the (n − 1)-node one; 2: the
   // n-node one on M/2 × M/2.
