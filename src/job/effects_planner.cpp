@@ -464,7 +464,7 @@ nlohmann::json waveEstimatorDecision(const Job& job, const ComponentSet& chosen,
     return measureEstimatorPilot(job, chosen, grid, scene, pilot, c, proxy, measured.empty());
   };
   // The deterministic estimators' error over an incidence bin is their interpolation's and binning's
-  // (orders_estimator.cpp, binOverIncidenceBin; estimates for the coarser, on the safe side). Raising
+  // (incidence_binning.cpp, binOverIncidenceBin; estimates for the coarser, on the safe side). Raising
   // the node count where it misses the tolerance was tried with the plain Gauss–Legendre rule and
   // dropped (the exit bins' jumps made it converge slowly and not monotonically); with the
   // sub-direction binning the node count is no longer what limits them.
