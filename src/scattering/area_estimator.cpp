@@ -24,18 +24,16 @@ constexpr double kUniformFraction = 0.2;   // share of exit directions drawn uni
 constexpr size_t kMaxLobes = 4096;
 constexpr double kMinLobeShare = 1e-4;  // a lobe with less of itself in a bin is not drawn there
 
-// Exit directions inside one bin. A periodic patch under a coherence window much wider than the
+// Directions inside one bin. A periodic patch under a coherence window much wider than the
 // patch scatters into narrow lobes around the grating orders G = 2π(a/Lx, b/Ly): by Poisson
 // summation of the copy sum, |C(x, q)|² ≈ Σ_G c_G exp(−σ²|q_xy − G|²), i.e. Gaussian lobes of
 // standard deviation 1/(√2 σ n_o k0) in (x, y) of ωo around ωo_xy = −(G + n_i k0 ωi_xy)/(n_o k0),
 // for every wavelength. Uniform sampling of a bin would rarely hit them, so ωo is drawn from a
 // mixture of the uniform density and these lobes; the estimate divides by the mixture density,
-// which keeps it unbiased whatever the lobes really look like. With bin-averaged incidence the lobes
-// move with ωi: each direction k finds the lobes of its own ωi_k and draws from that mixture. The
-// balance heuristic over the joint (ωi, ωo) space then still divides by Σ_t (n_t/M) pdf_t(ωo | ωi_k)
-// (the pdf of ωi cancels), technique t being "the (t mod L(ωi))-th lobe of ωi" (uniform where ωi
-// has none), so the estimate stays unbiased.
-class ExitDirectionSampler {
+// which keeps it unbiased whatever the lobes really look like. The condition is symmetric in ωi and
+// ωo: in an incidence bin, the lobes found from an exit direction hold the incidence directions
+// whose orders reach it (averagedPair, with bin-averaged incidence).
+class BinDirectionSampler {
  public:
   // A Gaussian spot in the plane of direction cosines, and its share of this bin (0: unknown, the
   // spot is then drawn whole and a draw outside the bin counts 0).
@@ -43,11 +41,7 @@ class ExitDirectionSampler {
     double cx, cy, sd;
     double inBin = 0;
   };
-  // How a lobe is drawn: restricted to the bin (under a collimated beam: its lobes are found once
-  // per bin), or whole (over an incidence bin, where every direction finds the lobes of its own ωi
-  // and their shares would be integrated per direction).
-  enum class LobeDraw { WithinBin, Whole };
-  ExitDirectionSampler(const DirectionGrid& grid, int bin, LobeDraw draw) : grid_(grid), bin_(bin), draw_(draw) {}
+  BinDirectionSampler(const DirectionGrid& grid, int bin) : grid_(grid), bin_(bin) {}
 
   void findLobes(const WaveContext& ctx, const wave::Media& media, const Vec3& wi, bool fromAbove) {
     const bool transmission = !media.conductor() && grid_.isUpper(bin_) != fromAbove;
@@ -116,8 +110,8 @@ class ExitDirectionSampler {
       addIfReaching({-nFrom[l] * w.x / nTo[l], -nFrom[l] * w.y / nTo[l], sigmaQ / (nTo[l] * k0)}, zs);
     }
   }
-  // Keeps a lobe that reaches into this bin (probes at its centre and ±3 sd). Drawn within the bin,
-  // it carries its share of the bin where the grid gives it in closed form (gaussianLobeShares):
+  // Keeps a lobe that reaches into this bin (probes at its centre and ±3 sd). It is drawn within the
+  // bin, and carries its share of the bin where the grid gives it in closed form (gaussianLobeShares):
   // every draw lands in the bin, and the density is divided by that share. A lobe drawn whole puts
   // most draws outside a bin it only grazes: a technique whose draws all fell outside reported
   // 0 ± 0 for a bin that held a lobe's tail.
@@ -127,7 +121,7 @@ class ExitDirectionSampler {
         const double px = L.cx + 3 * L.sd * dx, py = L.cy + 3 * L.sd * dy, r2 = px * px + py * py;
         if (r2 < 1 && grid_.binOf({px, py, zs * std::sqrt(1 - r2)}) == bin_) {
           std::vector<std::pair<int, double>> shares;
-          if (draw_ == LobeDraw::WithinBin && gaussianLobeShares(grid_, L.cx, L.cy, L.sd, zs > 0, &shares)) {
+          if (gaussianLobeShares(grid_, L.cx, L.cy, L.sd, zs > 0, &shares)) {
             for (const auto& [b, share] : shares)
               if (b == bin_) L.inBin += share;
             if (L.inBin < kMinLobeShare) return;  // the uniform directions see so small a tail
@@ -232,7 +226,6 @@ class ExitDirectionSampler {
   }
   const DirectionGrid& grid_;
   int bin_;
-  LobeDraw draw_;
   std::vector<Lobe> lobes_;
   std::vector<int> counts_;
   int M_ = 1, nUniform_ = 1;
@@ -252,7 +245,7 @@ struct DirectionPair {
   double pdf;
 };
 std::optional<DirectionPair> averagedPair(const WaveContext& ctx, const wave::Media& media, int incidenceBin, int bin,
-                                          bool fromAbove, ExitDirectionSampler& incidence, Sampler& s) {
+                                          bool fromAbove, BinDirectionSampler& incidence, Sampler& s) {
   const DirectionGrid& grid = ctx.grid;
   DirectionPair d;
   d.wo = grid.sampleCosine(bin, s).w;
@@ -376,10 +369,10 @@ std::pair<int, int> directionsFor(uint64_t budget, int N0, size_t lobes) {
   // surface grows as the points per direction fall.
   const uint64_t Mmax = std::max<uint64_t>(M, std::min(budget / 2, 4 * M));
   if (lobes > 0) {
-    uint64_t wanted = uint64_t(ExitDirectionSampler::uniformCount(int(std::min<uint64_t>(M, 1u << 20)))) + 2 * lobes;
+    uint64_t wanted = uint64_t(BinDirectionSampler::uniformCount(int(std::min<uint64_t>(M, 1u << 20)))) + 2 * lobes;
     while (M < wanted && M < Mmax) {
       M = std::min(Mmax, wanted);
-      wanted = uint64_t(ExitDirectionSampler::uniformCount(int(M))) + 2 * lobes;
+      wanted = uint64_t(BinDirectionSampler::uniformCount(int(M))) + 2 * lobes;
     }
   }
   return {int(M), int(std::max<uint64_t>(2, budget / M))};
@@ -460,8 +453,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
   r.computed = exitMask;
   std::atomic<uint64_t> rays{0};
   auto doBin = [&](int b) {
-    using LobeDraw = ExitDirectionSampler::LobeDraw;
-    ExitDirectionSampler dirs(grid, b, LobeDraw::WithinBin), incidence(grid, incidenceBin, LobeDraw::WithinBin);
+    BinDirectionSampler dirs(grid, b), incidence(grid, incidenceBin);
     // The beam's lobes, or the lobes of the incidence bin's centre to size the allocation.
     dirs.findLobes(ctx_, media, exactDirection ? normalize(*exactDirection) : grid.centre(incidenceBin), fromAbove);
     const auto [M, N] =
