@@ -151,9 +151,9 @@ struct Job {
   WaveEstimatorKind resolvedWaveEstimator() const;
   // Why the wave estimator is the one it is, for the log.
   std::string waveEstimatorChoice() const;
-  // Why the wave term's stored standard errors are not vouched for, where they are not: a Monte
-  // Carlo estimator over incidence bins (measured against `exact`, docs/physics.md §5), or `paper`'s
-  // bias estimate. None for deterministic estimators and Monte Carlo under collimated beams.
+  // Why the wave term's stored standard errors are not vouched for, where they are not: `paper`'s
+  // bias estimate. None for deterministic estimators, and for `area` and `orders`, whose errors are
+  // measured against `exact` (docs/physics.md §5).
   std::optional<std::string> waveErrorsCaveat() const;
   // The propagating orders of the lattice cell a direction bin holds at the shortest wavelength.
   double exactOrdersPerBin() const;

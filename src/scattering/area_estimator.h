@@ -4,12 +4,15 @@
 //    silhouettes;
 //  - |I(ωo)|² from N points by the unbiased pairwise form (|Σ X_j|² − Σ |X_j|²) / (N(N−1)),
 //    so no Var/N floor;
-//  - M = samples_per_bin / N exit directions per bin, each with its own N points and its own
-//    incidence direction (cosine-weighted in the incidence bin), drawn from the uniform density and
-//    the grating orders' lobes of that incidence (area_estimator.cpp): the bin integral is
-//    mean_k p_k / pdf_k, the spread of the M independent terms gives the standard error, and the
-//    variance falls as 1 / samples_per_bin. N shrinks (to a quarter) where the control variate
-//    below leaves little point noise, and M grows to give each lobe two directions;
+//  - M = samples_per_bin / N exit directions per bin, each with its own N points. Under a collimated
+//    beam they are drawn from the uniform density and the grating orders' lobes (multi-sample MIS);
+//    over an incidence bin each is a pair: ωo cosine-weighted in the exit bin, ωi cosine-weighted or
+//    around the incidence directions whose orders reach ωo, each order weighted by its power from a
+//    per-tile pilot (area_estimator.cpp), with four times the pairs and a quarter of the points. The
+//    bin integral is mean_k p_k / pdf_k, the spread of the M independent terms within their strata
+//    gives the standard error, and the variance falls as 1 / samples_per_bin. N shrinks (to a
+//    quarter) where the control variate below leaves little point noise, and M grows to give each
+//    lobe two directions;
 // - the mean plane's field as a control variate (mean_plane_control.h): a flat surface's
 //   Kirchhoff integral comes back exact, a shallow one's with little noise.
 // Visibility rays are shared by all wavelengths.
@@ -23,6 +26,19 @@ namespace mbsdf {
 namespace wave {
 class Media;
 }
+
+// Weights of the grating orders G = 2π(a/Lx, b/Ly) that carry light from an incidence bin's centre
+// into each exit hemisphere (AreaWaveEstimator's pilot). Empty: every order weighs 1.
+struct GratingOrderWeights {
+  long aMin = 0, bMin = 0, na = 0, nb = 0;
+  std::vector<double> byHemisphere[2];  // [0] exit above the surface, [1] below; na × nb each
+  double of(int hemisphere, long a, long b) const {
+    const std::vector<double>& w = byHemisphere[hemisphere];
+    const long i = a - aMin, j = b - bMin;
+    if (w.empty() || i < 0 || j < 0 || i >= na || j >= nb) return 1.0;
+    return w[size_t(i * nb + j)];
+  }
+};
 
 class AreaWaveEstimator : public WaveEstimator {
  public:
@@ -45,6 +61,8 @@ class AreaWaveEstimator : public WaveEstimator {
   };
   void directionPowers(const Direction& d, int k, int nL, int N, bool masked, const wave::Media& media, bool fromAbove,
                        Sampler& s, Powers& pv, Powers& pm, uint64_t* rays) const;
+  GratingOrderWeights orderWeights(int tile, int incidenceBin, const wave::Media& media, bool fromAbove,
+                                   uint64_t budget, uint64_t* rays) const;
   int pointsFor(int b, int N0, const wave::Media& media, bool fromAbove, const std::optional<Vec3>& exactDirection,
                 int incidenceBin) const;
   WaveContext ctx_;

@@ -1429,12 +1429,11 @@ size_um = [5.0, 0.2]\n[material]\n{material}\n[spectrum]\nwavelengths_nm = [500.
 
 
 def test_wave_errors_caveat():
-    """Where the wave term's stored errors are not vouched for (`area` over incidence bins; `paper`'s
-    bias estimate), `check`, the run's log (at the start and in the closing summary), the file's
-    `wave_errors` attribute and `info` say so; a collimated `area` job, and `orders` or a deterministic
-    estimator over incidence bins (their order powers binned through the bin's sub-directions), say
-    nothing."""
-    cases = (("area-bin", "area", "bin", "not vouched for"), ("paper-bin", "paper", "bin", "bias estimate"),
+    """Where the wave term's stored errors are not vouched for (`paper`'s bias estimate), `check`, the
+    run's log (at the start and in the closing summary), the file's `wave_errors` attribute and `info`
+    say so; `area` (collimated or over incidence bins), and `orders` or a deterministic estimator over
+    incidence bins, whose errors hold against `exact`, say nothing."""
+    cases = (("area-bin", "area", "bin", None), ("paper-bin", "paper", "bin", "bias estimate"),
              ("area-exact", "area", "exact", None), ("exact-bin", "exact", "bin", None),
              ("orders-bin", "orders", "bin", None))
     for name, estimator, sampling, says in cases:
@@ -1456,7 +1455,7 @@ wave_samples_per_bin = 64\n""")
                 assert "not vouched" not in text and "bias estimate" not in text, f"{name}: `{where}` warns:\n{text}"
             assert attr is None, f"{name}: wave_errors = {attr}"
     print("wave errors not vouched for: said by check, the run (start and summary), the file and info; "
-          "collimated area, orders and exact over bins: silent")
+          "area, orders and exact: silent")
 
 
 def test_nonphysical_flags():

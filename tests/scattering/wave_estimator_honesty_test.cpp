@@ -78,7 +78,8 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
       const double se = std::hypot(r.fwsErr[size_t(b)], refSe);
       const double dev = r.fws[size_t(b)] - rr.fws[size_t(b)];
       if (r.fwsErr[size_t(b)] <= 1e-9 * scale)
-        h.worstZeroErrorDev = std::max(h.worstZeroErrorDev, std::abs(dev) / scale);
+        h.worstZeroErrorDev =
+            std::max(h.worstZeroErrorDev, std::max(0.0, std::abs(dev) - 3 * rr.fwsErr[size_t(b)]) / scale);
       if (std::abs(rr.fws[size_t(b)]) <= 1e-5 * scale && r.fwsErr[size_t(b)] <= 1e-5 * scale) continue;
       const double z = dev / se;
       z2 += z * z;
@@ -97,26 +98,24 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
 
 // `area` on flat interfaces: the mean plane's control variate makes each direction's |I|² exact, and
 // lobe sampling finds the specular lobe, with bin-averaged light too (ωi drawn around the incidence
-// directions whose specular reaches ωo). Over 12 seeds at the default 256 samples per bin, in every case: the mean
-// hemispherical energy equals Fresnel (1 for the mirror, R + T = 1 for glass from either side) within 4 standard errors
-// of that mean (from the seeds' spread), and one seed's energy spreads by at most 0.1 under a
-// collimated beam and 0.6 over the incidence bin (measured 0.02–0.06 and 0.19–0.39; a flat mirror's
-// albedo came out −11 ± 3.9 without the control and the moving lobes).
+// directions whose specular reaches ωo). Over 12 seeds at the default 256 samples per bin, in every
+// case: the mean hemispherical energy equals Fresnel (1 for the mirror, R + T = 1 for glass from
+// either side) within 4 standard errors of that mean (from the seeds' spread), and one seed's
+// energy spreads by at most 0.1 under a collimated beam and 0.2 over the incidence bin (measured
+// 0.02–0.06 and 0.02–0.08; a flat mirror's albedo came out −11 ± 3.9 without the control and the
+// moving lobes).
 //
-// Under a collimated beam the stored errors hold on every surface: mean z² of the bins against
-// `exact` in [0.4, 2.5] (measured 0.78 mirror, 0.96 and 2.27 glass from above and below, 0.58 sine
-// grating, 0.85 dome lattice; below 1 the jackknife's conservative variance of noise bins, above 1
-// on glass from below a 0.7 % excess of the internal reflection over `exact`). Lobes drawn whole
-// left bins that held a lobe's tail at 0 ± 0 (mean z² 3.7e3 on the sine grating, 2.9e4 on the
-// dome lattice), and errors from a stratum's two or three directions alone called noise
-// −0.31 ± 0.004.
-// Over the incidence bin each pair draws ωo in the exit bin and ωi around the incidence directions
-// whose lobes reach it: mean z² in [0.4, 2.5] on the sine grating and glass from below (measured
-// 0.74 and 1.48; drawing ωi first and ωo from its lobes gave 36 and 9.8). Elsewhere the errors are
-// not yet honest (measured 3.4 flat mirror, 3.8 glass from above, 658 dome lattice: an exit bin
-// next to the incidence bin's image is reached only by lobe tails from a strip at the incidence
-// bin's edge, and reads 0 ± 0 where no pair landed there; the run says so, Job::waveErrorsCaveat):
-// those figures are recorded.
+// On every surface, under a collimated beam and over the incidence bin, the stored errors hold:
+// mean z² of the bins against `exact` in [0.4, 2.5]. Measured collimated 0.78 mirror, 0.96 and
+// 2.27 glass from above and below, 0.58 sine grating, 0.85 dome lattice (below 1 the jackknife's
+// conservative variance of noise bins, above 1 on glass from below a 0.7 % excess of the internal
+// reflection over `exact`); over the incidence bin 1.02, 1.02, 0.70, 0.65 and 0.88. There each
+// lobe is weighted by its order's piloted power, the two ways of drawing ωi come in fixed numbers,
+// and a bin takes four times the pairs: lobes chosen by their shares alone left the exit bins that
+// only the specular's tail from a strip at the incidence bin's edge reaches at 0 ± 0 (mean z² 3.4
+// mirror, 3.8 glass from above), a random choice of the draw let a bin whose pairs all came from the
+// lobes read 16.1 ± 0.18 where the truth is 12.8, and 4 or 5 pairs per bin gave the dome lattice
+// 1.4e3.
 TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
   const int seeds = 12;
   for (const HonestyCase& hc : honestyCases())
@@ -129,14 +128,15 @@ TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
       RecordProperty("energy " + key, std::to_string(h.total));
       RecordProperty("energy_sd " + key, std::to_string(h.totalSd));
       RecordProperty("mean_z2 " + key, std::to_string(h.meanZ2));
-      if (collimated || hc.name == "sine grating" || hc.name == "flat glass below") {
-        EXPECT_GT(h.meanZ2, 0.4) << key;
-        EXPECT_LT(h.meanZ2, 2.5) << key;
-      }
-      if (collimated) EXPECT_LT(h.worstZeroErrorDev, 1e-5) << key;  // a bin at 0 ± 0: the reference's tails at most
+      EXPECT_GT(h.meanZ2, 0.4) << key;
+      EXPECT_LT(h.meanZ2, 2.5) << key;
+      // A bin at 0 ± 0: the reference's tails at most, beyond 3 of its own errors (over the incidence
+      // bin `exact` fills the bins diagonal to the incidence bin's image with 1e-4–1e-2 of the peak
+      // at errors of 70–100 %, and `area`'s pairs rarely reach their corners).
+      EXPECT_LT(h.worstZeroErrorDev, 1e-5) << key;
       if (hc.name.rfind("flat", 0) != 0) continue;
       EXPECT_NEAR(h.total, h.refTotal, 4 * h.totalSd / std::sqrt(double(seeds)) + 1e-3) << key;
-      EXPECT_LT(h.totalSd, collimated ? 0.1 : 0.6) << key;
+      EXPECT_LT(h.totalSd, collimated ? 0.1 : 0.2) << key;
     }
 }
 
