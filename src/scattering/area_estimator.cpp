@@ -31,6 +31,23 @@ constexpr double kWeightFloor = 1e-3;       // an order's weight, at least, agai
 
 // A grating order's weight, by its indices (a, b).
 using OrderPrior = std::function<double(long, long)>;
+
+// What the coherence window makes of the patch: one copy (no window, or a patch that does not
+// repeat) scatters into the mean plane's aperture lobe; a repeating patch under a window much wider
+// than it into separate grating-order lobes; under a narrower window the orders overlap into speckle.
+enum class LobeRegime { Aperture, Orders, Speckle };
+LobeRegime lobeRegime(const WaveContext& ctx) {
+  if (!ctx.window.active() || !ctx.scene.periodic()) return LobeRegime::Aperture;
+  return orderLobesSeparate(ctx.window.sigma(), ctx.scene.sizeX(), ctx.scene.sizeY()) ? LobeRegime::Orders
+                                                                                      : LobeRegime::Speckle;
+}
+
+// The direction cosines (x, y) of grating order G = 2π(a/Lx, b/Ly) scattered from direction w in a
+// medium of index nFrom into one of index nTo: nTo k0 ω_xy = −(G + nFrom k0 w_xy).
+std::pair<double, double> orderDirectionXY(long a, long b, double Lx, double Ly, double nFrom, double nTo, double k0,
+                                           const Vec3& w) {
+  return {-(2 * kPi * a / Lx + nFrom * k0 * w.x) / (nTo * k0), -(2 * kPi * b / Ly + nFrom * k0 * w.y) / (nTo * k0)};
+}
 // How a pair's incidence direction is drawn over the incidence bin (BinDirectionSampler::sampleMixture).
 enum class IncidenceDraw { Cosine, Lobes };
 
@@ -72,7 +89,7 @@ class BinDirectionSampler {
                      const std::vector<double>& nTo, const OrderPrior& prior = {}) {
     lobes_.clear();
     const CoherenceWindow& win = ctx.window;
-    if (!win.active() || !ctx.scene.periodic()) {
+    if (lobeRegime(ctx) == LobeRegime::Aperture) {
       findApertureLobes(ctx, w, nFrom, nTo);
       return;
     }
@@ -96,8 +113,7 @@ class BinDirectionSampler {
       }
       for (long a = a0; a <= a1; ++a)
         for (long b = b0; b <= b1; ++b) {
-          const double cx = -(2 * kPi * a / Lx + nI * k0 * w.x) / (nO * k0);
-          const double cy = -(2 * kPi * b / Ly + nI * k0 * w.y) / (nO * k0);
+          const auto [cx, cy] = orderDirectionXY(a, b, Lx, Ly, nI, nO, k0, w);
           addIfReaching({cx, cy, sd, 0.0, prior ? prior(a, b) : 1.0}, zs);
           if (lobes_.size() > kMaxLobes) {
             lobes_.clear();
@@ -262,32 +278,47 @@ struct PairDraw {
   IncidenceDraw draw;
   double cosineShare;  // of the bin's pairs drawn with IncidenceDraw::Cosine
 };
-std::optional<DirectionPair> averagedPair(const WaveContext& ctx, const wave::Media& media, int incidenceBin, int bin,
-                                          bool fromAbove, const GratingOrderWeights& weights, PairDraw how,
+// What the pairs of one exit bin share: its hemisphere fixes reflection or transmission, the
+// indices on both sides and the weights of the orders that reach it. Where the orders' lobes
+// overlap into speckle the integrand is smooth in ωi: cosine-weighted directions alone (the lobes'
+// shares cost more than they save there).
+struct ExitBinPairs {
+  int incidenceBin, bin;
+  bool transmission;
+  std::vector<double> nExit, nIncident;
+  OrderPrior prior;
+  bool drawLobes;
+};
+ExitBinPairs exitBinPairs(const WaveContext& ctx, const wave::Media& media, int incidenceBin, int bin, bool fromAbove,
+                          const GratingOrderWeights& weights) {
+  const bool upper = ctx.grid.isUpper(bin);
+  ExitBinPairs e;
+  e.incidenceBin = incidenceBin, e.bin = bin;
+  e.transmission = wave::isTransmission(media.conductor(), fromAbove, Vec3{0, 0, upper ? 1.0 : -1.0});
+  e.drawLobes = lobeRegime(ctx) != LobeRegime::Speckle;
+  for (size_t l = 0; l < ctx.lambda_um.size(); ++l) {
+    e.nIncident.push_back(media.incident(int(l), fromAbove));
+    e.nExit.push_back(e.transmission ? media.other(int(l), fromAbove) : e.nIncident.back());
+  }
+  const int hemisphere = upper ? 0 : 1;
+  e.prior = [&weights, hemisphere](long a, long b) { return weights.of(hemisphere, a, b); };
+  return e;
+}
+std::optional<DirectionPair> averagedPair(const WaveContext& ctx, const ExitBinPairs& e, PairDraw how,
                                           BinDirectionSampler& incidence, Sampler& s) {
   const DirectionGrid& grid = ctx.grid;
   DirectionPair d;
-  d.wo = grid.sampleCosine(bin, s).w;
-  d.transmission = wave::isTransmission(media.conductor(), fromAbove, d.wo);
-  std::vector<double> nExit, nIncident;
-  for (size_t l = 0; l < ctx.lambda_um.size(); ++l) {
-    nIncident.push_back(media.incident(int(l), fromAbove));
-    nExit.push_back(d.transmission ? media.other(int(l), fromAbove) : nIncident.back());
-  }
-  // Where the orders' lobes overlap into speckle the integrand is smooth in ωi: cosine-weighted
-  // directions alone (the lobes' shares cost more than they save there).
-  if (!ctx.window.active() || !ctx.scene.periodic() ||
-      orderLobesSeparate(ctx.window.sigma(), ctx.scene.sizeX(), ctx.scene.sizeY())) {
-    const int hemisphere = d.wo.z >= 0 ? 0 : 1;
-    incidence.findLobesFrom(ctx, d.wo, nExit, nIncident, [&](long a, long b) { return weights.of(hemisphere, a, b); });
-  } else {
+  d.wo = grid.sampleCosine(e.bin, s).w;
+  d.transmission = e.transmission;
+  if (e.drawLobes)
+    incidence.findLobesFrom(ctx, d.wo, e.nExit, e.nIncident, e.prior);
+  else
     incidence.clearLobes();
-  }
   if (!incidence.sampleMixture(how.draw, s, &d.wi)) return std::nullopt;
   // cos θo / Ω⊥(bin) × the mixture's density in dx_i dy_i (cos θi dωi = dx_i dy_i), × Ω⊥(incidence):
   // the balance heuristic over the two draws in their fixed proportions (Veach 1997 §9.2).
-  d.pdf = std::abs(d.wo.z) / grid.projectedSolidAngle(bin) * incidence.mixtureDensity(d.wi, how.cosineShare) *
-          grid.projectedSolidAngle(incidenceBin);
+  d.pdf = std::abs(d.wo.z) / grid.projectedSolidAngle(e.bin) * incidence.mixtureDensity(d.wi, how.cosineShare) *
+          grid.projectedSolidAngle(e.incidenceBin);
   return d;
 }
 
@@ -455,10 +486,7 @@ PlaneTerm planeTermOf(const WaveContext& ctx, const MeanPlaneControl& control, c
 GratingOrderWeights AreaWaveEstimator::orderWeights(int tile, int incidenceBin, const wave::Media& media,
                                                     bool fromAbove, uint64_t budget, uint64_t* rays) const {
   GratingOrderWeights w;
-  const CoherenceWindow& win = ctx_.window;
-  if (!win.active() || !ctx_.scene.periodic() ||
-      !orderLobesSeparate(win.sigma(), ctx_.scene.sizeX(), ctx_.scene.sizeY()))
-    return w;
+  if (lobeRegime(ctx_) != LobeRegime::Orders) return w;
   const int nL = int(ctx_.lambda_um.size()), lm = nL / 2;
   const double k0 = 2 * kPi / ctx_.lambda_um[size_t(lm)], Lx = ctx_.scene.sizeX(), Ly = ctx_.scene.sizeY();
   const double nI = media.incident(lm, fromAbove), nOther = media.conductor() ? nI : media.other(lm, fromAbove);
@@ -481,8 +509,8 @@ GratingOrderWeights AreaWaveEstimator::orderWeights(int tile, int incidenceBin, 
     const double nO = transmission ? nOther : nI;
     for (long a = w.aMin; a < w.aMin + w.na; ++a)
       for (long b = w.bMin; b < w.bMin + w.nb; ++b) {
-        const double x = -(2 * kPi * a / Lx + nI * k0 * wi.x) / (nO * k0);
-        const double y = -(2 * kPi * b / Ly + nI * k0 * wi.y) / (nO * k0), r2 = x * x + y * y;
+        const auto [x, y] = orderDirectionXY(a, b, Lx, Ly, nI, nO, k0, wi);
+        const double r2 = x * x + y * y;
         if (r2 < 1)
           orders.push_back(
               {h, size_t((a - w.aMin) * w.nb + (b - w.bMin)), Vec3{x, y, zs * std::sqrt(1 - r2)}, transmission, nO});
@@ -583,6 +611,9 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
     const int T = exactDirection ? dirs.techniques() : 2;
     const int nCosine = std::clamp(BinDirectionSampler::uniformCount(M), 1, std::max(1, M - 1));
     uint64_t localRays = 0;
+    const std::optional<ExitBinPairs> pairs =
+        exactDirection ? std::nullopt
+                       : std::optional<ExitBinPairs>(exitBinPairs(ctx_, media, incidenceBin, b, fromAbove, weights));
     for (int k = 0; k < M; ++k) {
       // Keyed by (bin, direction): M differs between bins.
       Sampler s(ctx_.settings.seed, uint32_t(tile), (uint64_t(b) << 32) | uint64_t(k), kWaveStream);
@@ -590,8 +621,7 @@ WaveTileResult AreaWaveEstimator::run(const TileRequest& request, const std::fun
       if (!exactDirection) {
         const PairDraw how{k < nCosine ? IncidenceDraw::Cosine : IncidenceDraw::Lobes, double(nCosine) / M};
         stratum[size_t(k)] = k < nCosine ? 0 : 1;
-        if (const std::optional<DirectionPair> d =
-                averagedPair(ctx_, media, incidenceBin, b, fromAbove, weights, how, incidence, s))
+        if (const std::optional<DirectionPair> d = averagedPair(ctx_, *pairs, how, incidence, s))
           directionPowers({d->wi, d->wo, d->transmission, d->pdf}, k, nL, N_k, masked, media, fromAbove, s, pv, pm,
                           &localRays);
         continue;

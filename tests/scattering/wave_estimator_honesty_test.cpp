@@ -44,7 +44,10 @@ std::vector<HonestyCase> honestyCases() {
 }
 
 struct Honesty {
-  double meanZ2 = 0, worstZeroErrorDev = 0, total = 0, refTotal = 0;
+  double meanZ2 = 0, total = 0, refTotal = 0;
+  // The largest deviation from the reference of a bin at 0 ± 0 (÷ the reference's peak), and the
+  // same beyond 3 of the reference's own errors.
+  double worstZeroErrorDev = 0, worstZeroErrorBeyondRef = 0;
   double totalSd = 0;  // the spread of one seed's hemispherical energy over the seeds
   int tested = 0, beyond3 = 0;
 };
@@ -77,9 +80,11 @@ Honesty honesty(const HonestyCase& hc, const std::string& estimator, bool collim
       const double refSe = std::hypot(rr.fwsErr[size_t(b)], std::max(1e-5 * scale, 1e-3 * std::abs(rr.fws[size_t(b)])));
       const double se = std::hypot(r.fwsErr[size_t(b)], refSe);
       const double dev = r.fws[size_t(b)] - rr.fws[size_t(b)];
-      if (r.fwsErr[size_t(b)] <= 1e-9 * scale)
-        h.worstZeroErrorDev =
-            std::max(h.worstZeroErrorDev, std::max(0.0, std::abs(dev) - 3 * rr.fwsErr[size_t(b)]) / scale);
+      if (r.fwsErr[size_t(b)] <= 1e-9 * scale) {
+        h.worstZeroErrorDev = std::max(h.worstZeroErrorDev, std::abs(dev) / scale);
+        h.worstZeroErrorBeyondRef =
+            std::max(h.worstZeroErrorBeyondRef, std::max(0.0, std::abs(dev) - 3 * rr.fwsErr[size_t(b)]) / scale);
+      }
       if (std::abs(rr.fws[size_t(b)]) <= 1e-5 * scale && r.fwsErr[size_t(b)] <= 1e-5 * scale) continue;
       const double z = dev / se;
       z2 += z * z;
@@ -133,7 +138,7 @@ TEST(WaveHonesty, AreaOnFlatInterfacesGivesFresnel) {
       // A bin at 0 ± 0: the reference's tails at most, beyond 3 of its own errors (over the incidence
       // bin `exact` fills the bins diagonal to the incidence bin's image with 1e-4–1e-2 of the peak
       // at errors of 70–100 %, and `area`'s pairs rarely reach their corners).
-      EXPECT_LT(h.worstZeroErrorDev, 1e-5) << key;
+      EXPECT_LT(h.worstZeroErrorBeyondRef, 1e-5) << key;
       if (hc.name.rfind("flat", 0) != 0) continue;
       EXPECT_NEAR(h.total, h.refTotal, 4 * h.totalSd / std::sqrt(double(seeds)) + 1e-3) << key;
       EXPECT_LT(h.totalSd, collimated ? 0.1 : 0.2) << key;
