@@ -19,6 +19,7 @@
 #include "optics/fresnel.h"
 #include "scattering/coherence_window.h"
 #include "scattering/fft_estimator.h"
+#include "scattering/flat_interface.h"
 #include "scattering/kirchhoff_ensemble.h"
 #include "scattering/wave_common.h"
 #include "scattering/single_scattering.h"
@@ -928,20 +929,66 @@ std::optional<KirchhoffEnsemble> jobEnsemble(const Job& job) {
   return ensemble;
 }
 
-EnsembleSlice ensembleSlice(const Job& job, const KirchhoffEnsemble& ensemble, const DirectionGrid& grid, int incidence,
-                            double lambda_nm, const std::vector<int>& cellOf) {
-  const IncidenceDirection& inc = job.incidence[size_t(incidence)];
+namespace {
+// Incidence i as the job samples it: kEnsembleIncidenceNodes directions over its bin, or its exact
+// direction, with weights summing to 1.
+std::vector<std::pair<Vec3, double>> incidenceNodes(const Job& job, const DirectionGrid& grid, int i) {
+  const IncidenceDirection& inc = job.incidence[size_t(i)];
   std::optional<Vec3> exact;
   if (job.exactIncidence) exact = sphericalDirection(radians(inc.theta_deg), radians(inc.phi_deg));
   std::vector<std::pair<Vec3, double>> wi;
   for (const wave::IncidenceNode& n : wave::incidenceRule(grid, inc.bin, exact, kEnsembleIncidenceNodes))
     if (n.high) wi.emplace_back(n.wi, n.weight);
+  return wi;
+}
+}  // namespace
+
+EnsembleSlice ensembleSlice(const Job& job, const KirchhoffEnsemble& ensemble, const DirectionGrid& grid, int incidence,
+                            double lambda_nm, const std::vector<int>& cellOf) {
   const Complex eta = job.material.ior(lambda_nm * 1e-3);
   const double nOut = job.material.outsideIor;
   const auto reflectance = [&](double c) {
     return job.material.isPerfectConductor() ? 1.0 : fresnelReflectance(c, nOut, eta);
   };
-  return ensemble.slice(grid, wi, lambda_nm * 1e-3, nOut, reflectance, cellOf, cellCount(cellOf));
+  return ensemble.slice(grid, incidenceNodes(job, grid, incidence), lambda_nm * 1e-3, nOut, reflectance, cellOf,
+                        cellCount(cellOf));
+}
+
+bool jobFlatInterface(const Job& job) {
+  const Microgeometry& g = job.geometry;
+  if (job.statistical || !g.periodic || g.vertices.empty() || g.triangles.empty()) return false;
+  const double z0 = g.vertices.front().z, tol = 1e-9 * std::max({1.0, g.sizeX, g.sizeY});
+  for (const Vec3& v : g.vertices)
+    if (std::abs(v.z - z0) > tol) return false;
+  if (job.material.isConductor()) {
+    for (const IncidenceDirection& inc : job.incidence)
+      if (inc.theta_deg >= 90) return false;
+    return true;
+  }
+  for (double l_nm : job.lambda_nm)
+    if (job.material.ior(l_nm * 1e-3).imag() != 0) return false;  // absorbed inside: pilots decide
+  return true;
+}
+
+EnsembleSlice flatInterfaceSliceOf(const Job& job, const DirectionGrid& grid, int incidence, double lambda_nm,
+                                   const std::vector<int>& cellOf) {
+  const std::vector<std::pair<Vec3, double>> wi = incidenceNodes(job, grid, incidence);
+  const bool fromAbove = wi.empty() || wi.front().first.z >= 0;
+  const Material& m = job.material;
+  const double nOut = m.outsideIor;
+  FlatInterfaceMedia media{nOut, std::nullopt, [](double) { return 1.0; }};
+  if (m.isConductor()) {
+    const Complex eta = m.ior(lambda_nm * 1e-3);
+    if (!m.isPerfectConductor()) media.reflectance = [=](double c) { return fresnelReflectance(c, nOut, eta); };
+  } else {
+    const double nIn = m.ior(lambda_nm * 1e-3).real();
+    media.nIncident = fromAbove ? nOut : nIn;
+    media.nBeyond = fromAbove ? nIn : nOut;
+    const double n1 = media.nIncident, n2 = *media.nBeyond;
+    media.reflectance = [=](double c) { return fresnelReflectance(c, n1, Complex(n2)); };
+  }
+  return flatInterfaceSlice(grid, wi, lambda_nm * 1e-3, media, windowSigma(job.scene.coherenceLength_um), cellOf,
+                            cellCount(cellOf));
 }
 
 namespace {
@@ -967,48 +1014,107 @@ std::vector<double> ensembleWavelengths(const Job& job) {
   return v;
 }
 
+// The largest distance of a closed-form wave table from geometric optics (EnsembleSlice) over the
+// job's computed incidences (at most kEnsembleMaxIncidences, else the pilot incidences) and the
+// given wavelengths, and where its L1 part lies.
+struct ClosedFormDistance {
+  double l1 = -1, upper = -1, theta_deg = 0, lambda_nm = 0;
+  size_t incidences = 0;
+  bool everyIncidence = false;
+};
+ClosedFormDistance closedFormDistance(const Job& job, const std::vector<double>& lambdas,
+                                      const std::function<EnsembleSlice(int, double)>& slice) {
+  const std::vector<int> computed = computedIncidences(job);
+  ClosedFormDistance d;
+  d.everyIncidence = computed.size() <= size_t(kEnsembleMaxIncidences);
+  const std::vector<int> evaluated = d.everyIncidence ? computed : pilotIncidences(job);
+  d.incidences = evaluated.size();
+  for (int i : evaluated)
+    for (double l_nm : lambdas) {
+      const EnsembleSlice s = slice(i, l_nm);
+      if (s.l1() > d.l1) d.l1 = s.l1(), d.theta_deg = job.incidence[size_t(i)].theta_deg, d.lambda_nm = l_nm;
+      d.upper = std::max(d.upper, s.upperBound());
+    }
+  return d;
+}
+
+// "On" where the L1 distance exceeds the tolerance anywhere (keeping diffraction never makes a table
+// wrong), "off" for every tile where the upper bound stays below it at every computed incidence;
+// otherwise none (the pilots decide). `bound` says what the upper bound counts.
+std::optional<nlohmann::json> closedFormDiffractionDecision(const Job& job, const ClosedFormDistance& d,
+                                                            const std::string& surface, const std::string& bound,
+                                                            const std::string& decidedBy) {
+  const double tol = job.scene.tolerance;
+  const bool on = d.l1 > tol;
+  if (!on && !(d.everyIncidence && d.upper <= tol)) return std::nullopt;
+  const std::string cells = job.scene.angularResolution_deg > 0 ? " on the bins pooled to the renderer's " +
+                                                                      fmt3(job.scene.angularResolution_deg) + " deg"
+                                                                : "";
+  nlohmann::json j = decision(
+      "incoherent", on,
+      on ? surface + cells + " differs from geometric optics by " + fmt3(d.l1) +
+               " (sum|f_ws - f_gs| * proj. solid angle) at theta " + fmt3(d.theta_deg) + " deg, " + fmt3(d.lambda_nm) +
+               " nm, beyond the tolerance " + fmt3(tol) + ": on, no pilot needed"
+         : surface + cells + " differs from geometric optics by at most " + fmt3(d.upper) + " (" + bound +
+               ") at every one of the " + std::to_string(d.incidences) + " computed incidences, below the tolerance " +
+               fmt3(tol) + ": off, for every tile, no pilot needed");
+  j["decided_by"] = decidedBy;
+  j["closed_form_l1"] = d.l1;
+  j["closed_form_upper"] = d.upper;
+  j["closed_form_theta_deg"] = d.theta_deg;
+  j["closed_form_lambda_nm"] = d.lambda_nm;
+  j["closed_form_incidences"] = d.incidences;
+  j["wave_pilots_run"] = 0;
+  return j;
+}
+
 std::optional<nlohmann::json> ensembleDiffractionDecision(const Job& job, const DirectionGrid& grid) {
   const std::optional<KirchhoffEnsemble> ensemble = jobEnsemble(job);
   if (!ensemble) return std::nullopt;
-  const std::vector<int> computed = computedIncidences(job);
-  const bool everyIncidence = computed.size() <= size_t(kEnsembleMaxIncidences);
-  const std::vector<int> evaluated = everyIncidence ? computed : pilotIncidences(job);
-  const std::vector<double> lambdas = ensembleWavelengths(job);
   const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
-  double l1 = -1, upper = -1, theta = 0, lambda = 0;
-  for (int i : evaluated)
-    for (double l_nm : lambdas) {
-      const EnsembleSlice s = ensembleSlice(job, *ensemble, grid, i, l_nm, cellOf);
-      if (s.l1() > l1) l1 = s.l1(), theta = job.incidence[size_t(i)].theta_deg, lambda = l_nm;
-      upper = std::max(upper, s.upperBound());
-    }
+  const ClosedFormDistance d = closedFormDistance(job, ensembleWavelengths(job), [&](int i, double l_nm) {
+    return ensembleSlice(job, *ensemble, grid, i, l_nm, cellOf);
+  });
   const double sigmaH = ensemble->rmsHeight_um(), alpha = ensemble->rmsSlope();
   const double ell = ensemble->correlationLength_um();
-  const double tol = job.scene.tolerance;
-  const bool on = l1 > tol;
-  if (!on && !(everyIncidence && upper <= tol)) return std::nullopt;
   const std::string surface = "the Kirchhoff ensemble of a Gaussian surface of rms height " + fmt3(sigmaH) +
                               " um and rms slope " + fmt3(alpha) + " (correlation length " + fmt3(ell) +
                               " um; Beckmann & Spizzichino 1963)";
-  nlohmann::json d = decision("incoherent", on,
-                              on ? surface + " differs from geometric optics by " + fmt3(l1) +
-                                       " (sum|f_ws - f_gs| * proj. solid angle) at theta " + fmt3(theta) + " deg, " +
-                                       fmt3(lambda) + " nm, beyond the tolerance " + fmt3(tol) + ": on, no pilot needed"
-                                 : surface + " differs from geometric optics by at most " + fmt3(upper) +
-                                       " (its whole diffuse part counted as a difference) at every one of the " +
-                                       std::to_string(evaluated.size()) + " computed incidences, below the tolerance " +
-                                       fmt3(tol) + ": off, for every tile, no pilot needed");
-  d["decided_by"] = "kirchhoff ensemble";
-  d["ensemble_l1"] = l1;
-  d["ensemble_upper"] = upper;
-  d["ensemble_theta_deg"] = theta;
-  d["ensemble_lambda_nm"] = lambda;
-  d["ensemble_incidences"] = evaluated.size();
-  d["rms_height_um"] = sigmaH;
-  d["rms_slope"] = alpha;
-  d["correlation_length_um"] = ell;
-  d["wave_pilots_run"] = 0;
-  return d;
+  std::optional<nlohmann::json> j = closedFormDiffractionDecision(
+      job, d, surface, "its whole diffuse part counted as a difference", "kirchhoff ensemble");
+  if (!j) return j;
+  (*j)["rms_height_um"] = sigmaH;
+  (*j)["rms_slope"] = alpha;
+  (*j)["correlation_length_um"] = ell;
+  return j;
+}
+
+// A flat interface: every job wavelength up to 16 (the beams' spread grows with λ, R and T change
+// with it), beyond that those of the ensemble's choice and the extremes of the index.
+std::optional<nlohmann::json> flatDiffractionDecision(const Job& job, const DirectionGrid& grid) {
+  if (!jobFlatInterface(job)) return std::nullopt;
+  std::vector<double> lambdas = job.lambda_nm;
+  if (lambdas.size() > 16) {
+    lambdas = ensembleWavelengths(job);
+    auto index = [&](double l_nm) { return job.material.ior(l_nm * 1e-3).real(); };
+    const auto [lo, hi] = std::minmax_element(job.lambda_nm.begin(), job.lambda_nm.end(),
+                                              [&](double a, double b) { return index(a) < index(b); });
+    lambdas.insert(lambdas.end(), {*lo, *hi});
+  }
+  const std::vector<int> cellOf = resolutionCells(grid, job.scene.angularResolution_deg);
+  const ClosedFormDistance d = closedFormDistance(
+      job, lambdas, [&](int i, double l_nm) { return flatInterfaceSliceOf(job, grid, i, l_nm, cellOf); });
+  return closedFormDiffractionDecision(job, d,
+                                       "a flat interface (its specular beams spread by the coherence window's "
+                                       "diffraction, in closed form)",
+                                       "exact: a flat patch has no speckle", "flat interface");
+}
+
+// Diffraction from physics before any pilot, where a closed form holds: a flat interface, or the
+// Kirchhoff ensemble of a random rough surface.
+std::optional<nlohmann::json> physicsDiffractionDecision(const Job& job, const DirectionGrid& grid) {
+  if (std::optional<nlohmann::json> d = flatDiffractionDecision(job, grid)) return d;
+  return ensembleDiffractionDecision(job, grid);
 }
 
 nlohmann::json diffractionVerdict(const PilotContext& ctx, const DiffractionPilots& m) {
@@ -1274,7 +1380,7 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, Pilo
   // A job that averages over its incidence bins has its diffraction pilots compared with beams
   // through the bins' centres (PilotContext::beam): room is left for one such geometric pilot each.
   // Diffraction from physics first where it applies (a random rough surface): no wave pilot then.
-  const std::optional<nlohmann::json> physicsDiffraction = ensembleDiffractionDecision(job, grid);
+  const std::optional<nlohmann::json> physicsDiffraction = physicsDiffractionDecision(job, grid);
   const bool diffractionPilots = !job.statistical && !physicsDiffraction;
   std::optional<DiffractionPilotSetup> diffractionSetup;
   if (diffractionPilots) diffractionSetup = diffractionPilotSetup(job, grid, *transport.scene(), ws);

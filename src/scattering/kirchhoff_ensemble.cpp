@@ -42,19 +42,6 @@ double kirchhoffDiffuseSeries(double g, double X) {
   return g * sum;
 }
 
-namespace {
-
-// Smith's masking for the Beckmann NDF of width α (Walter et al. 2007, Eq. 27, exact Λ).
-double smithG1(double cosTheta, double alpha) {
-  if (cosTheta >= 1.0 || alpha <= 0) return 1.0;
-  const double sinTheta = std::sqrt(std::max(0.0, 1.0 - cosTheta * cosTheta));
-  const double a = cosTheta / (alpha * sinTheta);
-  const double lambda = 0.5 * (std::erf(a) - 1.0) + std::exp(-a * a) / (2.0 * a * std::sqrt(kPi));
-  return 1.0 / (1.0 + lambda);
-}
-
-// Deterministic stratified samples of a 2D Gaussian of unit standard deviation per axis (polar
-// strata: radius from the Rayleigh quantile, angle uniform), equal weights.
 std::vector<std::pair<double, double>> gaussianStrata(int nRadius, int nAngle) {
   std::vector<std::pair<double, double>> s;
   for (int i = 0; i < nRadius; ++i) {
@@ -65,6 +52,17 @@ std::vector<std::pair<double, double>> gaussianStrata(int nRadius, int nAngle) {
     }
   }
   return s;
+}
+
+namespace {
+
+// Smith's masking for the Beckmann NDF of width α (Walter et al. 2007, Eq. 27, exact Λ).
+double smithG1(double cosTheta, double alpha) {
+  if (cosTheta >= 1.0 || alpha <= 0) return 1.0;
+  const double sinTheta = std::sqrt(std::max(0.0, 1.0 - cosTheta * cosTheta));
+  const double a = cosTheta / (alpha * sinTheta);
+  const double lambda = 0.5 * (std::erf(a) - 1.0) + std::exp(-a * a) / (2.0 * a * std::sqrt(kPi));
+  return 1.0 / (1.0 + lambda);
 }
 
 // An isotropic Gaussian of slopes, P22 = exp(−|s|²/a²) / (π a²), restricted to rmin <= |s| < rmax:

@@ -22,6 +22,7 @@
 // energy bounds it).
 #pragma once
 #include <functional>
+#include <utility>
 #include <vector>
 
 #include "core/direction_grid.h"
@@ -41,6 +42,10 @@ struct EnsembleSlice {
 
 // The ensemble's diffuse series g S(g, X) (see above); tends to e^{−X/g} as g → ∞.
 double kirchhoffDiffuseSeries(double g, double X);
+
+// Deterministic stratified samples of a 2D Gaussian of unit standard deviation per axis (polar
+// strata: radius from the Rayleigh quantile, angle uniform), equal weights.
+std::vector<std::pair<double, double>> gaussianStrata(int nRadius, int nAngle);
 
 class KirchhoffEnsemble {
  public:

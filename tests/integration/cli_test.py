@@ -716,17 +716,20 @@ def test_effects_skip_verified():
 
 def test_effects_diffraction_verified():
     """A diffraction skip the pilots could not see is caught on the tile: a flat mirror under a 2 mm
-    coherence length lit along eight exact directions at the centres of the azimuthal bins. Seven
-    reflect into the middle of a polar ring, where the window's 0.02 deg lobe stays in one bin as the
-    geometric spike does (WS - GS ~ 3e-8), so the pilots (the budget affords four wave pilots, none
-    at 22.5 deg) turn diffraction off. At 22.5 deg the specular direction lies on the edge between
-    two rings: the lobe splits between them and WS - GS is about 1. The tiles the pilots ran as the
-    job does keep their figure (incoherent stored as 0); every other tile computes its wave term, and
-    the 22.5 deg slice, past the tolerance, keeps it. Per slice and wavelength the auto table is
-    within the tolerance of the full one, auto does no more wave work than the full table, and
-    `info` names the re-enabled slice."""
-    inc = ("[[5.625, 11.25], [10.0, 11.25], [20.0, 11.25], [22.5, 11.25], [30.0, 11.25], [40.0, 11.25], "
-           "[50.0, 11.25], [60.0, 11.25]]")
+    coherence length lit along 66 exact directions (more than the 64 the planner's closed form for a
+    flat interface covers, so the pilots decide), 65 of them reflected into the middle of a bin, where
+    the window's 0.02 deg lobe stays in one bin as the geometric spike does (WS - GS ~ 3e-8): the
+    pilots (six, none at 22.5 deg) turn diffraction off. At 22.5 deg the specular direction lies on the
+    edge between two rings: the lobe splits between them and WS - GS is about 1. The tiles the pilots
+    ran as the job does keep their figure (incoherent stored as 0); every other tile computes its wave
+    term, and the 22.5 deg slice, past the tolerance, keeps it. Per slice and wavelength the auto
+    table is within the tolerance of the full one, auto does no more wave work than the full table,
+    and `info` names the re-enabled slice."""
+    thetas = [5.625, 10.0, 16.875, 20.0, 28.125, 30.0, 39.375, 42.0, 50.625, 53.0, 61.875, 64.0, 73.125]
+    directions_deg = [[t, p] for p in (11.25, 78.75, 146.25, 213.75, 281.25) for t in thetas]
+    directions_deg.insert(3, [22.5, 11.25])
+    n = len(directions_deg)
+    inc = json.dumps(directions_deg)
     geo, mat = 'kind = "flat"\nsize_um = [10.0, 10.0]', 'name = "mirror"'
     scene, directions = "coherence_length_um = 2000.0", 'incidence_sampling = "exact"'
     auto = effects_job(os.path.join(TMP, "edge-auto.toml"), geo, mat, scene, incidence=inc, directions=directions)
@@ -747,10 +750,10 @@ def test_effects_diffraction_verified():
         assert 3 not in verified and len(verified) >= 3, plan
         check = a["/stats/diffraction_check"][:]
         assert np.all(np.isfinite(check)), check
-        assert list(a["/stats/diffraction_reenabled"][:]) == [int(i == 3) for i in range(8)], check
+        assert list(a["/stats/diffraction_reenabled"][:]) == [int(i == 3) for i in range(n)], check
         assert check[3] > 0.5, check
         # Slices a pilot verified hold no incoherent and drew no wave sample; the others drew the full table's.
-        for i in range(8):
+        for i in range(n):
             if i in verified:
                 assert a["/stats/wave_samples"][i] == 0 and not np.any(a["/bsdf/incoherent"][i]), i
             else:
@@ -765,7 +768,7 @@ def test_effects_diffraction_verified():
         incoherent_full = float(np.sum(np.abs(b["/bsdf/incoherent"][3, 0]) * op))
         samples = [float(np.sum(f["/stats/wave_samples"][:])) for f in (a, b)]
     info = run(["info", "edge-auto.h5"]).stdout
-    assert "diffraction: skipped by the effects planner, verified on 8 slice(s)" in info, info
+    assert f"diffraction: skipped by the effects planner, verified on {n} slice(s)" in info, info
     assert "computed after all, on slice(s) 3" in info, info
     print(f"flat mirror, exact incidences: diffraction skipped by {len(verified)} pilots; slice 3 (22.5 deg, on a ring "
           f"edge) re-enabled (check {check[3]:.3f}; the full table's incoherent there: {incoherent_full:.3f}); every "
