@@ -1488,7 +1488,11 @@ void applyEffectsPlan(Job& job, const EffectsPlan& plan) {
   }
   job.waveTransmission = plan.waveTransmission.value_or(true);
   if (plan.lambda_nm) job.lambda_nm = *plan.lambda_nm;
-  if (plan.waveEstimator) job.waveEstimator = *plan.waveEstimator;
+  if (plan.waveEstimator) {
+    const bool named = job.waveEstimator.has_value();
+    job.waveEstimator = *plan.waveEstimator;
+    if (const EffectDecision* e = plan.find(Effect::Estimator); e && !named) job.waveEstimatorPlanned = e->reason;
+  }
   job.effectsPlan = plan.toJson().dump();
 }
 

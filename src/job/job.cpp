@@ -661,7 +661,10 @@ Job loadJobFromString(const std::string& text, const std::string& sourceName, co
 }
 
 WaveEstimatorKind Job::resolvedWaveEstimator() const {
-  if (waveEstimator) return *waveEstimator;
+  return waveEstimator ? *waveEstimator : staticWaveEstimator();
+}
+
+WaveEstimatorKind Job::staticWaveEstimator() const {
   const double sigma = windowSigma(scene.coherenceLength_um);
   if (geometry.periodic && orderLobesSeparate(sigma, cellSizeX(), cellSizeY())) {
     // The deterministic `exact` has no sampling error, and costs about as much as 8–12 points of
@@ -700,8 +703,17 @@ double Job::exactOrdersPerBin() const {
 }
 
 std::string Job::waveEstimatorChoice() const {
+  if (waveEstimatorPlanned) {
+    // The planner keeps the static pick where it meets the tolerance: then say why it was picked.
+    const std::string planned = "chosen by the effects planner: " + *waveEstimatorPlanned;
+    return staticWaveEstimator() == *waveEstimator ? planned + "; " + staticWaveEstimatorReason() : planned;
+  }
   if (waveEstimator) return "named by the job";
-  const WaveEstimatorKind e = resolvedWaveEstimator();
+  return staticWaveEstimatorReason();
+}
+
+std::string Job::staticWaveEstimatorReason() const {
+  const WaveEstimatorKind e = staticWaveEstimator();
   if (deterministicEstimator(e))
     return fmt::format("chosen as deterministic: {:.3g} facets per cell, {:.3g} orders per bin", facetsPerCell(),
                        exactOrdersPerBin());

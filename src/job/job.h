@@ -118,6 +118,8 @@ struct Job {
   int maxDepth = 100;
   uint64_t seed = 1;
   std::optional<WaveEstimatorKind> waveEstimator;  // none: "auto", resolved by resolvedWaveEstimator()
+  // Why the effects planner set waveEstimator (applyEffectsPlan); none: the job named it or none.
+  std::optional<std::string> waveEstimatorPlanned;
   int64_t waveSamplesPerBin = 256;
   int64_t wavePointsPerDirection = 64;
   int64_t waveIncidenceDirections = 4;
@@ -151,6 +153,9 @@ struct Job {
   WaveEstimatorKind resolvedWaveEstimator() const;
   // Why the wave estimator is the one it is, for the log.
   std::string waveEstimatorChoice() const;
+  // The estimator the job's keys give when it names none, and why.
+  WaveEstimatorKind staticWaveEstimator() const;
+  std::string staticWaveEstimatorReason() const;
   // Why the wave term's stored standard errors are not vouched for, where they are not: `paper`'s
   // bias estimate. None for deterministic estimators, and for `area` and `orders`, whose errors are
   // measured against `exact` (docs/physics.md §5).

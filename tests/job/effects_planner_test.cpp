@@ -533,3 +533,24 @@ TEST(EffectsPlanner, KirchhoffEnsembleAgreesWithTheFftEvaluatorOnARoughSurface) 
     EXPECT_GT(ens / realisation, 1 / 1.5);
   }
 }
+
+// The log names who chose the wave estimator: a job that names none and runs under `auto` gets the
+// planner's choice, said to be the planner's, with the static rule's reason where it kept it; one
+// that names it keeps "named by the job".
+TEST(EffectsPlanner, WaveEstimatorChoiceNamesTheChooser) {
+  auto load = [](const std::string& sampling) {
+    return loadJobFromString(
+        "[geometry]\nkind = \"flat\"\nsize_um = [10.0, 10.0]\n[material]\nname = \"mirror\"\n[spectrum]\n"
+        "wavelengths_nm = [550.0]\n[directions]\nn_theta = 8\nn_phi = 16\nincidence = [[30.0, 0.0]]\n[sampling]\n"
+        "paths_per_slice = 20000\n" +
+            sampling,
+        "t.toml", "");
+  };
+  Job job = load("");
+  applyEffectsPlan(job, planEffects(job));
+  EXPECT_EQ(job.waveEstimatorChoice().rfind("chosen by the effects planner: ", 0), 0u) << job.waveEstimatorChoice();
+  EXPECT_NE(job.waveEstimatorChoice().find("chosen as deterministic"), std::string::npos) << job.waveEstimatorChoice();
+  Job named = load("wave_estimator = \"exact\"\n");
+  applyEffectsPlan(named, planEffects(named));
+  EXPECT_EQ(named.waveEstimatorChoice(), "named by the job");
+}
