@@ -956,7 +956,11 @@ EnsembleSlice ensembleSlice(const Job& job, const KirchhoffEnsemble& ensemble, c
 
 bool jobFlatInterface(const Job& job) {
   const Microgeometry& g = job.geometry;
-  if (job.statistical || !g.periodic || g.vertices.empty() || g.triangles.empty()) return false;
+  // Without a window the wave model takes one copy of the patch, whose aperture's diffraction the
+  // closed form does not hold; holes or cracks diffract too.
+  if (job.statistical || !g.periodic || g.vertices.empty() || g.triangles.empty() || !job.closure.closed() ||
+      !(job.scene.coherenceLength_um > 0))
+    return false;
   const double z0 = g.vertices.front().z, tol = 1e-9 * std::max({1.0, g.sizeX, g.sizeY});
   for (const Vec3& v : g.vertices)
     if (std::abs(v.z - z0) > tol) return false;

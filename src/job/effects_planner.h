@@ -98,10 +98,9 @@ std::optional<KirchhoffEnsemble> jobEnsemble(const Job& job);
 EnsembleSlice ensembleSlice(const Job& job, const KirchhoffEnsemble& ensemble, const DirectionGrid& grid, int i,
                             double lambda_nm, const std::vector<int>& cellOf);
 // A flat interface (scattering/flat_interface.h), from which the diffraction decision is taken in
-// closed form before any pilot: a periodic patch whose vertices all lie in one plane, of a
-// conductor lit from above or a dielectric of real index at the job's wavelengths lit from either
-// side, whatever the geometry's kind. Its slice at incidence i as the job samples it, at
-// lambda_nm, pooled into the cells of cellOf.
+// closed form before any pilot: a closed periodic patch under a coherence window whose vertices all lie in one plane,
+// of a conductor lit from above or a dielectric of real index at the job's wavelengths lit from either side, whatever
+// the geometry's kind. Its slice at incidence i as the job samples it, at lambda_nm, pooled into the cells of cellOf.
 bool jobFlatInterface(const Job& job);
 EnsembleSlice flatInterfaceSliceOf(const Job& job, const DirectionGrid& grid, int i, double lambda_nm,
                                    const std::vector<int>& cellOf);

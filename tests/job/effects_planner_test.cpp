@@ -554,3 +554,23 @@ TEST(EffectsPlanner, WaveEstimatorChoiceNamesTheChooser) {
   applyEffectsPlan(named, planEffects(named));
   EXPECT_EQ(named.waveEstimatorChoice(), "named by the job");
 }
+
+// The flat interface's closed form only where it holds: a closed periodic patch in one plane under
+// a window. Not without a window (one copy of the patch, whose aperture diffracts), not on a patch
+// that does not repeat, nor with ground noise (the Kirchhoff ensemble's case).
+TEST(EffectsPlanner, FlatInterfaceOnlyWhereItsClosedFormHolds) {
+  auto flat = [](const std::string& geometry, const std::string& scene, const std::string& material,
+                 const std::string& incidence) {
+    return jobFlatInterface(loadJobFromString(
+        "[geometry]\nkind = \"flat\"\nsize_um = [10.0, 10.0]\n" + geometry + "[material]\n" + material +
+            "\n[spectrum]\nwavelengths_nm = [550.0]\n[directions]\nn_theta = 8\nn_phi = 16\nincidence = " + incidence +
+            "\n[scene]\n" + scene + "[sampling]\npaths_per_slice = 20000\n",
+        "t.toml", ""));
+  };
+  const std::string mirror = "name = \"mirror\"", glass = "kind = \"dielectric\"\nior = 1.5";
+  EXPECT_TRUE(flat("", "", mirror, "[[30.0, 0.0]]"));
+  EXPECT_TRUE(flat("", "", glass, "[[30.0, 0.0], [150.0, 0.0]]"));
+  EXPECT_FALSE(flat("", "coherence_length_um = 0.0\n", mirror, "[[30.0, 0.0]]"));
+  EXPECT_FALSE(flat("periodic = false\n", "", mirror, "[[30.0, 0.0]]"));
+  EXPECT_FALSE(flat("ground_noise_rms_nm = 1.0\n", "", mirror, "[[30.0, 0.0]]"));
+}
