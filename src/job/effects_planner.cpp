@@ -1093,12 +1093,13 @@ std::optional<nlohmann::json> ensembleDiffractionDecision(const Job& job, const 
   return j;
 }
 
-// A flat interface: every job wavelength up to 16 (the beams' spread grows with λ, R and T change
-// with it), beyond that those of the ensemble's choice and the extremes of the index.
+// A flat interface: every job wavelength up to kFlatWavelengths (the beams' spread grows with λ, R
+// and T change with it), beyond that those of the ensemble's choice and the extremes of the index.
+constexpr size_t kFlatWavelengths = 16;
 std::optional<nlohmann::json> flatDiffractionDecision(const Job& job, const DirectionGrid& grid) {
   if (!jobFlatInterface(job)) return std::nullopt;
   std::vector<double> lambdas = job.lambda_nm;
-  if (lambdas.size() > 16) {
+  if (lambdas.size() > kFlatWavelengths) {
     lambdas = ensembleWavelengths(job);
     auto index = [&](double l_nm) { return job.material.ior(l_nm * 1e-3).real(); };
     const auto [lo, hi] = std::minmax_element(job.lambda_nm.begin(), job.lambda_nm.end(),
@@ -1383,7 +1384,8 @@ EffectsPlan planEffects(const Job& job, const EffectsPilotOptions& options, Pilo
   const double budgetTiles = job.pilotBudget * computed;
   // A job that averages over its incidence bins has its diffraction pilots compared with beams
   // through the bins' centres (PilotContext::beam): room is left for one such geometric pilot each.
-  // Diffraction from physics first where it applies (a random rough surface): no wave pilot then.
+  // Diffraction from physics first where it applies (a flat interface, a random rough surface): no
+  // wave pilot then.
   const std::optional<nlohmann::json> physicsDiffraction = physicsDiffractionDecision(job, grid);
   const bool diffractionPilots = !job.statistical && !physicsDiffraction;
   std::optional<DiffractionPilotSetup> diffractionSetup;
